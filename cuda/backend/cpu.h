@@ -1,0 +1,71 @@
+// CPU backend: the per-element functors of cuda/ run in an OpenMP loop, and
+// sort/reduce go through Thrust's OpenMP system (DESIGN.md, "Backends").
+#pragma once
+
+#include <chrono>
+#include <cstdint>
+#include <vector>
+
+#include <thrust/iterator/counting_iterator.h>
+#include <thrust/reduce.h>
+#include <thrust/sequence.h>
+#include <thrust/sort.h>
+#include <thrust/gather.h>
+#include <thrust/fill.h>
+#include <thrust/count.h>
+#include <thrust/transform_reduce.h>
+#if defined(_OPENMP)
+#include <thrust/system/omp/execution_policy.h>
+#else
+#include <thrust/system/cpp/execution_policy.h>
+#endif
+
+#include "../../src/solver.h"
+
+namespace sphray::cpu_backend {
+
+constexpr Backend kBackend = Backend::Cpu;
+
+template <class T>
+using Vector = std::vector<T>;
+
+template <class T>
+T* raw(Vector<T>& v) { return v.data(); }
+template <class T>
+const T* raw(const Vector<T>& v) { return v.data(); }
+
+inline auto policy() {
+#if defined(_OPENMP)
+  return thrust::omp::par;
+#else
+  return thrust::cpp::par;
+#endif
+}
+
+template <class F>
+void parallel_for(uint32_t n, const F& f) {
+#pragma omp parallel for schedule(static)
+  for (int64_t i = 0; i < int64_t(n); ++i) f(uint32_t(i));
+}
+
+template <class T>
+void upload(Vector<T>& dst, const std::vector<T>& src) { dst.assign(src.begin(), src.end()); }
+
+template <class T>
+std::vector<T> download(const Vector<T>& v, size_t n) { return std::vector<T>(v.begin(), v.begin() + n); }
+
+template <class T>
+T read_one(const Vector<T>& v, size_t i) { return v[i]; }
+
+// Wall-clock marks between stages; the CPU backend is synchronous.
+class StageClock {
+ public:
+  void mark(int k) { t_[k] = std::chrono::steady_clock::now(); }
+  void finish(int) {}
+  double ms(int a, int b) const { return std::chrono::duration<double, std::milli>(t_[b] - t_[a]).count(); }
+
+ private:
+  std::chrono::steady_clock::time_point t_[8];
+};
+
+}  // namespace sphray::cpu_backend

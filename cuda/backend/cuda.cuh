@@ -1,0 +1,96 @@
+// CUDA backend: the per-element functors of cuda/ launched as kernels, Thrust
+// (CUB radix sort underneath) for sort, gather and reduce, CUDA events for
+// stage timing. Every CUDA call is checked.
+#pragma once
+
+#include <cstdint>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+#include <cuda_runtime.h>
+#include <thrust/count.h>
+#include <thrust/device_vector.h>
+#include <thrust/execution_policy.h>
+#include <thrust/fill.h>
+#include <thrust/gather.h>
+#include <thrust/iterator/counting_iterator.h>
+#include <thrust/reduce.h>
+#include <thrust/sequence.h>
+#include <thrust/sort.h>
+#include <thrust/transform_reduce.h>
+
+#include "../../src/solver.h"
+
+#define SPHRAY_CUDA_CHECK(expr)                                                                         \
+  do {                                                                                                  \
+    cudaError_t sphray_err_ = (expr);                                                                   \
+    if (sphray_err_ != cudaSuccess)                                                                     \
+      throw std::runtime_error(std::string(__FILE__) + ":" + std::to_string(__LINE__) + ": " #expr ": " + \
+                               cudaGetErrorString(sphray_err_));                                        \
+  } while (0)
+
+namespace sphray::cuda_backend {
+
+constexpr Backend kBackend = Backend::Cuda;
+
+template <class T>
+using Vector = thrust::device_vector<T>;
+
+template <class T>
+T* raw(Vector<T>& v) { return thrust::raw_pointer_cast(v.data()); }
+template <class T>
+const T* raw(const Vector<T>& v) { return thrust::raw_pointer_cast(v.data()); }
+
+inline auto policy() { return thrust::cuda::par; }
+
+template <class F>
+__global__ void for_each_index_kernel(uint32_t n, F f) {
+  const uint32_t i = blockIdx.x * blockDim.x + threadIdx.x;
+  if (i < n) f(i);
+}
+
+template <class F>
+void parallel_for(uint32_t n, const F& f) {
+  if (n == 0) return;
+  constexpr uint32_t kBlock = 128;
+  for_each_index_kernel<<<(n + kBlock - 1) / kBlock, kBlock>>>(n, f);
+  SPHRAY_CUDA_CHECK(cudaGetLastError());
+#if !defined(NDEBUG)
+  SPHRAY_CUDA_CHECK(cudaDeviceSynchronize());
+#endif
+}
+
+template <class T>
+void upload(Vector<T>& dst, const std::vector<T>& src) { dst.assign(src.begin(), src.end()); }
+
+template <class T>
+std::vector<T> download(const Vector<T>& v, size_t n) {
+  std::vector<T> out(n);
+  if (n) thrust::copy(v.begin(), v.begin() + n, out.begin());
+  return out;
+}
+
+template <class T>
+T read_one(const Vector<T>& v, size_t i) { return v[i]; }
+
+// CUDA events between stages; read after finish() synchronises.
+class StageClock {
+ public:
+  StageClock() { for (auto& e : ev_) SPHRAY_CUDA_CHECK(cudaEventCreate(&e)); }
+  ~StageClock() { for (auto& e : ev_) cudaEventDestroy(e); }
+  StageClock(const StageClock&) = delete;
+  StageClock& operator=(const StageClock&) = delete;
+  void mark(int k) { SPHRAY_CUDA_CHECK(cudaEventRecord(ev_[k])); }
+  void finish(int last) { SPHRAY_CUDA_CHECK(cudaEventSynchronize(ev_[last])); }
+  double ms(int a, int b) const {
+    float out = 0;
+    SPHRAY_CUDA_CHECK(cudaEventElapsedTime(&out, ev_[a], ev_[b]));
+    return out;
+  }
+
+ private:
+  cudaEvent_t ev_[8];
+};
+
+}  // namespace sphray::cuda_backend

@@ -1,0 +1,51 @@
+// Wall pressure of the generalized wall boundary condition of Adami, Hu &
+// Adams (2012, eq. 27): each wall particle takes the kernel-weighted pressure
+// of the fluid around it plus the hydrostatic difference between them,
+//   p_w = (sum_f p_f W_wf + g . sum_f rho_f (x_w - x_f) W_wf) / sum_f W_wf
+// (static walls, so no wall acceleration term). A wall then pushes with the
+// pressure the liquid would have there, whatever one particle's own density
+// does, which is what keeps a column at rest hydrostatic to the floor. Walls
+// only push: p_w is clamped at 0 (Adami et al. sec. 3.2 discuss the same).
+#pragma once
+
+#include <cstdint>
+
+#include "grid.h"
+#include "params.h"
+
+namespace sphray {
+
+struct WallPressure {
+  SphParams prm;
+  GridGeom grid;
+  const uint32_t* fluid_offsets;
+  const Float4* pos_rho;   // sorted fluid
+  const Float4* boundary;  // sorted boundary: x, y, z, volume
+  float* wall_pressure;    // out, per boundary particle [Pa]
+
+  SPHRAY_HD void operator()(uint32_t b) const {
+    const Vec3f xb = xyz(boundary[b]);
+    const float support2 = prm.kernel.support() * prm.kernel.support();
+    float sum_w = 0.0f, sum_pw = 0.0f;
+    Vec3f sum_rho_r = {0.0f, 0.0f, 0.0f};
+    for_each_candidate(grid, fluid_offsets, xb, [&](uint32_t f) {
+      const Float4 pf = pos_rho[f];
+      const Vec3f r = xb - xyz(pf);
+      const float r2 = length2(r);
+      if (r2 >= support2) return;
+      const float w = prm.kernel.W(std::sqrt(r2));
+      sum_w += w;
+      sum_pw += tait_pressure(prm, pf.w) * w;
+      sum_rho_r += (pf.w * w) * r;
+    });
+    const float p = sum_w > 0.0f ? (sum_pw + dot(prm.gravity, sum_rho_r)) / sum_w : 0.0f;
+    wall_pressure[b] = p > 0.0f ? p : 0.0f;
+  }
+};
+
+// Density that the Tait equation gives for a pressure (its inverse).
+SPHRAY_HD SPHRAY_FORCEINLINE float tait_density(const SphParams& p, float pressure) {
+  return p.rest_density * std::pow(1.0f + pressure / p.tait_b, 1.0f / 7.0f);
+}
+
+}  // namespace sphray

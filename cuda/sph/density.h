@@ -1,0 +1,86 @@
+// Density stage: continuity equation with the delta-SPH density-diffusion term
+// of Molteni & Colagrossi (2009, eq. 8) with the hydrostatic correction of
+// Fourtakas et al. (2019, "DDT" of DualSPHysics 5): only the departure from the
+// hydrostatic density difference diffuses, otherwise the one-sided free surface
+// pumps density upward and a tank at rest loses its hydrostatic profile. In the same
+// neighbour loop, the six-direction "particle presence" of Yasuda, Harada &
+// Kawaguchi (shared/papers, sec. 4.2.3).
+//
+// Presence, as defined here: for each signed axis direction d,
+//   P_d = min(1, s * sum_{j != i in half-space d} V_j W(r_ij) cos^2(angle(r_ij, d)))
+// The continuous integral of W cos^2 over a half space is 1/6; the particle's
+// own share dx^3 W(0) is not liquid around it, so s = 6 / (1 - dx^3 W(0)) and a
+// particle deep in the liquid reads ~1 in all six directions, a free-surface particle ~0
+// toward the air (~0.5 sideways, ~1 into the liquid) and an isolated one 0.
+// Only liquid counts: walls are not liquid.
+#pragma once
+
+#include <cstdint>
+
+#include "grid.h"
+#include "params.h"
+
+namespace sphray {
+
+template <bool WithPresence>
+struct DensityRate {
+  SphParams prm;
+  GridGeom grid;
+  const uint32_t* fluid_offsets;
+  const Float4* pos_rho;  // sorted fluid: x, y, z, density
+  const Float4* vel;      // sorted fluid: vx, vy, vz, -
+  const uint32_t* boundary_offsets;
+  const Float4* boundary;  // sorted boundary: x, y, z, volume
+  float* drho_dt;          // out
+  float* presence;         // out, [6][n] direction-major (+x,-x,+y,-y,+z,-z); null without presence
+  uint32_t n;
+
+  SPHRAY_HD void operator()(uint32_t i) const {
+    const Float4 pi = pos_rho[i];
+    const Vec3f xi = xyz(pi);
+    const Vec3f vi = xyz(vel[i]);
+    const float support2 = prm.kernel.support() * prm.kernel.support();
+    const float diffusion = 2.0f * prm.density_diffusion * prm.kernel.h * prm.speed_of_sound;
+    // Linearised Tait: hydrostatic rho_j - rho_i = rho0 g.(x_j - x_i) / c0^2.
+    const float hydro = prm.rest_density / (prm.speed_of_sound * prm.speed_of_sound);
+    float rate = 0.0f;
+    float pres[6] = {0, 0, 0, 0, 0, 0};
+
+    for_each_candidate(grid, fluid_offsets, xi, [&](uint32_t j) {
+      const Float4 pj = pos_rho[j];
+      const Vec3f r = xi - xyz(pj);
+      const float r2 = length2(r);
+      if (r2 >= support2 || j == i) return;
+      const float rr = std::sqrt(r2);
+      const float dwr = prm.kernel.dW_over_r(rr);
+      const float vol_j = prm.particle_mass / pj.w;
+      rate += prm.particle_mass * dot(vi - xyz(vel[j]), r) * dwr;
+      rate += diffusion * ((pj.w - pi.w) + hydro * dot(prm.gravity, r)) * (-dwr) * vol_j;
+      if (WithPresence && r2 > 0.0f) {
+        const float w = vol_j * prm.kernel.W(rr) / r2;  // times d_a^2 below = W cos^2
+        const float d[3] = {-r.x, -r.y, -r.z};           // x_j - x_i
+        for (int a = 0; a < 3; ++a) pres[2 * a + (d[a] > 0.0f ? 0 : 1)] += w * d[a] * d[a];
+      }
+    });
+
+    // Static walls (boundary particles of volume V_b, at rest): approaching a
+    // wall compresses the particle (Adami et al. 2012, eq. 22 with v_w = 0).
+    for_each_candidate(grid, boundary_offsets, xi, [&](uint32_t b) {
+      const Float4 pb = boundary[b];
+      const Vec3f r = xi - xyz(pb);
+      const float r2 = length2(r);
+      if (r2 >= support2) return;
+      rate += pi.w * pb.w * dot(vi, r) * prm.kernel.dW_over_r(std::sqrt(r2));
+    });
+
+    drho_dt[i] = rate;
+    if (WithPresence) {
+      for (int k = 0; k < 6; ++k) {
+        const float v = prm.presence_scale * pres[k];
+        presence[k * n + i] = v < 1.0f ? v : 1.0f;
+      }
+    }
+  }
+};
+
+}  // namespace sphray

@@ -1,0 +1,78 @@
+// Forces stage: symmetric pressure gradient with the Tait equation of state,
+// Monaghan (1992) artificial viscosity, gravity, and wall forces from boundary
+// particles that carry the extrapolated wall pressure p_w of Adami et al.
+// (2012; boundary.h) in the same symmetric form, with m_w = rho_w V_w.
+// Walls are viscous (the artificial viscosity against a wall at rest, as in
+// DualSPHysics) except the faces a scene declares free-slip (per-particle
+// coefficient 0). Walls only push: negative pressures are clamped in the wall
+// term, so tension cannot glue liquid to a wall.
+#pragma once
+
+#include <cstdint>
+
+#include "boundary.h"
+#include "grid.h"
+#include "params.h"
+
+namespace sphray {
+
+struct Acceleration {
+  SphParams prm;
+  GridGeom grid;
+  const uint32_t* fluid_offsets;
+  const Float4* pos_rho;
+  const Float4* vel;
+  const uint32_t* boundary_offsets;
+  const Float4* boundary;
+  const float* wall_pressure;   // boundary.h
+  const float* boundary_alpha;  // artificial viscosity against each wall particle; 0 = free slip
+  Float4* accel;                // out: ax, ay, az, -
+
+  SPHRAY_HD void operator()(uint32_t i) const {
+    const Float4 pi = pos_rho[i];
+    const Vec3f xi = xyz(pi);
+    const Vec3f vi = xyz(vel[i]);
+    const float h = prm.kernel.h;
+    const float support2 = prm.kernel.support() * prm.kernel.support();
+    const float p_i = tait_pressure(prm, pi.w);
+    const float p_over_rho2_i = p_i / (pi.w * pi.w);
+    // Monaghan's eta^2 = 0.01 h^2 keeps mu finite for close pairs.
+    const float eta2 = 0.01f * h * h;
+    Vec3f a = {0.0f, 0.0f, 0.0f};
+
+    for_each_candidate(grid, fluid_offsets, xi, [&](uint32_t j) {
+      const Float4 pj = pos_rho[j];
+      const Vec3f r = xi - xyz(pj);
+      const float r2 = length2(r);
+      if (r2 >= support2 || j == i) return;
+      const float dwr = prm.kernel.dW_over_r(std::sqrt(r2));
+      const float p_j = tait_pressure(prm, pj.w);
+      float term = p_over_rho2_i + p_j / (pj.w * pj.w);
+      const float vr = dot(vi - xyz(vel[j]), r);
+      if (vr < 0.0f) {
+        const float mu = h * vr / (r2 + eta2);
+        term += -prm.viscosity_alpha * prm.speed_of_sound * mu / (0.5f * (pi.w + pj.w));
+      }
+      a -= (prm.particle_mass * term * dwr) * r;
+    });
+
+    const float p_wall_i = p_over_rho2_i > 0.0f ? p_over_rho2_i : 0.0f;
+    for_each_candidate(grid, boundary_offsets, xi, [&](uint32_t b) {
+      const Float4 pb = boundary[b];
+      const Vec3f r = xi - xyz(pb);
+      const float r2 = length2(r);
+      if (r2 >= support2) return;
+      const float p_w = wall_pressure[b];
+      const float rho_w = tait_density(prm, p_w);
+      float term = p_wall_i + p_w / (rho_w * rho_w);
+      const float vr = dot(vi, r);
+      if (vr < 0.0f) term += -boundary_alpha[b] * prm.speed_of_sound * (h * vr / (r2 + eta2)) / (0.5f * (pi.w + rho_w));
+      a -= (rho_w * pb.w * term * prm.kernel.dW_over_r(std::sqrt(r2))) * r;
+    });
+
+    a += prm.gravity;
+    accel[i] = {a.x, a.y, a.z, 0.0f};
+  }
+};
+
+}  // namespace sphray

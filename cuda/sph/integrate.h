@@ -1,0 +1,103 @@
+// Time integration and the per-step guards. Symplectic Euler, with the density
+// treated as the position-like variable it is (continuity density is the time
+// derivative of summation density):
+//   v' = v + dt a(x, v, rho)             kick
+//   rho' = rho + dt drho/dt(x, v')       density stage, at x with the kicked v'
+//   x' = x + dt v'                       drift
+// Evaluating drho/dt with v' (not v) keeps rho consistent with the drift; with
+// v it gains energy at every wall bounce. One force evaluation per step; the
+// step is bounded by the CFL, force and viscous limits (Monaghan 1992), so the
+// first-order truncation error stays below the spatial error. Particles that
+// cross a wall face are put back on it with their outward normal velocity
+// removed, and flagged so that the run counts them. Density is floored at the
+// rest density (see Drift).
+#pragma once
+
+#include <cstdint>
+
+#include "params.h"
+
+namespace sphray {
+
+enum ParticleStatus : uint8_t { kStatusOk = 0, kStatusClamped = 1 };
+
+struct Kick {
+  float dt;
+  Float4* vel;
+  const Float4* accel;
+
+  SPHRAY_HD void operator()(uint32_t i) const {
+    Float4 v = vel[i];
+    const Float4 a = accel[i];
+    v.x += dt * a.x; v.y += dt * a.y; v.z += dt * a.z;
+    vel[i] = v;
+  }
+};
+
+struct Drift {
+  SphParams prm;
+  float dt;
+  Float4* pos_rho;
+  Float4* vel;
+  const float* drho_dt;
+  uint8_t* status;  // out
+
+  SPHRAY_HD static void keep_inside(float& x, float& v, float lo, float hi, bool clamp_hi, uint8_t& st) {
+    if (x < lo) { x = lo; if (v < 0.0f) v = 0.0f; st = kStatusClamped; }
+    if (clamp_hi && x > hi) { x = hi; if (v > 0.0f) v = 0.0f; st = kStatusClamped; }
+  }
+
+  SPHRAY_HD void operator()(uint32_t i) const {
+    Float4 p = pos_rho[i];
+    Float4 v = vel[i];
+    p.x += dt * v.x; p.y += dt * v.y; p.z += dt * v.z;
+    // No tension: a free-surface liquid cannot pull, and a particle flying off
+    // the bulk would otherwise decompress (continuity density drops by the
+    // sum it leaves behind) into a strongly attractive, even negative, density.
+    // Flooring at rest density keeps p >= 0 (as the clamped free-surface
+    // WCSPH of Becker & Teschner 2007 does).
+    const float rho = p.w + dt * drho_dt[i];
+    p.w = rho > prm.rest_density ? rho : prm.rest_density;
+    uint8_t st = kStatusOk;
+    keep_inside(p.x, v.x, prm.tank.min.x, prm.tank.max.x, true, st);
+    keep_inside(p.y, v.y, prm.tank.min.y, prm.tank.max.y, true, st);
+    keep_inside(p.z, v.z, prm.tank.min.z, prm.tank.max.z, !prm.open_top, st);
+    pos_rho[i] = p;
+    vel[i] = v;
+    status[i] = st;
+  }
+};
+
+// What the host needs after the forces stage: the extremes for this step's
+// size, the first particle holding a non-finite value, and the wall clamps of
+// the previous drift. Reduced with thrust::transform_reduce.
+struct StepStats {
+  float max_speed2;
+  float max_accel2;
+  uint32_t first_bad;  // sorted index, or UINT32_MAX when all finite
+  uint32_t clamped;
+};
+
+struct StepStatsOf {
+  const Float4* pos_rho;
+  const Float4* vel;
+  const Float4* accel;
+  const uint8_t* status;
+
+  SPHRAY_HD StepStats operator()(uint32_t i) const {
+    const Float4 p = pos_rho[i], v = vel[i], a = accel[i];
+    const bool finite = all_finite(xyz(p)) && std::isfinite(p.w) && all_finite(xyz(v)) &&
+                        all_finite(xyz(a)) && p.w > 0.0f;
+    return {length2(xyz(v)), length2(xyz(a)), finite ? 0xffffffffu : i, status[i] == kStatusClamped ? 1u : 0u};
+  }
+};
+
+struct CombineStepStats {
+  SPHRAY_HD StepStats operator()(const StepStats& a, const StepStats& b) const {
+    return {a.max_speed2 > b.max_speed2 ? a.max_speed2 : b.max_speed2,
+            a.max_accel2 > b.max_accel2 ? a.max_accel2 : b.max_accel2,
+            a.first_bad < b.first_bad ? a.first_bad : b.first_bad, a.clamped + b.clamped};
+  }
+};
+
+}  // namespace sphray

@@ -1,0 +1,55 @@
+// SPH smoothing kernels in 3D, support radius 2h, for host and device.
+// Wendland C2: Wendland (1995), normalisation of Dehnen & Aly (2012), stable
+// against pairing at any h/dx. Cubic spline: Monaghan & Lattanzio (1985).
+// Templated on the scalar so tests evaluate the same formulas in double.
+#pragma once
+
+#include "../common/hd.h"
+
+namespace sphray {
+
+enum class KernelType : int { WendlandC2 = 0, CubicSpline = 1 };
+
+template <class T>
+struct SmoothingKernel {
+  KernelType type;
+  T h;      // smoothing length [m]; support radius is 2h
+  T sigma;  // normalisation [1/m^3]
+
+  static SmoothingKernel make(KernelType type, T h) {
+    const T pi = T(3.14159265358979323846);
+    T sigma = type == KernelType::WendlandC2 ? T(21) / (T(16) * pi * h * h * h) : T(1) / (pi * h * h * h);
+    return {type, h, sigma};
+  }
+
+  SPHRAY_HD SPHRAY_FORCEINLINE T support() const { return T(2) * h; }
+
+  SPHRAY_HD SPHRAY_FORCEINLINE T W(T r) const {
+    const T q = r / h;
+    if (q >= T(2)) return T(0);
+    if (type == KernelType::WendlandC2) {
+      const T a = T(1) - T(0.5) * q;
+      const T a2 = a * a;
+      return sigma * a2 * a2 * (T(2) * q + T(1));
+    }
+    if (q < T(1)) return sigma * (T(1) - T(1.5) * q * q + T(0.75) * q * q * q);
+    const T b = T(2) - q;
+    return sigma * T(0.25) * b * b * b;
+  }
+
+  // dW/dr divided by r, so that grad_i W_ij = (x_i - x_j) * dW_over_r(r).
+  // Finite at r -> 0 for both kernels, so coincident particles are harmless.
+  SPHRAY_HD SPHRAY_FORCEINLINE T dW_over_r(T r) const {
+    const T q = r / h;
+    if (q >= T(2)) return T(0);
+    if (type == KernelType::WendlandC2) {
+      const T a = T(1) - T(0.5) * q;
+      return sigma * T(-5) * a * a * a / (h * h);
+    }
+    if (q < T(1)) return sigma * (T(-3) + T(2.25) * q) / (h * h);
+    const T b = T(2) - q;
+    return q > T(0) ? sigma * T(-0.75) * b * b / (h * h * q) : T(0);
+  }
+};
+
+}  // namespace sphray

@@ -1,0 +1,45 @@
+// SPH parameters, filled and validated once from the scene (src/scene.cpp) and
+// passed by value to every kernel. Plain data: no pointers, no methods that allocate.
+#pragma once
+
+#include <cstdint>
+
+#include "../common/vec.h"
+#include "kernel.h"
+
+namespace sphray {
+
+// Four floats, 16-byte aligned, so one load fetches a particle's state on the GPU.
+struct alignas(16) Float4 {
+  float x, y, z, w;
+};
+
+SPHRAY_HD SPHRAY_FORCEINLINE Vec3f xyz(Float4 a) { return {a.x, a.y, a.z}; }
+
+struct Aabb {
+  Vec3f min, max;
+};
+
+struct SphParams {
+  SmoothingKernel<float> kernel;
+  float particle_mass;      // kg, rest_density * spacing^3
+  float rest_density;       // rho0 [kg/m^3]
+  float speed_of_sound;     // c0 [m/s]
+  float tait_b;             // B = c0^2 rho0 / gamma [Pa]
+  float viscosity_alpha;    // Monaghan (1992) artificial viscosity, dimensionless
+  float density_diffusion;  // delta of Molteni & Colagrossi (2009), dimensionless
+  Vec3f gravity;            // [m/s^2]
+  float spacing;            // initial particle spacing dx [m]
+  float presence_scale;     // 6 / (1 - dx^3 W(0)): a particle deep in the liquid reads 1 (density.h)
+  Aabb tank;                // fluid side of the tank walls [m]
+  bool open_top;            // no lid: particles may leave through the top and are removed
+};
+
+// Tait equation of state, gamma = 7 (Monaghan 1994; Batchelor 1967).
+SPHRAY_HD SPHRAY_FORCEINLINE float tait_pressure(const SphParams& p, float rho) {
+  const float r = rho / p.rest_density;
+  const float r2 = r * r, r4 = r2 * r2;
+  return p.tait_b * (r4 * r2 * r - 1.0f);
+}
+
+}  // namespace sphray

@@ -1,0 +1,233 @@
+// One SPH step, written once for both backends. Included by solver_cpu.cpp and
+// solver_cuda.cu inside their backend namespace (which supplies Vector, raw,
+// policy, parallel_for, upload, download, read_one, StageClock and kBackend).
+// Stages (DESIGN.md): 1 grid, 2 density (+presence), 3 forces, 4 integrate.
+
+// Its dependencies come from stages.h, included first outside the namespace.
+
+// Reorders src by order into scratch, then swaps: particle data stays sorted by cell.
+template <class T>
+void gather_swap(uint32_t n, const Vector<uint32_t>& order, Vector<T>& src, Vector<T>& scratch) {
+  thrust::gather(policy(), order.begin(), order.begin() + n, src.begin(), scratch.begin());
+  src.swap(scratch);
+}
+
+struct KeyOfPosition {
+  GridGeom grid;
+  const Float4* pos;
+  uint32_t* keys;
+  SPHRAY_HD void operator()(uint32_t i) const { keys[i] = grid.key_of(xyz(pos[i])); }
+};
+
+struct KeyOfPoint {
+  GridGeom grid;
+  const Vec3f* pts;
+  uint32_t* keys;
+  SPHRAY_HD void operator()(uint32_t i) const { keys[i] = grid.key_of(pts[i]); }
+};
+
+// Sorts `n` keys with their order and fills offsets (num_cells + 1).
+inline void sort_and_offsets(const GridGeom& g, uint32_t n, Vector<uint32_t>& keys, Vector<uint32_t>& order,
+                             Vector<uint32_t>& offsets) {
+  thrust::sequence(policy(), order.begin(), order.begin() + n);
+  thrust::sort_by_key(policy(), keys.begin(), keys.begin() + n, order.begin());
+  parallel_for(n + 1, BuildCellOffsets{raw(keys), raw(offsets), n, g.num_cells()});
+}
+
+inline GridBuild build_grid_impl(const GridGeom& g, const std::vector<Vec3f>& points) {
+  const uint32_t n = uint32_t(points.size());
+  Vector<Vec3f> pts;
+  upload(pts, points);
+  Vector<uint32_t> keys(n), order(n), offsets(size_t(g.num_cells()) + 1);
+  parallel_for(n, KeyOfPoint{g, raw(pts), raw(keys)});
+  sort_and_offsets(g, n, keys, order, offsets);
+  return {download(order, n), download(keys, n), download(offsets, offsets.size())};
+}
+
+class SolverImpl final : public Solver {
+ public:
+  explicit SolverImpl(const SolverInput& in)
+      : prm_(in.params), grid_(in.grid), cfl_(in.cfl), min_dt_(in.min_dt), max_dt_(in.max_dt),
+        n_(uint32_t(in.fluid_pos_rho.size())), presence_on_(in.presence) {
+    const size_t n = n_, cells = size_t(grid_.num_cells()) + 1;
+    upload(pos_, in.fluid_pos_rho);
+    upload(vel_, in.fluid_vel);
+    std::vector<uint32_t> ids(n);
+    for (size_t i = 0; i < n; ++i) ids[i] = uint32_t(i);
+    upload(id_, ids);
+    pos_tmp_.resize(n); vel_tmp_.resize(n); id_tmp_.resize(n);
+    accel_.resize(n); drho_.resize(n);
+    status_.assign(n, uint8_t(kStatusOk)); status_tmp_.resize(n);
+    keys_.resize(n); order_.resize(n); offsets_.resize(cells);
+    if (presence_on_) presence_.resize(6 * n);
+
+    // Static walls: sorted by the same grid once.
+    const uint32_t nb = uint32_t(in.boundary.size());
+    Vector<Float4> boundary_in;
+    upload(boundary_in, in.boundary);
+    Vector<float> alpha_in;
+    upload(alpha_in, in.boundary_alpha);
+    Vector<uint32_t> bkeys(nb), border(nb);
+    boundary_.resize(nb);
+    boundary_alpha_.resize(nb);
+    wall_pressure_.resize(nb);
+    boundary_offsets_.resize(cells);
+    parallel_for(nb, KeyOfPosition{grid_, raw(boundary_in), raw(bkeys)});
+    sort_and_offsets(grid_, nb, bkeys, border, boundary_offsets_);
+    thrust::gather(policy(), border.begin(), border.end(), boundary_in.begin(), boundary_.begin());
+    thrust::gather(policy(), border.begin(), border.end(), alpha_in.begin(), boundary_alpha_.begin());
+  }
+
+  Backend backend() const override { return kBackend; }
+  double time() const override { return t_; }
+  uint64_t steps() const override { return steps_; }
+  size_t num_fluid() const override { return n_; }
+  size_t num_removed() const override { return removed_; }
+  uint64_t num_clamped() const override {
+    // Clamps of the last integration are not yet in clamped_total_.
+    return clamped_total_ + uint64_t(thrust::count(policy(), status_.begin(), status_.begin() + n_, uint8_t(kStatusClamped)));
+  }
+  const StepLimits& last_limits() const override { return limits_; }
+  const StageTimes& last_stage_times() const override { return times_; }
+  bool has_presence() const override { return presence_on_; }
+
+  size_t device_bytes() const override {
+    auto b = [](const auto& v) { return v.size() * sizeof(typename std::decay_t<decltype(v)>::value_type); };
+    return b(pos_) + b(vel_) + b(pos_tmp_) + b(vel_tmp_) + b(accel_) + b(drho_) + b(presence_) + b(id_) +
+           b(id_tmp_) + b(status_) + b(status_tmp_) + b(keys_) + b(order_) + b(offsets_) + b(boundary_) +
+           b(boundary_alpha_) + b(wall_pressure_) + b(boundary_offsets_);
+  }
+
+  // Stage order (integrate.h says why): grid, forces, kick, density (+presence), drift.
+  void step(double until) override {
+    clock_.mark(0);
+    build_grid();
+    clock_.mark(1);
+    parallel_for(uint32_t(boundary_.size()),
+                 WallPressure{prm_, grid_, raw(offsets_), raw(pos_), raw(boundary_), raw(wall_pressure_)});
+    parallel_for(n_, Acceleration{prm_, grid_, raw(offsets_), raw(pos_), raw(vel_), raw(boundary_offsets_),
+                                  raw(boundary_), raw(wall_pressure_), raw(boundary_alpha_), raw(accel_)});
+    clock_.mark(2);
+    const StepStats s = thrust::transform_reduce(
+        policy(), thrust::counting_iterator<uint32_t>(0), thrust::counting_iterator<uint32_t>(n_),
+        StepStatsOf{raw(pos_), raw(vel_), raw(accel_), raw(status_)}, StepStats{0.0f, 0.0f, 0xffffffffu, 0u},
+        CombineStepStats());
+    if (s.first_bad != 0xffffffffu) throw SimulationError(describe_bad_particle(s.first_bad));
+    clamped_total_ += s.clamped;
+    const double dt = choose_dt(s, until);
+    parallel_for(n_, Kick{float(dt), raw(vel_), raw(accel_)});
+    clock_.mark(3);
+    if (presence_on_) parallel_for(n_, density_stage<true>());
+    else parallel_for(n_, density_stage<false>());
+    clock_.mark(4);
+    parallel_for(n_, Drift{prm_, float(dt), raw(pos_), raw(vel_), raw(drho_), raw(status_)});
+    clock_.mark(5);
+    clock_.finish(5);
+    times_ = {clock_.ms(0, 1), clock_.ms(3, 4), clock_.ms(1, 2), clock_.ms(2, 3) + clock_.ms(4, 5)};
+    t_ += dt;
+    ++steps_;
+  }
+
+  HostParticles download() const override {
+    HostParticles h;
+    h.id = sphray::SPHRAY_BK::download(id_, n_);
+    const auto p = sphray::SPHRAY_BK::download(pos_, n_), v = sphray::SPHRAY_BK::download(vel_, n_);
+    h.pos.resize(n_); h.vel.resize(n_); h.density.resize(n_);
+    for (size_t i = 0; i < n_; ++i) {
+      h.pos[i] = xyz(p[i]);
+      h.vel[i] = xyz(v[i]);
+      h.density[i] = p[i].w;
+    }
+    if (presence_on_) {
+      const auto pr = sphray::SPHRAY_BK::download(presence_, presence_.size());
+      h.presence.resize(n_);
+      for (size_t i = 0; i < n_; ++i)
+        for (size_t k = 0; k < 6; ++k) h.presence[i][k] = pr[k * n_ + i];
+    }
+    return h;
+  }
+
+  std::vector<uint32_t> download_cell_offsets() const override {
+    return sphray::SPHRAY_BK::download(offsets_, offsets_.size());
+  }
+
+ private:
+  template <bool P>
+  DensityRate<P> density_stage() {
+    return DensityRate<P>{prm_, grid_, raw(offsets_), raw(pos_), raw(vel_), raw(boundary_offsets_), raw(boundary_),
+                          raw(drho_), P ? raw(presence_) : nullptr, n_};
+  }
+
+  void build_grid() {
+    parallel_for(n_, KeyOfPosition{grid_, raw(pos_), raw(keys_)});
+    sort_and_offsets(grid_, n_, keys_, order_, offsets_);
+    gather_swap(n_, order_, pos_, pos_tmp_);
+    gather_swap(n_, order_, vel_, vel_tmp_);
+    gather_swap(n_, order_, id_, id_tmp_);
+    gather_swap(n_, order_, status_, status_tmp_);
+    // Particles outside the grid (only possible through an open top) sorted last: drop them.
+    const uint32_t active = read_one(offsets_, grid_.num_cells());
+    removed_ += n_ - active;
+    n_ = active;
+  }
+
+  double choose_dt(const StepStats& s, double until) {
+    // Monaghan (1992) / Monaghan & Kos (1999): CFL (sound + flow speed), force and viscous limits.
+    const double h = prm_.kernel.h, c0 = prm_.speed_of_sound;
+    const double inf = std::numeric_limits<double>::infinity();
+    StepLimits& l = limits_;
+    l.max_speed = std::sqrt(double(s.max_speed2));
+    l.max_accel = std::sqrt(double(s.max_accel2));
+    l.dt_cfl = h / (c0 + l.max_speed);
+    l.dt_force = l.max_accel > 0 ? std::sqrt(h / l.max_accel) : inf;
+    const double nu_art = prm_.viscosity_alpha * h * c0 / 10.0;  // 3D equivalent viscosity, Monaghan 2005
+    l.dt_viscous = nu_art > 0 ? 0.125 * h * h / nu_art : inf;
+    double dt = std::min(double(max_dt_), cfl_ * std::min({l.dt_cfl, l.dt_force, l.dt_viscous}));
+    if (dt < min_dt_) {
+      const char* by = l.dt_force < l.dt_cfl ? "the force limit" : "the CFL (sound speed) limit";
+      std::ostringstream os;
+      os << "time step " << dt << " s fell below the floor run.min_dt = " << min_dt_ << " s at t = " << t_
+         << " s (step " << steps_ << "), bounded by " << by << ": max speed " << l.max_speed
+         << " m/s, max acceleration " << l.max_accel << " m/s^2. The scene is too stiff or unstable at this "
+         << "resolution; raise sph.spacing, lower the speed of sound or check the initial state.";
+      throw SimulationError(os.str());
+    }
+    dt = std::min(dt, std::max(until - t_, 0.0));
+    l.dt = dt;
+    return dt;
+  }
+
+  std::string describe_bad_particle(uint32_t i) const {
+    const Float4 p = read_one(pos_, i), v = read_one(vel_, i), a = read_one(accel_, i);
+    const uint32_t id = read_one(id_, i);
+    const char* what = !all_finite(xyz(p))   ? "position"
+                       : !std::isfinite(p.w) ? "density"
+                       : p.w <= 0            ? "density (not positive)"
+                       : !all_finite(xyz(v)) ? "velocity"
+                                             : "acceleration";
+    std::ostringstream os;
+    os << "non-finite or invalid " << what << " at step " << steps_ << " (t = " << t_ << " s) in particle " << id
+       << " (initial index): position (" << p.x << ", " << p.y << ", " << p.z << "), density " << p.w
+       << ", velocity (" << v.x << ", " << v.y << ", " << v.z << "), acceleration (" << a.x << ", " << a.y
+       << ", " << a.z << "). The run is stopped rather than continued with garbage.";
+    return os.str();
+  }
+
+  SphParams prm_;
+  GridGeom grid_;
+  double cfl_, min_dt_, max_dt_;
+  uint32_t n_;
+  bool presence_on_;
+  double t_ = 0;
+  uint64_t steps_ = 0;
+  size_t removed_ = 0;
+  uint64_t clamped_total_ = 0;
+  StepLimits limits_;
+  StageTimes times_;
+  StageClock clock_;
+
+  Vector<Float4> pos_, vel_, pos_tmp_, vel_tmp_, accel_, boundary_;
+  Vector<float> drho_, presence_, boundary_alpha_, wall_pressure_;
+  Vector<uint32_t> id_, id_tmp_, keys_, order_, offsets_, boundary_offsets_;
+  Vector<uint8_t> status_, status_tmp_;
+};

@@ -1,0 +1,96 @@
+#include "bench.h"
+
+#include <algorithm>
+#include <cmath>
+#include <iomanip>
+#include <ostream>
+#include <sstream>
+
+#include "pipeline.h"
+#include "setup.h"
+
+namespace sphray {
+
+double median(std::vector<double> v) {
+  if (v.empty()) return 0;
+  std::sort(v.begin(), v.end());
+  const size_t m = v.size() / 2;
+  return v.size() % 2 ? v[m] : 0.5 * (v[m - 1] + v[m]);
+}
+
+double spacing_for_count(const Scene& s, size_t target) {
+  double volume = 0;
+  for (const auto& b : s.fluid) {
+    const Vec3d e = b.box.max - b.box.min;
+    volume += e.x * e.y * e.z;
+  }
+  return std::cbrt(volume / double(std::max<size_t>(target, 1)));
+}
+
+std::vector<BenchSimRow> bench_sim(const std::string& scene_path, Backend b, const BenchSimOptions& opt, std::ostream& log) {
+  std::vector<BenchSimRow> rows;
+  for (size_t target : opt.sizes) {
+    const Scene base = load_scene(scene_path);
+    std::ostringstream set;
+    set.precision(9);
+    set << "sph.spacing=" << spacing_for_count(base, target);
+    const Scene s = load_scene(scene_path, {set.str()});
+    for (bool presence : {false, true}) {
+      auto solver = make_solver(s, b, {presence});
+      BenchSimRow row;
+      row.particles = solver->num_fluid();
+      row.boundary = measure_scene(s).boundary;
+      row.presence = presence;
+      log << "  " << row.particles << " particles, presence " << (presence ? "on " : "off") << ": " << opt.warmup
+          << " warm-up + " << opt.steps << " steps\n";
+      log.flush();
+      for (int k = 0; k < opt.warmup; ++k) solver->step(1e30);
+      std::vector<double> g, d, f, in, tot;
+      for (int k = 0; k < opt.steps; ++k) {
+        solver->step(1e30);
+        const StageTimes& t = solver->last_stage_times();
+        g.push_back(t.grid); d.push_back(t.density); f.push_back(t.forces); in.push_back(t.integrate);
+        tot.push_back(t.total());
+      }
+      row.median_ms = {median(g), median(d), median(f), median(in)};
+      row.median_total_ms = median(tot);
+      rows.push_back(row);
+    }
+  }
+  return rows;
+}
+
+nlohmann::json to_json(const std::vector<BenchSimRow>& rows, Backend b, const BenchSimOptions& opt) {
+  nlohmann::json j;
+  j["benchmark"] = "sim";
+  j["backend"] = backend_name(b);
+  j["device"] = b == Backend::Cuda ? cuda_device_name() : std::string("cpu");
+  j["warmup_steps"] = opt.warmup;
+  j["measured_steps"] = opt.steps;
+  j["statistic"] = "median ms per step";
+  for (const auto& r : rows)
+    j["rows"].push_back({{"particles", r.particles}, {"boundary_particles", r.boundary}, {"presence", r.presence},
+                         {"grid_ms", r.median_ms.grid}, {"density_ms", r.median_ms.density},
+                         {"forces_ms", r.median_ms.forces}, {"integrate_ms", r.median_ms.integrate},
+                         {"total_ms", r.median_total_ms}});
+  return j;
+}
+
+void print_table(const std::vector<BenchSimRow>& rows, std::ostream& out) {
+  out << std::setw(10) << "particles" << std::setw(10) << "presence" << std::setw(10) << "grid" << std::setw(10)
+      << "density" << std::setw(10) << "forces" << std::setw(11) << "integrate" << std::setw(10) << "total"
+      << "   (median ms per step)\n";
+  out << std::fixed << std::setprecision(3);
+  for (const auto& r : rows)
+    out << std::setw(10) << r.particles << std::setw(10) << (r.presence ? "on" : "off") << std::setw(10)
+        << r.median_ms.grid << std::setw(10) << r.median_ms.density << std::setw(10) << r.median_ms.forces
+        << std::setw(11) << r.median_ms.integrate << std::setw(10) << r.median_total_ms << "\n";
+  for (size_t k = 0; k + 1 < rows.size(); k += 2)
+    if (!rows[k].presence && rows[k + 1].presence && rows[k].median_ms.density > 0)
+      out << "  presence adds " << std::setprecision(1)
+          << 100.0 * (rows[k + 1].median_ms.density / rows[k].median_ms.density - 1.0) << "% to the density stage at "
+          << rows[k].particles << " particles\n";
+  out << std::defaultfloat;
+}
+
+}  // namespace sphray

@@ -1,0 +1,40 @@
+// `sphray bench sim`: milliseconds per SPH step, split by stage, for dam breaks
+// of given particle counts, with and without particle presence. Stage times
+// come from device events (CUDA) or the steady clock (CPU), after warm-up
+// steps, as medians over the measured steps.
+#pragma once
+
+#include <iosfwd>
+#include <string>
+#include <vector>
+
+#include <nlohmann/json.hpp>
+
+#include "scene.h"
+#include "solver.h"
+
+namespace sphray {
+
+struct BenchSimOptions {
+  std::vector<size_t> sizes;  // target fluid particle counts
+  int warmup = 20;
+  int steps = 100;
+};
+
+struct BenchSimRow {
+  size_t particles = 0, boundary = 0;
+  bool presence = false;
+  StageTimes median_ms;
+  double median_total_ms = 0;
+};
+
+// Spacing that gives about `target` fluid particles in the scene's fluid blocks.
+double spacing_for_count(const Scene& s, size_t target);
+
+std::vector<BenchSimRow> bench_sim(const std::string& scene_path, Backend b, const BenchSimOptions& opt, std::ostream& log);
+nlohmann::json to_json(const std::vector<BenchSimRow>& rows, Backend b, const BenchSimOptions& opt);
+void print_table(const std::vector<BenchSimRow>& rows, std::ostream& out);
+
+double median(std::vector<double> v);
+
+}  // namespace sphray

@@ -1,0 +1,120 @@
+#include "pipeline.h"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <iomanip>
+#include <ostream>
+#include <sstream>
+#include <stdexcept>
+
+#include "setup.h"
+
+namespace sphray {
+
+Backend choose_backend(const std::string& name, std::ostream& log) {
+  if (name == "cpu") return Backend::Cpu;
+  if (name == "cuda") {
+    if (!cuda_available())
+      throw std::runtime_error("--backend cuda: no CUDA device is available (or sphray was built without CUDA)");
+    return Backend::Cuda;
+  }
+  if (name != "auto") throw std::runtime_error("--backend '" + name + "': must be auto, cpu or cuda");
+  if (cuda_available()) {
+    log << "backend: cuda (" << cuda_device_name() << ")\n";
+    return Backend::Cuda;
+  }
+  log << "backend: cpu (no CUDA device found)\n";
+  return Backend::Cpu;
+}
+
+StageNeeds needs_of(const Scene& s) { return {s.sph.presence}; }
+
+std::unique_ptr<Solver> make_solver(const Scene& s, Backend b, const StageNeeds& needs) {
+  check_fits(s, b);
+  const SolverInput in = make_solver_input(s, needs.presence);
+  return b == Backend::Cuda ? make_cuda_solver(in) : make_cpu_solver(in);
+}
+
+namespace {
+
+std::string format_seconds(double s) {
+  std::ostringstream os;
+  os << std::fixed << std::setprecision(s < 10 ? 1 : 0) << s << " s";
+  return os.str();
+}
+
+}  // namespace
+
+RunSummary run_scene(const Scene& s, Solver& solver, const RunOptions& opt, std::ostream& log) {
+  using clock = std::chrono::steady_clock;
+  RunSummary r;
+  r.backend = solver.backend();
+  r.fluid_start = solver.num_fluid();
+  const double end = s.run.end_time, every = s.run.output_interval;
+  const auto t0 = clock::now();
+  auto last_print = t0;
+  int frame = 0;
+  if (opt.on_output) opt.on_output(solver, frame);
+  StageTimes sum;
+  double dt_sum = 0;
+  uint64_t particle_steps = 0;
+
+  while (solver.time() < end - 1e-12) {
+    const double next_output = std::min(end, (frame + 1) * every);
+    while (solver.time() < next_output - 1e-12) {
+      solver.step(next_output);
+      const StageTimes& st = solver.last_stage_times();
+      sum.grid += st.grid; sum.density += st.density; sum.forces += st.forces; sum.integrate += st.integrate;
+      const StepLimits& l = solver.last_limits();
+      dt_sum += l.dt;
+      if (l.dt < r.min_dt && solver.time() < next_output - 1e-12) r.min_dt = l.dt;  // not the clipped last step
+      r.max_speed = std::max(r.max_speed, l.max_speed);
+      particle_steps += solver.num_fluid();
+    }
+    ++frame;
+    if (opt.on_output) opt.on_output(solver, frame);
+    const auto now = clock::now();
+    if (opt.progress && (std::chrono::duration<double>(now - last_print).count() > 1.0 || solver.time() >= end - 1e-12)) {
+      last_print = now;
+      const double wall = std::chrono::duration<double>(now - t0).count();
+      const double eta = solver.time() > 0 ? wall * (end - solver.time()) / solver.time() : 0.0;
+      log << "  t = " << std::fixed << std::setprecision(4) << solver.time() << " / " << end << " s  step "
+          << solver.steps() << "  dt " << std::scientific << std::setprecision(2) << solver.last_limits().dt
+          << " s  " << (wall > 0 ? particle_steps / wall : 0.0) << " particle-steps/s  ETA "
+          << format_seconds(eta) << std::defaultfloat << "\n";
+      log.flush();
+    }
+  }
+  r.wall_seconds = std::chrono::duration<double>(clock::now() - t0).count();
+  r.steps = solver.steps();
+  r.sim_time = solver.time();
+  r.fluid_end = solver.num_fluid();
+  r.removed = solver.num_removed();
+  r.clamped = solver.num_clamped();
+  if (r.steps) {
+    const double k = 1.0 / double(r.steps);
+    r.mean_stage_ms = {sum.grid * k, sum.density * k, sum.forces * k, sum.integrate * k};
+    r.mean_dt = dt_sum * k;
+  }
+  if (r.min_dt > 1e299) r.min_dt = r.mean_dt;
+  return r;
+}
+
+void print_summary(const RunSummary& r, std::ostream& log) {
+  log << std::defaultfloat << std::setprecision(4);
+  log << "summary (" << backend_name(r.backend) << "):\n"
+      << "  simulated      " << r.sim_time << " s in " << r.steps << " steps (dt mean " << r.mean_dt << " s, min "
+      << r.min_dt << " s)\n"
+      << "  wall time      " << r.wall_seconds << " s ("
+      << (r.wall_seconds > 0 ? double(r.steps) * double(r.fluid_start) / r.wall_seconds : 0.0)
+      << " particle-steps/s)\n"
+      << "  particles      " << r.fluid_start << " fluid at start, " << r.fluid_end << " at end; "
+      << r.removed << " left through the open top and were removed\n"
+      << "  wall clamps    " << r.clamped << " particle-steps put back on a wall face\n"
+      << "  max speed      " << r.max_speed << " m/s\n"
+      << "  ms per step    grid " << r.mean_stage_ms.grid << ", density " << r.mean_stage_ms.density << ", forces "
+      << r.mean_stage_ms.forces << ", integrate " << r.mean_stage_ms.integrate << "\n";
+}
+
+}  // namespace sphray

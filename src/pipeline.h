@@ -1,0 +1,46 @@
+// The pipeline: builds only the stages a scene needs and drives them. Today
+// the stages are the SPH solver and per-output sinks (progress, metrics CSV);
+// the field builder, renderer and HDF5 writer plug in as further sinks.
+#pragma once
+
+#include <functional>
+#include <iosfwd>
+#include <memory>
+#include <string>
+
+#include "scene.h"
+#include "solver.h"
+
+namespace sphray {
+
+// "auto" picks CUDA when a device is present, else CPU; says which on log.
+Backend choose_backend(const std::string& name, std::ostream& log);
+
+// What the scene's later stages need from the solver.
+struct StageNeeds {
+  bool presence = false;
+};
+StageNeeds needs_of(const Scene& s);
+
+std::unique_ptr<Solver> make_solver(const Scene& s, Backend b, const StageNeeds& needs);
+
+struct RunOptions {
+  bool progress = true;
+  // Called at t = 0 and after every output interval, and at the end.
+  std::function<void(const Solver&, int frame)> on_output;
+};
+
+struct RunSummary {
+  Backend backend{};
+  size_t fluid_start = 0, fluid_end = 0, removed = 0, boundary = 0;
+  uint64_t clamped = 0, steps = 0;
+  double sim_time = 0, wall_seconds = 0;
+  double mean_dt = 0, min_dt = 1e300;
+  StageTimes mean_stage_ms;
+  double max_speed = 0;
+};
+
+RunSummary run_scene(const Scene& s, Solver& solver, const RunOptions& opt, std::ostream& log);
+void print_summary(const RunSummary& r, std::ostream& log);
+
+}  // namespace sphray

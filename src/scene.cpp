@@ -1,0 +1,247 @@
+#include "scene.h"
+
+#include <cmath>
+#include <fstream>
+#include <set>
+#include <sstream>
+
+namespace sphray {
+
+namespace {
+
+using nlohmann::json;
+
+// Reads one JSON object of the scene, naming `file` and the dotted key in every error.
+class Reader {
+ public:
+  Reader(const json& j, std::string file, std::string path) : j_(j), file_(std::move(file)), path_(std::move(path)) {
+    if (!j_.is_object()) fail("", j_, "must be an object");
+  }
+
+  [[noreturn]] void fail(const std::string& key, const json& value, const std::string& why) const {
+    std::ostringstream os;
+    os << file_ << ": " << (key.empty() ? (path_.empty() ? std::string("scene") : path_) : full(key));
+    if (!value.is_null() || !key.empty()) os << " = " << value.dump();
+    os << ": " << why;
+    throw SceneError(os.str());
+  }
+
+  std::string full(const std::string& key) const { return path_.empty() ? key : path_ + "." + key; }
+  bool has(const std::string& key) const { return j_.contains(key); }
+  const json& at(const std::string& key) const { return j_.at(key); }
+
+  void only(std::initializer_list<const char*> keys) const {
+    std::set<std::string> allowed(keys.begin(), keys.end());
+    for (auto it = j_.begin(); it != j_.end(); ++it) {
+      if (!allowed.count(it.key())) {
+        std::string list;
+        for (auto& k : allowed) list += (list.empty() ? "" : ", ") + k;
+        fail(it.key(), it.value(), "unknown key (allowed here: " + list + ")");
+      }
+    }
+  }
+
+  double number(const std::string& key, double def, double lo, double hi, bool required = false,
+                bool lo_open = false) const {
+    if (!has(key)) {
+      if (required) fail(key, json(), "is required");
+      return def;
+    }
+    const json& v = at(key);
+    if (!v.is_number()) fail(key, v, "must be a number");
+    const double x = v.get<double>();
+    if (!std::isfinite(x)) fail(key, v, "must be finite");
+    if (x < lo || (lo_open && x == lo) || x > hi) {
+      std::ostringstream os;
+      os << "must be in " << (lo_open ? "(" : "[") << lo << ", " << hi << "]";
+      fail(key, v, os.str());
+    }
+    return x;
+  }
+
+  bool boolean(const std::string& key, bool def) const {
+    if (!has(key)) return def;
+    if (!at(key).is_boolean()) fail(key, at(key), "must be true or false");
+    return at(key).get<bool>();
+  }
+
+  std::string string(const std::string& key, const std::string& def, std::initializer_list<const char*> choices) const {
+    if (!has(key)) return def;
+    const json& v = at(key);
+    std::string list;
+    for (auto c : choices) list += std::string(list.empty() ? "" : ", ") + "\"" + c + "\"";
+    if (!v.is_string()) fail(key, v, "must be one of " + list);
+    const std::string s = v.get<std::string>();
+    for (auto c : choices)
+      if (s == c) return s;
+    fail(key, v, "must be one of " + list);
+  }
+
+  Vec3d vec3(const std::string& key, Vec3d def, bool required = false) const {
+    if (!has(key)) {
+      if (required) fail(key, json(), "is required");
+      return def;
+    }
+    const json& v = at(key);
+    if (!v.is_array() || v.size() != 3) fail(key, v, "must be an array of three numbers [x, y, z]");
+    double c[3];
+    for (int k = 0; k < 3; ++k) {
+      if (!v[k].is_number()) fail(key, v, "must be an array of three numbers [x, y, z]");
+      c[k] = v[k].get<double>();
+      if (!std::isfinite(c[k])) fail(key, v, "must be finite");
+    }
+    return {c[0], c[1], c[2]};
+  }
+
+  Reader child(const std::string& key) const {
+    static const json empty = json::object();
+    return Reader(has(key) ? at(key) : empty, file_, full(key));
+  }
+
+  const std::string& file() const { return file_; }
+
+ private:
+  const json& j_;
+  std::string file_, path_;
+};
+
+void apply_override(json& j, const std::string& file, const std::string& assignment) {
+  const auto eq = assignment.find('=');
+  if (eq == std::string::npos || eq == 0)
+    throw SceneError("--set '" + assignment + "': expected key.path=value (e.g. sph.spacing=0.02)");
+  const std::string key = assignment.substr(0, eq), text = assignment.substr(eq + 1);
+  json value = json::parse(text, nullptr, /*allow_exceptions=*/false);
+  if (value.is_discarded()) value = text;  // a bare word is a string
+  std::string pointer;
+  std::stringstream ss(key);
+  for (std::string part; std::getline(ss, part, '.');) {
+    if (part.empty()) throw SceneError("--set '" + assignment + "': empty component in key path '" + key + "'");
+    pointer += "/" + part;
+  }
+  try {
+    json::json_pointer ptr(pointer);
+    if (ptr.parent_pointer() != json::json_pointer() && !j.contains(ptr.parent_pointer()))
+      throw SceneError(file + ": --set " + key + ": no such section '" + key.substr(0, key.rfind('.')) + "' in the scene");
+    j[ptr] = value;
+  } catch (const json::exception& e) {
+    throw SceneError(file + ": --set " + key + ": cannot set this path (" + e.what() + ")");
+  }
+}
+
+Box read_box(const Reader& r, const char* lo_key, const char* hi_key) {
+  Box b{r.vec3(lo_key, {}, true), r.vec3(hi_key, {}, true)};
+  const double lo[3] = {b.min.x, b.min.y, b.min.z}, hi[3] = {b.max.x, b.max.y, b.max.z};
+  for (int k = 0; k < 3; ++k)
+    if (!(hi[k] > lo[k])) r.fail(hi_key, r.at(hi_key), std::string("must be greater than ") + lo_key + " in every axis");
+  return b;
+}
+
+}  // namespace
+
+Scene parse_scene(const std::string& text, const std::string& file, const std::vector<std::string>& overrides) {
+  json j;
+  try {
+    j = json::parse(text);
+  } catch (const json::parse_error& e) {
+    throw SceneError(file + ": not valid JSON: " + e.what());
+  }
+  if (!j.is_object()) throw SceneError(file + ": the scene must be a JSON object");
+  for (const auto& o : overrides) apply_override(j, file, o);
+
+  Scene s;
+  s.file = file;
+  s.json = j;
+  const Reader root(j, file, "");
+  root.only({"name", "description", "tank", "fluid", "gravity", "sph", "run"});
+  s.name = root.has("name") && root.at("name").is_string() ? root.at("name").get<std::string>() : "scene";
+  if (root.has("name") && !root.at("name").is_string()) root.fail("name", root.at("name"), "must be a string");
+  if (root.has("description") && !root.at("description").is_string())
+    root.fail("description", root.at("description"), "must be a string");
+
+  if (!root.has("tank")) root.fail("tank", json(), "is required");
+  const Reader tank = root.child("tank");
+  tank.only({"min", "max", "open_top", "free_slip"});
+  s.tank = read_box(tank, "min", "max");
+  s.open_top = tank.boolean("open_top", false);
+  if (tank.has("free_slip")) {
+    static const char* faces[6] = {"-x", "+x", "-y", "+y", "-z", "+z"};
+    const json& fs = tank.at("free_slip");
+    if (!fs.is_array()) tank.fail("free_slip", fs, "must be an array of faces from \"-x\", \"+x\", \"-y\", \"+y\", \"-z\", \"+z\"");
+    for (const auto& f : fs) {
+      int k = 0;
+      while (k < 6 && !(f.is_string() && f == faces[k])) ++k;
+      if (k == 6) tank.fail("free_slip", fs, "unknown face " + f.dump() + " (faces: \"-x\", \"+x\", \"-y\", \"+y\", \"-z\", \"+z\")");
+      s.free_slip[k] = true;
+    }
+  }
+
+  s.gravity = root.vec3("gravity", s.gravity);
+  const double gmag = length(s.gravity);
+  if (gmag > 1000.0) root.fail("gravity", root.at("gravity"), "magnitude must be at most 1000 m/s^2");
+
+  const Reader sph = root.child("sph");
+  sph.only({"spacing", "rest_density", "speed_of_sound", "smoothing_ratio", "kernel", "viscosity_alpha",
+            "density_diffusion", "cfl", "boundary_layers", "presence"});
+  s.sph.spacing = sph.number("spacing", 0, 0, 1e3, true, true);
+  s.sph.rest_density = sph.number("rest_density", 1000, 0, 1e5, false, true);
+  if (sph.has("speed_of_sound") && sph.at("speed_of_sound").is_string()) {
+    if (sph.at("speed_of_sound") != "auto")
+      sph.fail("speed_of_sound", sph.at("speed_of_sound"), "must be \"auto\" or a positive number [m/s]");
+  } else {
+    s.sph.speed_of_sound = sph.has("speed_of_sound") ? sph.number("speed_of_sound", 0, 0, 1e5, false, true) : 0.0;
+  }
+  s.sph.smoothing_ratio = sph.number("smoothing_ratio", 2.0, 1.0, 3.0);
+  s.sph.kernel = sph.string("kernel", "wendland_c2", {"wendland_c2", "cubic_spline"}) == "cubic_spline"
+                     ? KernelType::CubicSpline
+                     : KernelType::WendlandC2;
+  s.sph.viscosity_alpha = sph.number("viscosity_alpha", 0.02, 0, 1);
+  s.sph.density_diffusion = sph.number("density_diffusion", 0.1, 0, 1);
+  s.sph.cfl = sph.number("cfl", 0.25, 0, 1, false, true);
+  if (sph.has("boundary_layers") && !(sph.at("boundary_layers").is_string() && sph.at("boundary_layers") == "auto")) {
+    const double l = sph.number("boundary_layers", 0, 1, 8);
+    if (l != std::floor(l)) sph.fail("boundary_layers", sph.at("boundary_layers"), "must be \"auto\" or an integer 1..8");
+    s.sph.boundary_layers = int(l);
+  }
+  s.sph.presence = sph.boolean("presence", false);
+
+  const Reader run = root.child("run");
+  run.only({"end_time", "output_interval", "min_dt", "max_dt"});
+  s.run.end_time = run.number("end_time", 1.0, 0, 1e6);
+  s.run.output_interval = run.number("output_interval", 0.01, 0, 1e6, false, true);
+  s.run.min_dt = run.number("min_dt", 1e-8, 0, 1, false, true);
+  s.run.max_dt = run.number("max_dt", 1e-3, 0, 1, false, true);
+  if (s.run.max_dt < s.run.min_dt) run.fail("max_dt", json(s.run.max_dt), "must not be below run.min_dt");
+
+  const double dx = s.sph.spacing;
+  const Vec3d tank_size = s.tank.max - s.tank.min;
+  if (std::min({tank_size.x, tank_size.y, tank_size.z}) < 2 * dx)
+    tank.fail("max", tank.at("max"), "the tank must be at least two particle spacings (sph.spacing) wide in every axis");
+
+  if (root.has("fluid")) {
+    const json& fl = root.at("fluid");
+    if (!fl.is_array()) root.fail("fluid", fl, "must be an array of blocks {\"min\": [..], \"max\": [..]}");
+    for (size_t b = 0; b < fl.size(); ++b) {
+      const Reader blk(fl[b], file, "fluid." + std::to_string(b));
+      blk.only({"min", "max", "velocity"});
+      FluidBlock fb{read_box(blk, "min", "max"), blk.vec3("velocity", {0, 0, 0})};
+      const double eps = 1e-9 * std::max(1.0, length(tank_size));
+      const bool inside = fb.box.min.x >= s.tank.min.x - eps && fb.box.min.y >= s.tank.min.y - eps &&
+                          fb.box.min.z >= s.tank.min.z - eps && fb.box.max.x <= s.tank.max.x + eps &&
+                          fb.box.max.y <= s.tank.max.y + eps && fb.box.max.z <= s.tank.max.z + eps;
+      if (!inside) blk.fail("max", fl[b], "the block lies (partly) outside the tank " + root.at("tank").dump());
+      if (length(fb.velocity) > 1e4) blk.fail("velocity", blk.at("velocity"), "speed must be at most 1e4 m/s");
+      s.fluid.push_back(fb);
+    }
+  }
+  return s;
+}
+
+Scene load_scene(const std::string& path, const std::vector<std::string>& overrides) {
+  std::ifstream f(path, std::ios::binary);
+  if (!f) throw SceneError("cannot open scene file '" + path + "'");
+  std::stringstream ss;
+  ss << f.rdbuf();
+  return parse_scene(ss.str(), path, overrides);
+}
+
+}  // namespace sphray

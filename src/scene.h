@@ -1,0 +1,69 @@
+// A scene: the tank, the fluid blocks, gravity, SPH and run settings, read
+// from JSON, overridden by --set key.path=value, validated once and then
+// immutable. Every bad value is a SceneError naming file, key and value.
+#pragma once
+
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+#include <nlohmann/json.hpp>
+
+#include "../cuda/common/vec.h"
+#include "../cuda/sph/kernel.h"
+
+namespace sphray {
+
+struct SceneError : std::runtime_error {
+  using std::runtime_error::runtime_error;
+};
+
+struct Box {
+  Vec3d min, max;
+};
+
+struct FluidBlock {
+  Box box;
+  Vec3d velocity{0, 0, 0};
+};
+
+struct Scene {
+  std::string file;     // where it came from
+  nlohmann::json json;  // the scene as it runs (after --set), for provenance
+  std::string name;
+
+  Box tank;
+  bool open_top = false;
+  // Faces without wall friction, from "-x", "+x", "-y", "+y", "-z", "+z"
+  // (e.g. the side walls of a quasi-2D slab). Other walls are viscous.
+  bool free_slip[6] = {false, false, false, false, false, false};
+  std::vector<FluidBlock> fluid;
+  Vec3d gravity{0, 0, -9.81};
+
+  struct Sph {
+    double spacing = 0;          // dx [m]
+    double rest_density = 1000;  // [kg/m^3]
+    double speed_of_sound = 0;   // [m/s], 0 = auto
+    double smoothing_ratio = 2.0;  // h / dx (DualSPHysics uses 1.2 sqrt(3) = 2.08 in 3D)
+    KernelType kernel = KernelType::WendlandC2;
+    double viscosity_alpha = 0.02;
+    double density_diffusion = 0.1;
+    double cfl = 0.25;
+    int boundary_layers = 0;  // 0 = auto: enough to cover the support radius
+    bool presence = false;
+  } sph;
+
+  struct Run {
+    double end_time = 1.0;         // [s]
+    double output_interval = 0.01; // [s]
+    double min_dt = 1e-8;          // [s] a smaller step is an error
+    double max_dt = 1e-3;          // [s]
+  } run;
+};
+
+// Parses JSON text (file names the source in messages), applies overrides
+// ("key.path=value", value as JSON or else as a string) and validates.
+Scene parse_scene(const std::string& text, const std::string& file, const std::vector<std::string>& overrides = {});
+Scene load_scene(const std::string& path, const std::vector<std::string>& overrides = {});
+
+}  // namespace sphray

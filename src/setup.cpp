@@ -1,0 +1,208 @@
+#include "setup.h"
+
+#include <unistd.h>
+
+#include <algorithm>
+#include <cmath>
+#include <sstream>
+
+namespace sphray {
+
+namespace {
+
+Vec3f to_f(Vec3d v) { return {float(v.x), float(v.y), float(v.z)}; }
+
+int lattice_count(double size, double dx) { return std::max(1, int(std::floor(size / dx + 1e-6))); }
+
+// Unit vector "up" (against gravity); +z when there is no gravity.
+Vec3d up_of(const Scene& s) {
+  const double g = length(s.gravity);
+  return g > 0 ? s.gravity * (-1.0 / g) : Vec3d{0, 0, 1};
+}
+
+double box_top(const Box& b, Vec3d up) {
+  double top = -1e300;
+  for (int c = 0; c < 8; ++c) {
+    const Vec3d p{c & 1 ? b.max.x : b.min.x, c & 2 ? b.max.y : b.min.y, c & 4 ? b.max.z : b.min.z};
+    top = std::max(top, dot(p, up));
+  }
+  return top;
+}
+
+struct AxisCoords {
+  std::vector<double> c;
+  size_t wall_lo, inner;  // c = [wall_lo lower-wall coords][inner coords][upper-wall coords]
+};
+
+AxisCoords axis_coords(double lo, double hi, double dx, int layers, bool upper_wall) {
+  AxisCoords a;
+  for (int l = layers - 1; l >= 0; --l) a.c.push_back(lo - (l + 0.5) * dx);
+  a.wall_lo = a.c.size();
+  const int n = std::max(1, int(std::lround((hi - lo) / dx)));
+  const double s = (hi - lo) / n;
+  for (int k = 0; k < n; ++k) a.c.push_back(lo + (k + 0.5) * s);
+  a.inner = size_t(n);
+  if (upper_wall)
+    for (int l = 0; l < layers; ++l) a.c.push_back(hi + (l + 0.5) * dx);
+  return a;
+}
+
+bool is_wall(const AxisCoords& a, size_t k) { return k < a.wall_lo || k >= a.wall_lo + a.inner; }
+
+}  // namespace
+
+SphParams make_params(const Scene& s) {
+  SphParams p{};
+  const double dx = s.sph.spacing;
+  const double h = s.sph.smoothing_ratio * dx;
+  p.kernel = SmoothingKernel<float>::make(s.sph.kernel, float(h));
+  p.rest_density = float(s.sph.rest_density);
+  p.particle_mass = float(s.sph.rest_density * dx * dx * dx);
+  double c0 = s.sph.speed_of_sound;
+  if (c0 <= 0) {
+    // Weakly compressible: c0 = 10 x the largest expected speed keeps density
+    // variations near 1% (Monaghan 1994). Expected speed: sqrt(g H) of the
+    // tallest fluid column, or the fastest initial velocity. A still fluid
+    // without gravity still needs a stiffness: standard gravity is assumed then.
+    const Vec3d up = up_of(s);
+    double lo = 1e300, hi = -1e300, vmax = 0;
+    for (const auto& b : s.fluid) {
+      hi = std::max(hi, box_top(b.box, up));
+      lo = std::min(lo, -box_top(b.box, up * -1.0));
+      vmax = std::max(vmax, length(b.velocity));
+    }
+    const double height = s.fluid.empty() ? dx : std::max(hi - lo, dx);
+    const double g = length(s.gravity) > 0 ? length(s.gravity) : 9.81;
+    c0 = 10.0 * std::max(std::sqrt(g * height), vmax);
+  }
+  p.speed_of_sound = float(c0);
+  p.tait_b = float(c0 * c0 * s.sph.rest_density / 7.0);
+  p.viscosity_alpha = float(s.sph.viscosity_alpha);
+  p.density_diffusion = float(s.sph.density_diffusion);
+  p.gravity = to_f(s.gravity);
+  p.spacing = float(dx);
+  const auto kd = SmoothingKernel<double>::make(s.sph.kernel, h);
+  p.presence_scale = float(6.0 / (1.0 - dx * dx * dx * kd.W(0.0)));
+  p.tank = {to_f(s.tank.min), to_f(s.tank.max)};
+  p.open_top = s.open_top;
+  return p;
+}
+
+SceneSize measure_scene(const Scene& s) {
+  SceneSize z;
+  const double dx = s.sph.spacing;
+  const double support = 2.0 * s.sph.smoothing_ratio * dx;
+  z.boundary_layers = s.sph.boundary_layers > 0 ? s.sph.boundary_layers : int(std::ceil(support / dx - 1e-9));
+  for (const auto& b : s.fluid) {
+    const Vec3d e = b.box.max - b.box.min;
+    z.fluid += size_t(lattice_count(e.x, dx)) * lattice_count(e.y, dx) * lattice_count(e.z, dx);
+  }
+  const int L = z.boundary_layers;
+  const Vec3d e = s.tank.max - s.tank.min;
+  const double in_x = std::max(1.0, double(std::lround(e.x / dx))), in_y = std::max(1.0, double(std::lround(e.y / dx))),
+               in_z = std::max(1.0, double(std::lround(e.z / dx)));
+  const double all = (in_x + 2 * L) * (in_y + 2 * L) * (in_z + (s.open_top ? 1 : 2) * L);
+  z.boundary = size_t(all - in_x * in_y * in_z);
+
+  GridGeom& g = z.grid;
+  g.cell_size = float(support);
+  const double margin = L * dx + 0.5 * support;
+  const Vec3d lo = s.tank.min - Vec3d{margin, margin, margin};
+  Vec3d hi = s.tank.max + Vec3d{margin, margin, margin};
+  if (s.open_top) hi.z += e.z;  // room for splashes above the rim before they count as gone
+  g.origin = to_f(lo);
+  const double nx = std::ceil((hi.x - lo.x) / support), ny = std::ceil((hi.y - lo.y) / support),
+               nz = std::ceil((hi.z - lo.z) / support);
+  const double cells = nx * ny * nz;
+  z.cells = cells < 4e9 ? size_t(cells) : size_t(4e9);
+  g.nx = int(std::min(nx, 2e9));
+  g.ny = int(std::min(ny, 2e9));
+  g.nz = int(std::min(nz, 2e9));
+  // Solver buffers (see SolverImpl) plus sort scratch and the host-side copy.
+  z.bytes = z.fluid * 200 + z.boundary * 64 + z.cells * 8;
+  return z;
+}
+
+void check_fits(const Scene& s, Backend backend) {
+  const SceneSize z = measure_scene(s);
+  const double gib = 1024.0 * 1024.0 * 1024.0;
+  std::ostringstream os;
+  if (z.cells >= 0xffffffffull || z.fluid >= 0x7fffffffull || z.boundary >= 0x7fffffffull) {
+    os << s.file << ": sph.spacing = " << s.sph.spacing << " gives " << z.fluid << " fluid particles, " << z.boundary
+       << " wall particles and " << z.cells << " grid cells: more than sphray can index (2^31 particles, 2^32 cells). "
+       << "Raise sph.spacing or shrink the tank.";
+    throw SceneError(os.str());
+  }
+  size_t avail = 0;
+  if (backend == Backend::Cuda) {
+    avail = cuda_free_memory();
+  } else {
+    const long pages = sysconf(_SC_AVPHYS_PAGES), page = sysconf(_SC_PAGE_SIZE);
+    avail = pages > 0 && page > 0 ? size_t(pages) * size_t(page) : 0;
+  }
+  if (avail > 0 && z.bytes > avail * 0.9) {
+    os.precision(3);
+    os << s.file << ": sph.spacing = " << s.sph.spacing << " needs about " << z.bytes / gib << " GiB (" << z.fluid
+       << " fluid particles, " << z.boundary << " wall particles, " << z.cells << " grid cells), but the "
+       << backend_name(backend) << " backend has " << avail / gib << " GiB free. Raise sph.spacing or shrink the tank.";
+    throw SceneError(os.str());
+  }
+}
+
+SolverInput make_solver_input(const Scene& s, bool presence) {
+  SolverInput in;
+  in.params = make_params(s);
+  const SceneSize z = measure_scene(s);
+  in.grid = z.grid;
+  in.cfl = float(s.sph.cfl);
+  in.min_dt = float(s.run.min_dt);
+  in.max_dt = float(s.run.max_dt);
+  in.presence = presence;
+  const double dx = s.sph.spacing;
+  const double rho0 = s.sph.rest_density, b = in.params.tait_b, g = length(s.gravity);
+  const Vec3d up = up_of(s);
+
+  in.fluid_pos_rho.reserve(z.fluid);
+  in.fluid_vel.reserve(z.fluid);
+  for (const auto& blk : s.fluid) {
+    const Vec3d e = blk.box.max - blk.box.min;
+    const int n[3] = {lattice_count(e.x, dx), lattice_count(e.y, dx), lattice_count(e.z, dx)};
+    const Vec3d start = blk.box.min + Vec3d{(e.x - n[0] * dx) / 2 + dx / 2, (e.y - n[1] * dx) / 2 + dx / 2,
+                                            (e.z - n[2] * dx) / 2 + dx / 2};
+    const double top = box_top(blk.box, up);
+    for (int k = 0; k < n[2]; ++k)
+      for (int j = 0; j < n[1]; ++j)
+        for (int i = 0; i < n[0]; ++i) {
+          const Vec3d p = start + Vec3d{i * dx, j * dx, k * dx};
+          // Hydrostatic start (inverse Tait): no pressure wave from a fluid released at uniform density.
+          const double depth = std::max(0.0, top - dot(p, up));
+          const double rho = rho0 * std::pow(1.0 + rho0 * g * depth / b, 1.0 / 7.0);
+          in.fluid_pos_rho.push_back({float(p.x), float(p.y), float(p.z), float(rho)});
+          in.fluid_vel.push_back({float(blk.velocity.x), float(blk.velocity.y), float(blk.velocity.z), 0.0f});
+        }
+  }
+
+  const int L = z.boundary_layers;
+  const AxisCoords ax = axis_coords(s.tank.min.x, s.tank.max.x, dx, L, true);
+  const AxisCoords ay = axis_coords(s.tank.min.y, s.tank.max.y, dx, L, true);
+  const AxisCoords az = axis_coords(s.tank.min.z, s.tank.max.z, dx, L, !s.open_top);
+  const float volume = float(dx * dx * dx);
+  in.boundary.reserve(z.boundary);
+  in.boundary_alpha.reserve(z.boundary);
+  // A wall particle is viscous unless every face it belongs to is free-slip
+  // (an edge between a free-slip and a viscous face stays viscous).
+  auto face_of = [&](const AxisCoords& a, size_t k, int axis) { return k < a.wall_lo ? 2 * axis : 2 * axis + 1; };
+  for (size_t k = 0; k < az.c.size(); ++k)
+    for (size_t j = 0; j < ay.c.size(); ++j)
+      for (size_t i = 0; i < ax.c.size(); ++i) {
+        const bool wx = is_wall(ax, i), wy = is_wall(ay, j), wz = is_wall(az, k);
+        if (!(wx || wy || wz)) continue;
+        const bool viscous = (wx && !s.free_slip[face_of(ax, i, 0)]) || (wy && !s.free_slip[face_of(ay, j, 1)]) ||
+                             (wz && !s.free_slip[face_of(az, k, 2)]);
+        in.boundary.push_back({float(ax.c[i]), float(ay.c[j]), float(az.c[k]), volume});
+        in.boundary_alpha.push_back(viscous ? float(s.sph.viscosity_alpha) : 0.0f);
+      }
+  return in;
+}
+
+}  // namespace sphray

@@ -1,0 +1,94 @@
+// The SPH solver as the host sees it: one interface, two backends built from
+// one source (cuda/sph/solver_impl.inl). The pipeline and the tests only talk
+// to this interface.
+#pragma once
+
+#include <array>
+#include <cstdint>
+#include <memory>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+#include "../cuda/sph/grid.h"
+#include "../cuda/sph/params.h"
+
+namespace sphray {
+
+enum class Backend { Cpu, Cuda };
+const char* backend_name(Backend b);
+
+// A run that cannot go on (non-finite value, time step below its floor).
+struct SimulationError : std::runtime_error {
+  using std::runtime_error::runtime_error;
+};
+
+struct SolverInput {
+  SphParams params;
+  GridGeom grid;
+  std::vector<Float4> fluid_pos_rho;  // x, y, z, initial density
+  std::vector<Float4> fluid_vel;      // vx, vy, vz, -
+  std::vector<Float4> boundary;       // x, y, z, volume
+  std::vector<float> boundary_alpha;  // wall viscosity per boundary particle (0 = free slip)
+  float cfl = 0.25f;
+  float min_dt = 1e-9f;   // a step below this is an error
+  float max_dt = 1e-2f;
+  bool presence = false;  // compute particle presence (only when a later stage needs it)
+};
+
+// Host copy of the fluid state, in the solver's current (sorted) order.
+struct HostParticles {
+  std::vector<uint32_t> id;  // index in the initial particle list
+  std::vector<Vec3f> pos, vel;
+  std::vector<float> density;
+  std::vector<std::array<float, 6>> presence;  // empty when presence is off
+};
+
+struct StageTimes {  // milliseconds of the last step
+  double grid = 0, density = 0, forces = 0, integrate = 0;
+  double total() const { return grid + density + forces + integrate; }
+};
+
+struct StepLimits {  // the last step's size and what bounded it
+  double dt = 0, dt_cfl = 0, dt_force = 0, dt_viscous = 0;
+  double max_speed = 0, max_accel = 0;
+};
+
+class Solver {
+ public:
+  virtual ~Solver() = default;
+  virtual Backend backend() const = 0;
+  // Advances one adaptive step, never past `until` [s]. Throws SimulationError.
+  virtual void step(double until) = 0;
+  virtual double time() const = 0;
+  virtual uint64_t steps() const = 0;
+  virtual size_t num_fluid() const = 0;       // particles still in the run
+  virtual size_t num_removed() const = 0;     // left the grid (open top) and dropped
+  virtual uint64_t num_clamped() const = 0;   // particle-steps put back on a wall face
+  virtual const StepLimits& last_limits() const = 0;
+  virtual const StageTimes& last_stage_times() const = 0;
+  virtual bool has_presence() const = 0;
+  virtual size_t device_bytes() const = 0;    // buffers this solver holds
+  virtual HostParticles download() const = 0;
+  // Cell offsets of the fluid grid (num_cells + 1): cell c holds sorted particles
+  // [offsets[c], offsets[c+1]); its particle count is the difference.
+  virtual std::vector<uint32_t> download_cell_offsets() const = 0;
+};
+
+std::unique_ptr<Solver> make_cpu_solver(const SolverInput& in);
+std::unique_ptr<Solver> make_cuda_solver(const SolverInput& in);  // throws if CUDA is unavailable
+
+bool cuda_available();           // built with CUDA and a device is present
+std::string cuda_device_name();  // empty when none
+size_t cuda_free_memory();       // bytes, 0 when none
+
+// Neighbour grid alone, for tests and for later stages that need one over
+// arbitrary points: sorted order, keys and offsets.
+struct GridBuild {
+  std::vector<uint32_t> order;  // order[k] = input index of the k-th sorted point
+  std::vector<uint32_t> keys;   // sorted keys
+  std::vector<uint32_t> offsets;
+};
+GridBuild build_grid(Backend b, const GridGeom& g, const std::vector<Vec3f>& points);
+
+}  // namespace sphray

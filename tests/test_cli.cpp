@@ -1,0 +1,75 @@
+// The sphray executable end to end: exit codes and messages for bad input,
+// a short run that succeeds.
+#include <cstdio>
+#include <cstdlib>
+#include <fstream>
+#include <sstream>
+#include <string>
+#include <sys/wait.h>
+
+#include "catch.h"
+#include "helpers.h"
+
+namespace {
+
+struct Result {
+  int code;
+  std::string output;
+};
+
+Result run_cli(const std::string& args) {
+  const std::string out = "/tmp/sphray_cli_test.txt";
+  const std::string cmd = std::string(SPHRAY_EXE) + " " + args + " > " + out + " 2>&1";
+  const int status = std::system(cmd.c_str());
+  std::ifstream f(out);
+  std::stringstream ss;
+  ss << f.rdbuf();
+  return {WIFEXITED(status) ? WEXITSTATUS(status) : -1, ss.str()};
+}
+
+bool has(const std::string& s, const std::string& part) { return s.find(part) != std::string::npos; }
+
+}  // namespace
+
+TEST_CASE("sphray run reports bad input with exit code 2", "[cli][cpu]") {
+  const std::string scene = sphray::test::source_path("scenes/stress/one_cell.json");
+  Result r = run_cli("run /nonexistent.json --backend cpu");
+  CHECK(r.code == 2);
+  CHECK(has(r.output, "cannot open scene file"));
+
+  r = run_cli("run " + scene + " --backend cpu --set sph.spacing=-1");
+  CHECK(r.code == 2);
+  CHECK(has(r.output, "sph.spacing = -1"));
+
+  r = run_cli("run " + scene + " --backend cpu --set sph.visc=0.1");
+  CHECK(r.code == 2);
+  CHECK(has(r.output, "unknown key"));
+
+  r = run_cli("run " + scene + " --backend warp");
+  CHECK(r.code == 2);
+  CHECK(has(r.output, "auto, cpu or cuda"));
+
+  r = run_cli("run " + scene + " --frobnicate");
+  CHECK(r.code == 2);
+
+  std::ofstream("/tmp/sphray_bad.json") << "{\"tank\": [1,2";
+  r = run_cli("run /tmp/sphray_bad.json --backend cpu");
+  CHECK(r.code == 2);
+  CHECK(has(r.output, "not valid JSON"));
+}
+
+TEST_CASE("sphray run simulates a small scene and prints a summary", "[cli][cpu]") {
+  const std::string scene = sphray::test::source_path("scenes/stress/one_cell.json");
+  const Result r = run_cli("run " + scene + " --backend auto --set run.end_time=0.05 --set run.output_interval=0.01 --metrics-csv /tmp/sphray_m.csv");
+  CHECK(r.code == 0);
+  CHECK(has(r.output, "backend: "));
+  CHECK(has(r.output, "summary"));
+  CHECK(has(r.output, "8 fluid at start, 8 at end"));
+  std::ifstream csv("/tmp/sphray_m.csv");
+  std::string header, line;
+  std::getline(csv, header);
+  CHECK(has(header, "front_m"));
+  int rows = 0;
+  while (std::getline(csv, line)) ++rows;
+  CHECK(rows == 6);  // t = 0 and five output intervals of 0.01 s
+}

@@ -1,0 +1,46 @@
+// Kernel functions against double-precision quadrature and finite differences.
+#include <cmath>
+
+#include "../cuda/sph/kernel.h"
+#include "catch.h"
+
+using namespace sphray;
+
+TEST_CASE("kernels integrate to one over their support", "[kernel][cpu]") {
+  for (KernelType t : {KernelType::WendlandC2, KernelType::CubicSpline}) {
+    const auto k = SmoothingKernel<double>::make(t, 0.013);
+    const int n = 200000;
+    double sum = 0;
+    const double dr = k.support() / n;
+    for (int i = 0; i < n; ++i) {
+      const double r = (i + 0.5) * dr;
+      sum += 4 * M_PI * r * r * k.W(r) * dr;
+    }
+    CHECK(std::abs(sum - 1.0) < 1e-6);
+    CHECK(k.W(k.support()) == 0.0);
+    CHECK(k.W(1.01 * k.support()) == 0.0);
+  }
+}
+
+TEST_CASE("kernel gradient matches a central finite difference", "[kernel][cpu]") {
+  for (KernelType t : {KernelType::WendlandC2, KernelType::CubicSpline}) {
+    const auto k = SmoothingKernel<double>::make(t, 0.02);
+    for (double q = 0.05; q < 1.99; q += 0.07) {
+      const double r = q * k.h, e = 1e-7;
+      const double fd = (k.W(r + e) - k.W(r - e)) / (2 * e);
+      CHECK(std::abs(k.dW_over_r(r) * r - fd) < 1e-6 * std::abs(k.sigma / k.h));
+    }
+  }
+}
+
+TEST_CASE("float kernel agrees with the double reference", "[kernel][cpu]") {
+  for (KernelType t : {KernelType::WendlandC2, KernelType::CubicSpline}) {
+    const auto kd = SmoothingKernel<double>::make(t, 0.013);
+    const auto kf = SmoothingKernel<float>::make(t, 0.013f);
+    for (double q = 0; q < 2.0; q += 0.01) {
+      const double r = q * kd.h;
+      CHECK(std::abs(kf.W(float(r)) - kd.W(r)) <= 1e-5 * kd.W(0));
+      CHECK(std::abs(kf.dW_over_r(float(r)) - kd.dW_over_r(r)) <= 1e-5 * std::abs(kd.dW_over_r(0)));
+    }
+  }
+}

@@ -1,0 +1,117 @@
+// Particle presence against a double-precision brute-force reference, and the
+// three cases of Yasuda et al. (deep ~1, free surface ~0 toward air, isolated 0),
+// plus mirror symmetry.
+#include <array>
+#include <cmath>
+#include <vector>
+
+#include "catch.h"
+#include "helpers.h"
+
+using namespace sphray;
+
+namespace {
+
+constexpr double kDx = 0.01;
+
+// A block of liquid n^3 at rest without gravity (so nothing moves in one step),
+// plus optional extra particles; presence on.
+SolverInput lattice_input(int nx, int ny, int nz, const std::vector<Vec3d>& extra = {}) {
+  const std::string text = R"({"tank": {"min": [-0.1,-0.1,-0.1], "max": [0.4,0.4,0.4]},
+    "gravity": [0,0,0], "sph": {"spacing": 0.01}, "run": {"end_time": 1}})";
+  const Scene s = parse_scene(text, "presence.json");
+  SolverInput in = make_solver_input(s, true);
+  for (int k = 0; k < nz; ++k)
+    for (int j = 0; j < ny; ++j)
+      for (int i = 0; i < nx; ++i)
+        in.fluid_pos_rho.push_back({float(i * kDx), float(j * kDx), float(k * kDx), 1000.0f});
+  for (const auto& e : extra) in.fluid_pos_rho.push_back({float(e.x), float(e.y), float(e.z), 1000.0f});
+  in.fluid_vel.assign(in.fluid_pos_rho.size(), Float4{0, 0, 0, 0});
+  return in;
+}
+
+// Presence by id after one step (computed at the initial positions).
+std::vector<std::array<float, 6>> presence_of(const SolverInput& in) {
+  auto s = make_cpu_solver(in);
+  s->step(1e-6);
+  const HostParticles p = s->download();
+  REQUIRE(p.presence.size() == in.fluid_pos_rho.size());
+  std::vector<std::array<float, 6>> by_id(p.presence.size());
+  for (size_t k = 0; k < p.id.size(); ++k) by_id[p.id[k]] = p.presence[k];
+  return by_id;
+}
+
+// Independent reference in double: the definition in cuda/sph/density.h.
+std::array<double, 6> reference_presence(const SolverInput& in, size_t i) {
+  const auto k = SmoothingKernel<double>::make(KernelType::WendlandC2, double(in.params.kernel.h));
+  const double vol = kDx * kDx * kDx;
+  std::array<double, 6> acc{};
+  const Float4 a = in.fluid_pos_rho[i];
+  for (size_t j = 0; j < in.fluid_pos_rho.size(); ++j) {
+    if (j == i) continue;
+    const Float4 b = in.fluid_pos_rho[j];
+    const double d[3] = {double(b.x) - a.x, double(b.y) - a.y, double(b.z) - a.z};
+    const double r2 = d[0] * d[0] + d[1] * d[1] + d[2] * d[2];
+    const double r = std::sqrt(r2);
+    if (r >= k.support() || r2 == 0) continue;
+    for (int ax = 0; ax < 3; ++ax) acc[2 * ax + (d[ax] > 0 ? 0 : 1)] += vol * k.W(r) * d[ax] * d[ax] / r2;
+  }
+  const double scale = 6.0 / (1.0 - vol * k.W(0.0));
+  for (auto& v : acc) v = std::min(1.0, scale * v);
+  return acc;
+}
+
+}  // namespace
+
+TEST_CASE("presence equals the double-precision reference for every particle", "[presence][cpu]") {
+  const SolverInput in = lattice_input(7, 6, 5, {{0.031, 0.027, 0.071}, {0.2, 0.2, 0.2}});
+  const auto got = presence_of(in);
+  for (size_t i = 0; i < in.fluid_pos_rho.size(); ++i) {
+    const auto ref = reference_presence(in, i);
+    for (int d = 0; d < 6; ++d) REQUIRE(std::abs(got[i][d] - ref[d]) < 2e-4);
+  }
+}
+
+TEST_CASE("presence is about 1 deep in the liquid, ~0 toward air, 0 when isolated", "[presence][cpu]") {
+  const int n = 11;
+  const SolverInput in = lattice_input(n, n, n, {{0.3, 0.3, 0.3}});
+  const auto p = presence_of(in);
+  auto at = [&](int i, int j, int k) { return p[size_t((k * n + j) * n + i)]; };
+  // Deep: the centre particle.
+  for (int d = 0; d < 6; ++d) CHECK(std::abs(at(5, 5, 5)[d] - 1.0f) < 0.05f);
+  // Free surface (top face, centre): nothing above, full liquid below, in
+  // between sideways (0.5 for a continuous half space; the surface layer
+  // itself adds to the lateral lobes on a lattice: about 0.8).
+  const auto top = at(5, 5, n - 1);
+  CHECK(top[4] < 0.02f);                  // +z, toward air
+  CHECK(std::abs(top[5] - 1.0f) < 0.05f); // -z, into the liquid
+  for (int d = 0; d < 4; ++d) CHECK((top[d] > 0.4f && top[d] < 0.9f));
+  // Isolated.
+  for (int d = 0; d < 6; ++d) CHECK(p.back()[d] == 0.0f);
+}
+
+TEST_CASE("presence is mirror symmetric", "[presence][cpu]") {
+  // An irregular cluster and its mirror image in x: +x and -x swap, the rest agree.
+  std::vector<Vec3d> pts = {{0, 0, 0}, {0.008, 0.001, 0}, {0.015, -0.004, 0.003}, {0.004, 0.009, -0.002}, {-0.007, 0.002, 0.006}};
+  SolverInput a = lattice_input(0, 0, 0, pts);
+  for (auto& p : pts) p.x = -p.x;
+  SolverInput b = lattice_input(0, 0, 0, pts);
+  const auto pa = presence_of(a), pb = presence_of(b);
+  for (size_t i = 0; i < pts.size(); ++i) {
+    CHECK(std::abs(pa[i][0] - pb[i][1]) < 1e-5f);
+    CHECK(std::abs(pa[i][1] - pb[i][0]) < 1e-5f);
+    for (int d = 2; d < 6; ++d) CHECK(std::abs(pa[i][d] - pb[i][d]) < 1e-5f);
+  }
+}
+
+TEST_CASE("presence costs nothing when no stage needs it", "[presence][cpu]") {
+  SolverInput in = lattice_input(5, 5, 5);
+  auto with = make_cpu_solver(in);
+  in.presence = false;
+  auto without = make_cpu_solver(in);
+  CHECK(with->has_presence());
+  CHECK_FALSE(without->has_presence());
+  CHECK(with->device_bytes() - without->device_bytes() == 6 * sizeof(float) * 125);
+  without->step(1e-6);
+  CHECK(without->download().presence.empty());
+}

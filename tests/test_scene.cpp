@@ -1,0 +1,116 @@
+// Scene parsing and validation: every bad value gets one message naming the
+// file, the key and the value.
+#include <string>
+
+#include "catch.h"
+#include "helpers.h"
+
+using namespace sphray;
+
+namespace {
+
+const char* kGood = R"({
+  "name": "t", "tank": {"min": [0,0,0], "max": [1,0.5,0.5]},
+  "fluid": [{"min": [0,0,0], "max": [0.2,0.5,0.3]}],
+  "sph": {"spacing": 0.02}, "run": {"end_time": 0.1}
+})";
+
+std::string error_of(const std::string& text, const std::vector<std::string>& sets = {}) {
+  try {
+    parse_scene(text, "t.json", sets);
+  } catch (const SceneError& e) {
+    return e.what();
+  }
+  return "";
+}
+
+bool contains(const std::string& s, const std::string& part) { return s.find(part) != std::string::npos; }
+
+}  // namespace
+
+TEST_CASE("a minimal scene parses with documented defaults", "[scene][cpu]") {
+  const Scene s = parse_scene(kGood, "t.json");
+  CHECK(s.sph.spacing == 0.02);
+  CHECK(s.sph.rest_density == 1000);
+  CHECK(s.sph.speed_of_sound == 0);  // auto
+  CHECK(s.gravity.z == -9.81);
+  CHECK(s.fluid.size() == 1);
+  CHECK(s.run.end_time == 0.1);
+}
+
+TEST_CASE("--set overrides any value by its dotted path", "[scene][cpu]") {
+  const Scene s = parse_scene(kGood, "t.json", {"sph.spacing=0.01", "run.end_time=2", "fluid.0.velocity=[1,0,0]", "name=x"});
+  CHECK(s.sph.spacing == 0.01);
+  CHECK(s.run.end_time == 2);
+  CHECK(s.fluid[0].velocity.x == 1);
+  CHECK(s.name == "x");
+  CHECK(s.json["sph"]["spacing"] == 0.01);  // the scene as it ran
+}
+
+TEST_CASE("bad scenes get a message naming file, key and value", "[scene][cpu]") {
+  std::string e = error_of(kGood, {"sph.spacingg=0.01"});
+  CHECK(contains(e, "t.json"));
+  CHECK(contains(e, "sph.spacingg"));
+  CHECK(contains(e, "unknown key"));
+
+  e = error_of(kGood, {"sph.spacing=-0.1"});
+  CHECK(contains(e, "sph.spacing = -0.1"));
+
+  e = error_of(kGood, {"sph.spacing=\"small\""});
+  CHECK(contains(e, "sph.spacing"));
+  CHECK(contains(e, "must be a number"));
+
+  e = error_of(kGood, {"sph.spacing=nan"});  // not JSON: read as a string, rejected as one
+  CHECK(contains(e, "sph.spacing = \"nan\""));
+
+  e = error_of(kGood, {"fluid.0.max=[2,0.5,0.3]"});
+  CHECK(contains(e, "fluid.0"));
+  CHECK(contains(e, "outside the tank"));
+
+  e = error_of(kGood, {"tank.max=[1,0.5]"});
+  CHECK(contains(e, "tank.max"));
+
+  e = error_of(kGood, {"tank.max=[-1,0.5,0.5]"});
+  CHECK(contains(e, "greater than min"));
+
+  e = error_of(kGood, {"sph.kernel=\"gauss\""});
+  CHECK(contains(e, "wendland_c2"));
+
+  e = error_of(kGood, {"tank.free_slip=[\"-w\"]"});
+  CHECK(contains(e, "unknown face"));
+
+  e = error_of(kGood, {"nosuch.key=1"});
+  CHECK(contains(e, "no such section"));
+
+  e = error_of(kGood, {"gravity"});
+  CHECK(contains(e, "key.path=value"));
+
+  CHECK(contains(error_of("{ \"tank\": "), "not valid JSON"));
+  CHECK(contains(error_of("[1,2]"), "must be a JSON object"));
+  CHECK(contains(error_of("{}"), "tank"));
+}
+
+TEST_CASE("a missing scene file is a clear error", "[scene][cpu]") {
+  CHECK_THROWS_AS(load_scene("/nonexistent/scene.json"), SceneError);
+}
+
+TEST_CASE("a scene too large for memory is refused before allocating", "[scene][cpu]") {
+  const Scene s = parse_scene(kGood, "t.json", {"tank.max=[100,100,100]", "fluid.0.max=[100,100,50]", "sph.spacing=0.001"});
+  std::string e;
+  try {
+    check_fits(s, Backend::Cpu);
+  } catch (const SceneError& x) {
+    e = x.what();
+  }
+  CHECK(contains(e, "sph.spacing"));
+  CHECK(contains(e, "Raise sph.spacing"));
+}
+
+TEST_CASE("the shipped scenes all parse", "[scene][cpu]") {
+  for (const char* f : {"scenes/dam_break.json", "scenes/bench/dam_break.json", "scenes/validation/martin_moyce.json",
+                        "scenes/stress/stiff.json", "scenes/stress/jet.json", "scenes/stress/tall_column.json",
+                        "scenes/stress/one_cell.json", "scenes/stress/zero_gravity.json",
+                        "scenes/stress/high_gravity.json", "scenes/stress/single_particle.json",
+                        "scenes/stress/empty_tank.json"})
+    CHECK_NOTHROW(load_scene(test::source_path(f)));
+}

@@ -1,0 +1,40 @@
+// Martin & Moyce (1952) dam-break surge front, coarse resolution (a/10) on the
+// CPU: RMS relative error over the experimental points must stay below 10%.
+// docs/validation.md has the full study (three resolutions, both backends).
+#include <cmath>
+
+#include "../src/metrics.h"
+#include "catch.h"
+#include "helpers.h"
+
+using namespace sphray;
+
+TEST_CASE("a coarse Martin-Moyce dam break follows the experimental surge front", "[validation][cpu]") {
+  const double a = 0.05715, g = 9.81;
+  const Scene s = load_scene(test::source_path("scenes/validation/martin_moyce.json"), {"sph.spacing=0.005715"});
+  auto solver = make_cpu_solver(make_solver_input(s, false));
+  Curve sim;
+  RunOptions opt;
+  opt.progress = false;
+  opt.on_output = [&](const Solver& sv, int) {
+    sim.x.push_back(sv.time() * std::sqrt(2 * g / a));
+    sim.y.push_back(surge_front(sv.download(), 0.0, s.sph.spacing) / a);
+  };
+  std::ostringstream log;
+  run_scene(s, *solver, opt, log);
+  const Curve experiment = read_csv_curve(test::source_path("data/martin_moyce_1952.csv"));
+  REQUIRE(experiment.x.size() == 15);
+  const CurveError e = relative_error(sim, experiment);
+  INFO("RMS relative error " << e.rms_relative << ", max " << e.max_relative);
+  CHECK(e.points == 15);  // the run covers the whole data range (T = 9.24)
+  CHECK(e.rms_relative < 0.10);
+}
+
+TEST_CASE("relative_error of a curve against itself is zero, and of a 10% offset is 10%", "[validation][cpu]") {
+  const Curve c{{0, 1, 2, 3}, {1, 2, 3, 4}};
+  CHECK(relative_error(c, c).rms_relative == 0.0);
+  Curve up = c;
+  for (auto& y : up.y) y *= 1.1;
+  CHECK(std::abs(relative_error(up, c).rms_relative - 0.1) < 1e-12);
+  CHECK(std::abs(interpolate(c, 1.5) - 2.5) < 1e-12);
+}
