@@ -1,0 +1,37 @@
+#!/usr/bin/env bash
+# One call on the GPU machine (see shared/device/README.md): configure with CUDA,
+# build on all cores, run the cpu and gpu tests, the benchmarks and the CUDA
+# validation runs, leaving logs and JSON under $OUT. Steps can be chosen:
+#   tools/gpu-check.sh [build] [test] [sanitize] [bench] [validate]   (default: all but sanitize)
+set -uo pipefail
+OUT=${OUT:-$PWD/gpu-out}
+mkdir -p "$OUT"
+steps=${*:-build test bench validate}
+has() { [[ " $steps " == *" $1 "* ]]; }
+B=build-gpu
+
+if has build; then
+  echo "== build"
+  nvidia-smi --query-gpu=name,driver_version,memory.total --format=csv,noheader | tee "$OUT/gpu.txt"
+  cmake -S . -B $B -G Ninja -DCMAKE_BUILD_TYPE=Release -DCMAKE_CUDA_ARCHITECTURES=90 -DSPHRAY_WERROR=ON \
+    > "$OUT/configure.log" 2>&1 || { tail -30 "$OUT/configure.log"; exit 1; }
+  grep 'sphray:' "$OUT/configure.log"
+  ninja -C $B > "$OUT/build.log" 2>&1 || { grep -E 'error|Error' -A3 "$OUT/build.log" | head -60; exit 1; }
+fi
+if has test; then
+  echo "== tests"
+  ctest --test-dir $B --output-on-failure -j 4 2>&1 | tee "$OUT/ctest.log" | tail -25
+fi
+if has sanitize; then
+  echo "== compute-sanitizer on the gpu tests"
+  compute-sanitizer --tool memcheck $B/tests/sphray_tests "[gpu]" 2>&1 | tail -8 | tee "$OUT/sanitizer.log"
+fi
+if has bench; then
+  echo "== bench sim"
+  $B/sphray bench sim --backend cuda --json "$OUT/bench_sim.json" 2>&1 | tee "$OUT/bench_sim.txt" | tail -12
+fi
+if has validate; then
+  echo "== validation (cuda)"
+  python3 tools/validate.py run --sphray $B/sphray --backend cuda --device "$(head -1 "$OUT/gpu.txt" 2>/dev/null | cut -d, -f1)" \
+    --resolutions "${RESOLUTIONS:-10,20,40}" --timeout "${VALIDATE_TIMEOUT:-240}" --out "$OUT/validation_cuda.json"
+fi
