@@ -19,8 +19,8 @@ if has build; then
   ninja -C $B > "$OUT/build.log" 2>&1 || { grep -E 'error|Error' -A3 "$OUT/build.log" | head -60; exit 1; }
 fi
 if has test; then
-  echo "== tests"
-  ctest --test-dir $B --output-on-failure -j 4 2>&1 | tee "$OUT/ctest.log" | tail -25
+  echo "== tests (${TEST_LABEL:-all})"
+  ctest --test-dir $B --output-on-failure ${TEST_LABEL:+-L $TEST_LABEL} 2>&1 | tee "$OUT/ctest.log" | tail -25
 fi
 if has sanitize; then
   echo "== compute-sanitizer on the gpu tests"
