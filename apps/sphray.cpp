@@ -103,6 +103,7 @@ int main(int argc, char** argv) {
   bsim->add_option("--warmup", bopt.warmup, "warm-up steps")->check(CLI::Range(0, 100000));
   bsim->add_option("--steps", bopt.steps, "measured steps")->check(CLI::Range(1, 100000));
   bsim->add_option("--json", json_out, "write results as JSON");
+  bsim->add_option("--set", bopt.overrides, "override a scene value for every size, e.g. --set sph.smoothing_ratio=1.3");
 
   try {
     app.parse(argc, argv);

@@ -30,11 +30,13 @@ double spacing_for_count(const Scene& s, size_t target) {
 std::vector<BenchSimRow> bench_sim(const std::string& scene_path, Backend b, const BenchSimOptions& opt, std::ostream& log) {
   std::vector<BenchSimRow> rows;
   for (size_t target : opt.sizes) {
-    const Scene base = load_scene(scene_path);
+    const Scene base = load_scene(scene_path, opt.overrides);
     std::ostringstream set;
     set.precision(9);
     set << "sph.spacing=" << spacing_for_count(base, target);
-    const Scene s = load_scene(scene_path, {set.str()});
+    std::vector<std::string> overrides = opt.overrides;
+    overrides.push_back(set.str());
+    const Scene s = load_scene(scene_path, overrides);
     for (bool presence : {false, true}) {
       auto solver = make_solver(s, b, {presence});
       BenchSimRow row;
@@ -68,6 +70,7 @@ nlohmann::json to_json(const std::vector<BenchSimRow>& rows, Backend b, const Be
   j["warmup_steps"] = opt.warmup;
   j["measured_steps"] = opt.steps;
   j["statistic"] = "median ms per step";
+  j["overrides"] = opt.overrides;
   for (const auto& r : rows)
     j["rows"].push_back({{"particles", r.particles}, {"boundary_particles", r.boundary}, {"presence", r.presence},
                          {"grid_ms", r.median_ms.grid}, {"density_ms", r.median_ms.density},

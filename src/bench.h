@@ -19,6 +19,7 @@ struct BenchSimOptions {
   std::vector<size_t> sizes;  // target fluid particle counts
   int warmup = 20;
   int steps = 100;
+  std::vector<std::string> overrides;  // --set key.path=value, applied to every size
 };
 
 struct BenchSimRow {

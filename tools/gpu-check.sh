@@ -28,7 +28,10 @@ if has sanitize; then
 fi
 if has bench; then
   echo "== bench sim"
-  $B/sphray bench sim --backend cuda --json "$OUT/bench_sim.json" 2>&1 | tee "$OUT/bench_sim.txt" | tail -12
+  $B/sphray bench sim --backend cuda --json "$OUT/bench_sim.json" 2>&1 | tee "$OUT/bench_sim.txt" | grep -v warm-up
+  echo "== bench sim, h = 1.3 dx"
+  $B/sphray bench sim --backend cuda --set sph.smoothing_ratio=1.3 --json "$OUT/bench_sim_h13.json" 2>&1 \
+    | tee "$OUT/bench_sim_h13.txt" | grep -v warm-up
 fi
 if has validate; then
   echo "== validation (cuda)"

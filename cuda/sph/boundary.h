@@ -29,7 +29,7 @@ struct WallPressure {
     float sum_w = 0.0f, sum_pw = 0.0f;
     Vec3f sum_rho_r = {0.0f, 0.0f, 0.0f};
     for_each_candidate(grid, fluid_offsets, xb, [&](uint32_t f) {
-      const Float4 pf = pos_rho[f];
+      const Float4 pf = load(pos_rho + f);
       const Vec3f r = xb - xyz(pf);
       const float r2 = length2(r);
       if (r2 >= support2) return;

@@ -44,29 +44,34 @@ struct DensityRate {
     // Linearised Tait: hydrostatic rho_j - rho_i = rho0 g.(x_j - x_i) / c0^2.
     const float hydro = prm.rest_density / (prm.speed_of_sound * prm.speed_of_sound);
     float rate = 0.0f;
-    float pres[6] = {0, 0, 0, 0, 0, 0};
+    // Presence lobes in registers (+x, -x, +y, -y, +z, -z): named scalars, not
+    // an indexed array, so the GPU keeps them out of local memory.
+    float px = 0, mx = 0, py = 0, my = 0, pz = 0, mz = 0;
 
     for_each_candidate(grid, fluid_offsets, xi, [&](uint32_t j) {
-      const Float4 pj = pos_rho[j];
+      const Float4 pj = load(pos_rho + j);
       const Vec3f r = xi - xyz(pj);
       const float r2 = length2(r);
       if (r2 >= support2 || j == i) return;
-      const float rr = std::sqrt(r2);
-      const float dwr = prm.kernel.dW_over_r(rr);
+      float w, dwr;
+      prm.kernel.eval(std::sqrt(r2), w, dwr);
       const float vol_j = prm.particle_mass / pj.w;
-      rate += prm.particle_mass * dot(vi - xyz(vel[j]), r) * dwr;
+      rate += prm.particle_mass * dot(vi - xyz(load(vel + j)), r) * dwr;
       rate += diffusion * ((pj.w - pi.w) + hydro * dot(prm.gravity, r)) * (-dwr) * vol_j;
       if (WithPresence && r2 > 0.0f) {
-        const float w = vol_j * prm.kernel.W(rr) / r2;  // times d_a^2 below = W cos^2
-        const float d[3] = {-r.x, -r.y, -r.z};           // x_j - x_i
-        for (int a = 0; a < 3; ++a) pres[2 * a + (d[a] > 0.0f ? 0 : 1)] += w * d[a] * d[a];
+        // W cos^2 per axis; x_j - x_i = -r, so r.x < 0 means j lies toward +x.
+        const float s = vol_j * w / r2;
+        const float ax = s * r.x * r.x, ay = s * r.y * r.y, az = s * r.z * r.z;
+        px += r.x < 0.0f ? ax : 0.0f; mx += r.x > 0.0f ? ax : 0.0f;
+        py += r.y < 0.0f ? ay : 0.0f; my += r.y > 0.0f ? ay : 0.0f;
+        pz += r.z < 0.0f ? az : 0.0f; mz += r.z > 0.0f ? az : 0.0f;
       }
     });
 
     // Static walls (boundary particles of volume V_b, at rest): approaching a
     // wall compresses the particle (Adami et al. 2012, eq. 22 with v_w = 0).
     for_each_candidate(grid, boundary_offsets, xi, [&](uint32_t b) {
-      const Float4 pb = boundary[b];
+      const Float4 pb = load(boundary + b);
       const Vec3f r = xi - xyz(pb);
       const float r2 = length2(r);
       if (r2 >= support2) return;
@@ -75,10 +80,13 @@ struct DensityRate {
 
     drho_dt[i] = rate;
     if (WithPresence) {
-      for (int k = 0; k < 6; ++k) {
-        const float v = prm.presence_scale * pres[k];
-        presence[k * n + i] = v < 1.0f ? v : 1.0f;
-      }
+      const float c = prm.presence_scale;
+      presence[0 * n + i] = std::fmin(1.0f, c * px);
+      presence[1 * n + i] = std::fmin(1.0f, c * mx);
+      presence[2 * n + i] = std::fmin(1.0f, c * py);
+      presence[3 * n + i] = std::fmin(1.0f, c * my);
+      presence[4 * n + i] = std::fmin(1.0f, c * pz);
+      presence[5 * n + i] = std::fmin(1.0f, c * mz);
     }
   }
 };

@@ -41,14 +41,14 @@ struct Acceleration {
     Vec3f a = {0.0f, 0.0f, 0.0f};
 
     for_each_candidate(grid, fluid_offsets, xi, [&](uint32_t j) {
-      const Float4 pj = pos_rho[j];
+      const Float4 pj = load(pos_rho + j);
       const Vec3f r = xi - xyz(pj);
       const float r2 = length2(r);
       if (r2 >= support2 || j == i) return;
       const float dwr = prm.kernel.dW_over_r(std::sqrt(r2));
       const float p_j = tait_pressure(prm, pj.w);
       float term = p_over_rho2_i + p_j / (pj.w * pj.w);
-      const float vr = dot(vi - xyz(vel[j]), r);
+      const float vr = dot(vi - xyz(load(vel + j)), r);
       if (vr < 0.0f) {
         const float mu = h * vr / (r2 + eta2);
         term += -prm.viscosity_alpha * prm.speed_of_sound * mu / (0.5f * (pi.w + pj.w));
@@ -58,7 +58,7 @@ struct Acceleration {
 
     const float p_wall_i = p_over_rho2_i > 0.0f ? p_over_rho2_i : 0.0f;
     for_each_candidate(grid, boundary_offsets, xi, [&](uint32_t b) {
-      const Float4 pb = boundary[b];
+      const Float4 pb = load(boundary + b);
       const Vec3f r = xi - xyz(pb);
       const float r2 = length2(r);
       if (r2 >= support2) return;

@@ -16,6 +16,17 @@ struct alignas(16) Float4 {
 
 SPHRAY_HD SPHRAY_FORCEINLINE Vec3f xyz(Float4 a) { return {a.x, a.y, a.z}; }
 
+// Neighbour data is read-only within a stage: on the GPU, load it through the
+// read-only data cache as one 16-byte load.
+SPHRAY_HD SPHRAY_FORCEINLINE Float4 load(const Float4* p) {
+#if defined(__CUDA_ARCH__)
+  const float4 v = __ldg(reinterpret_cast<const float4*>(p));
+  return {v.x, v.y, v.z, v.w};
+#else
+  return *p;
+#endif
+}
+
 struct Aabb {
   Vec3f min, max;
 };
