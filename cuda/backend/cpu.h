@@ -10,6 +10,7 @@
 #include <thrust/reduce.h>
 #include <thrust/sequence.h>
 #include <thrust/sort.h>
+#include <thrust/binary_search.h>
 #include <thrust/gather.h>
 #include <thrust/fill.h>
 #include <thrust/count.h>

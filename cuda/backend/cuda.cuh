@@ -9,10 +9,12 @@
 #include <vector>
 
 #include <cuda_runtime.h>
+#include <cub/util_allocator.cuh>
 #include <thrust/count.h>
 #include <thrust/device_vector.h>
 #include <thrust/execution_policy.h>
 #include <thrust/fill.h>
+#include <thrust/binary_search.h>
 #include <thrust/gather.h>
 #include <thrust/iterator/counting_iterator.h>
 #include <thrust/reduce.h>
@@ -42,7 +44,27 @@ T* raw(Vector<T>& v) { return thrust::raw_pointer_cast(v.data()); }
 template <class T>
 const T* raw(const Vector<T>& v) { return thrust::raw_pointer_cast(v.data()); }
 
-inline auto policy() { return thrust::cuda::par; }
+// Thrust's algorithms allocate temporary storage on every call; a cudaMalloc
+// per sort or reduce costs more than the sort itself at a million particles.
+// CUB's caching allocator keeps those blocks for reuse.
+struct CachedTempAllocator {
+  using value_type = char;
+  static cub::CachingDeviceAllocator& cache() {
+    static cub::CachingDeviceAllocator c(8, 3, 10, size_t(4) << 30);  // bins 8^3 .. 8^10 bytes, keep <= 4 GiB
+    return c;
+  }
+  char* allocate(std::ptrdiff_t bytes) {
+    void* p = nullptr;
+    SPHRAY_CUDA_CHECK(cache().DeviceAllocate(&p, size_t(bytes)));
+    return static_cast<char*>(p);
+  }
+  void deallocate(char* p, size_t) { SPHRAY_CUDA_CHECK(cache().DeviceFree(p)); }
+};
+
+inline auto policy() {
+  static CachedTempAllocator alloc;
+  return thrust::cuda::par(alloc);
+}
 
 template <class F>
 __global__ void for_each_index_kernel(uint32_t n, F f) {

@@ -1,7 +1,8 @@
 // Uniform neighbour grid with cell size = SPH support radius (Green 2010,
 // "Particle Simulation using CUDA"; Mishima et al. in shared/papers): a cell key
-// per particle, a radix sort by key, and an offsets table so that cell c holds
-// sorted particles [offsets[c], offsets[c+1]). Keys run x-fastest, so the three
+// per particle, a radix sort by key, and an offsets table (a vectorised
+// lower_bound of every cell id in the sorted keys) so that cell c holds sorted
+// particles [offsets[c], offsets[c+1]). Keys run x-fastest, so the three
 // cells x-1..x+1 of one row are one contiguous range: a neighbour query reads 9
 // ranges instead of 27. Particles outside the grid get key = num_cells and sort
 // to the end, where they are dropped (the solver counts them).
@@ -28,21 +29,6 @@ struct GridGeom {
     const int cx = coord(p.x, origin.x), cy = coord(p.y, origin.y), cz = coord(p.z, origin.z);
     if (cx < 0 || cy < 0 || cz < 0 || cx >= nx || cy >= ny || cz >= nz) return num_cells();
     return (uint32_t(cz) * uint32_t(ny) + uint32_t(cy)) * uint32_t(nx) + uint32_t(cx);
-  }
-};
-
-// Writes offsets[c] for every cell c in (keys[i-1], keys[i]]; run for i in [0, n]
-// it fills offsets[0 .. num_cells] exactly once each, in O(n + cells) in total.
-struct BuildCellOffsets {
-  const uint32_t* sorted_keys;
-  uint32_t* offsets;  // num_cells + 1 entries
-  uint32_t n;
-  uint32_t num_cells;
-
-  SPHRAY_HD void operator()(uint32_t i) const {
-    const uint32_t lo = i == 0 ? 0u : sorted_keys[i - 1] + 1u;
-    const uint32_t hi = i == n ? num_cells : (sorted_keys[i] < num_cells ? sorted_keys[i] : num_cells);
-    for (uint32_t c = lo; c <= hi; ++c) offsets[c] = i;
   }
 };
 

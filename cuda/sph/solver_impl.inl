@@ -26,12 +26,15 @@ struct KeyOfPoint {
   SPHRAY_HD void operator()(uint32_t i) const { keys[i] = grid.key_of(pts[i]); }
 };
 
-// Sorts `n` keys with their order and fills offsets (num_cells + 1).
+// Sorts `n` keys with their order (stable, so both backends agree on the order
+// within a cell) and fills offsets[c] = first sorted index with key >= c, for
+// c in [0, num_cells]: one vectorised binary search per cell, parallel over cells.
 inline void sort_and_offsets(const GridGeom& g, uint32_t n, Vector<uint32_t>& keys, Vector<uint32_t>& order,
                              Vector<uint32_t>& offsets) {
   thrust::sequence(policy(), order.begin(), order.begin() + n);
-  thrust::sort_by_key(policy(), keys.begin(), keys.begin() + n, order.begin());
-  parallel_for(n + 1, BuildCellOffsets{raw(keys), raw(offsets), n, g.num_cells()});
+  thrust::stable_sort_by_key(policy(), keys.begin(), keys.begin() + n, order.begin());
+  thrust::lower_bound(policy(), keys.begin(), keys.begin() + n, thrust::counting_iterator<uint32_t>(0),
+                      thrust::counting_iterator<uint32_t>(g.num_cells() + 1), offsets.begin());
 }
 
 inline GridBuild build_grid_impl(const GridGeom& g, const std::vector<Vec3f>& points) {
