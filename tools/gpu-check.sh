@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
 # One call on the GPU machine (see shared/device/README.md): configure with CUDA,
 # build on all cores, run the cpu and gpu tests, the benchmarks and the CUDA
-# validation runs, leaving logs and JSON under $OUT. Steps can be chosen:
+# validation runs, leaving JSON and the test log under $OUT (at most 8 files
+# come back from the device tool; build logs stay in $B). Steps can be chosen:
 #   tools/gpu-check.sh [build] [test] [sanitize] [bench] [validate]   (default: all but sanitize)
 set -uo pipefail
 OUT=${OUT:-$PWD/gpu-out}
@@ -14,9 +15,9 @@ if has build; then
   echo "== build"
   nvidia-smi --query-gpu=name,driver_version,memory.total --format=csv,noheader | tee "$OUT/gpu.txt"
   cmake -S . -B $B -G Ninja -DCMAKE_BUILD_TYPE=Release -DCMAKE_CUDA_ARCHITECTURES=90 -DSPHRAY_WERROR=ON \
-    > "$OUT/configure.log" 2>&1 || { tail -30 "$OUT/configure.log"; exit 1; }
-  grep 'sphray:' "$OUT/configure.log"
-  ninja -C $B > "$OUT/build.log" 2>&1 || { grep -E 'error|Error' -A3 "$OUT/build.log" | head -60; exit 1; }
+    > "$B-configure.log" 2>&1 || { tail -30 "$B-configure.log"; exit 1; }
+  grep 'sphray:' "$B-configure.log"
+  ninja -C $B > "$B-build.log" 2>&1 || { grep -E 'error|Error' -A3 "$B-build.log" | head -60; exit 1; }
 fi
 if has test; then
   echo "== tests (${TEST_LABEL:-all})"
@@ -28,10 +29,10 @@ if has sanitize; then
 fi
 if has bench; then
   echo "== bench sim"
-  $B/sphray bench sim --backend cuda --json "$OUT/bench_sim.json" 2>&1 | tee "$OUT/bench_sim.txt" | grep -v warm-up
+  $B/sphray bench sim --backend cuda --json "$OUT/bench_sim.json" 2>&1 | grep -v warm-up
   echo "== bench sim, h = 1.3 dx"
   $B/sphray bench sim --backend cuda --set sph.smoothing_ratio=1.3 --json "$OUT/bench_sim_h13.json" 2>&1 \
-    | tee "$OUT/bench_sim_h13.txt" | grep -v warm-up
+    | grep -v warm-up
 fi
 if has validate; then
   echo "== validation (cuda)"
