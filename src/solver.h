@@ -27,7 +27,7 @@ struct SolverInput {
   SphParams params;
   GridGeom grid;
   std::vector<Float4> fluid_pos_rho;  // x, y, z, initial density
-  std::vector<Float4> fluid_vel;      // vx, vy, vz, -
+  std::vector<Float4> fluid_vel;      // vx, vy, vz, - (the solver keeps p / rho^2 in w)
   std::vector<Float4> boundary;       // x, y, z, volume
   std::vector<float> boundary_alpha;  // wall viscosity per boundary particle (0 = free slip)
   float cfl = 0.25f;

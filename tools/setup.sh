@@ -6,11 +6,21 @@
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
-pkgs=(cmake ninja-build g++ nlohmann-json3-dev libcli11-dev catch2 python3-matplotlib)
-# Thrust/CUB for the CPU backend come with the CUDA toolkit; without it, from Debian.
-[ -d /usr/local/cuda/include/cccl/thrust ] || pkgs+=(libthrust-dev)
+# Each need is probed (a command or a header), so a machine that has it from
+# elsewhere (a CUDA toolkit, a newer cmake) is left alone; only what is missing
+# is installed from the distribution.
 missing=()
-for p in "${pkgs[@]}"; do dpkg -s "$p" >/dev/null 2>&1 || missing+=("$p"); done
+need() { eval "$2" >/dev/null 2>&1 || missing+=("$1"); }
+need cmake "command -v cmake"
+need ninja-build "command -v ninja"
+need g++ "command -v g++"
+need nlohmann-json3-dev "test -f /usr/include/nlohmann/json.hpp"
+need libcli11-dev "test -f /usr/include/CLI/CLI.hpp"
+need catch2 "test -f /usr/include/catch2/catch.hpp || test -f /usr/include/catch2/catch_all.hpp"
+# Thrust/CUB for the CPU backend come with the CUDA toolkit; without it, from Debian.
+need libthrust-dev "test -d /usr/local/cuda/include/cccl/thrust || test -f /usr/include/thrust/version.h"
+# matplotlib only draws the validation plots (tools/validate.py report).
+need python3-matplotlib "python3 -c 'import matplotlib'"
 if [ ${#missing[@]} -gt 0 ]; then
   echo "sphray setup: installing ${missing[*]}"
   SUDO=""; [ "$(id -u)" -eq 0 ] || SUDO=sudo

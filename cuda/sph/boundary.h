@@ -20,6 +20,7 @@ struct WallPressure {
   GridGeom grid;
   const uint32_t* fluid_offsets;
   const Float4* pos_rho;   // sorted fluid
+  const Float4* vel;       // sorted fluid; w = p / rho^2
   const Float4* boundary;  // sorted boundary: x, y, z, volume
   float* wall_pressure;    // out, per boundary particle [Pa]
 
@@ -35,7 +36,7 @@ struct WallPressure {
       if (r2 >= support2) return;
       const float w = prm.kernel.W(std::sqrt(r2));
       sum_w += w;
-      sum_pw += tait_pressure(prm, pf.w) * w;
+      sum_pw += load(vel + f).w * pf.w * pf.w * w;
       sum_rho_r += (pf.w * w) * r;
     });
     const float p = sum_w > 0.0f ? (sum_pw + dot(prm.gravity, sum_rho_r)) / sum_w : 0.0f;

@@ -56,13 +56,14 @@ struct DensityRate {
       const Vec3f r = xi - xyz(pj);
       const float r2 = length2(r);
       if (r2 >= support2 || j == i) return;
+      const float inv_r = inv_sqrt(r2);
       float w, dwr;
-      prm.kernel.eval(std::sqrt(r2), w, dwr);
+      prm.kernel.eval(r2 * inv_r, w, dwr);
       const float vol_j = prm.particle_mass / pj.w;
       rate += prm.particle_mass * dot(vi - xyz(load(vel + j)), r) * dwr;
       rate += diffusion * ((pj.w - pi.w) + hydro * dot(prm.gravity, r)) * (-dwr) * vol_j;
       if (WithPresence && r2 > 0.0f) {
-        const float s = vol_j * w / r2;  // W cos^2 = s r_a^2
+        const float s = vol_j * w * inv_r * inv_r;  // W cos^2 = s r_a^2
         const float sx = s * r.x, sy = s * r.y, sz = s * r.z;
         tx += sx * r.x; ux += sx * std::fabs(r.x);
         ty += sy * r.y; uy += sy * std::fabs(r.y);

@@ -31,11 +31,11 @@ struct Acceleration {
   SPHRAY_HD void operator()(uint32_t i) const {
     const Float4 pi = pos_rho[i];
     const Vec3f xi = xyz(pi);
-    const Vec3f vi = xyz(vel[i]);
+    const Float4 vel_i = vel[i];
+    const Vec3f vi = xyz(vel_i);
     const float h = prm.kernel.h;
     const float support2 = prm.kernel.support() * prm.kernel.support();
-    const float p_i = tait_pressure(prm, pi.w);
-    const float p_over_rho2_i = p_i / (pi.w * pi.w);
+    const float p_over_rho2_i = vel_i.w;  // pressure_term(rho_i), see params.h
     // Monaghan's eta^2 = 0.01 h^2 keeps mu finite for close pairs.
     const float eta2 = 0.01f * h * h;
     Vec3f a = {0.0f, 0.0f, 0.0f};
@@ -45,10 +45,10 @@ struct Acceleration {
       const Vec3f r = xi - xyz(pj);
       const float r2 = length2(r);
       if (r2 >= support2 || j == i) return;
-      const float dwr = prm.kernel.dW_over_r(std::sqrt(r2));
-      const float p_j = tait_pressure(prm, pj.w);
-      float term = p_over_rho2_i + p_j / (pj.w * pj.w);
-      const float vr = dot(vi - xyz(load(vel + j)), r);
+      const float dwr = prm.kernel.dW_over_r(r2 * inv_sqrt(r2));
+      const Float4 vj = load(vel + j);
+      float term = p_over_rho2_i + vj.w;
+      const float vr = dot(vi - xyz(vj), r);
       if (vr < 0.0f) {
         const float mu = h * vr / (r2 + eta2);
         term += -prm.viscosity_alpha * prm.speed_of_sound * mu / (0.5f * (pi.w + pj.w));
@@ -67,7 +67,7 @@ struct Acceleration {
       float term = p_wall_i + p_w / (rho_w * rho_w);
       const float vr = dot(vi, r);
       if (vr < 0.0f) term += -boundary_alpha[b] * prm.speed_of_sound * (h * vr / (r2 + eta2)) / (0.5f * (pi.w + rho_w));
-      a -= (rho_w * pb.w * term * prm.kernel.dW_over_r(std::sqrt(r2))) * r;
+      a -= (rho_w * pb.w * term * prm.kernel.dW_over_r(r2 * inv_sqrt(r2))) * r;
     });
 
     a += prm.gravity;

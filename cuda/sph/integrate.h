@@ -34,6 +34,14 @@ struct Kick {
   }
 };
 
+// vel.w = p / rho^2 from the density (params.h); Drift keeps it current.
+struct PressureTermOf {
+  SphParams prm;
+  const Float4* pos_rho;
+  Float4* vel;
+  SPHRAY_HD void operator()(uint32_t i) const { vel[i].w = pressure_term(prm, pos_rho[i].w); }
+};
+
 struct Drift {
   SphParams prm;
   float dt;
@@ -58,6 +66,7 @@ struct Drift {
     // WCSPH of Becker & Teschner 2007 does).
     const float rho = p.w + dt * drho_dt[i];
     p.w = rho > prm.rest_density ? rho : prm.rest_density;
+    v.w = pressure_term(prm, p.w);
     uint8_t st = kStatusOk;
     keep_inside(p.x, v.x, prm.tank.min.x, prm.tank.max.x, true, st);
     keep_inside(p.y, v.y, prm.tank.min.y, prm.tank.max.y, true, st);

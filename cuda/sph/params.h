@@ -2,6 +2,7 @@
 // passed by value to every kernel. Plain data: no pointers, no methods that allocate.
 #pragma once
 
+#include <cmath>
 #include <cstdint>
 
 #include "../common/vec.h"
@@ -51,6 +52,22 @@ SPHRAY_HD SPHRAY_FORCEINLINE float tait_pressure(const SphParams& p, float rho) 
   const float r = rho / p.rest_density;
   const float r2 = r * r, r4 = r2 * r2;
   return p.tait_b * (r4 * r2 * r - 1.0f);
+}
+
+// p / rho^2, the pressure term of the momentum equation. Each particle keeps it
+// in vel.w (written when its density changes), so the force loop reads it with
+// the velocity it loads anyway instead of evaluating Tait per neighbour.
+SPHRAY_HD SPHRAY_FORCEINLINE float pressure_term(const SphParams& p, float rho) {
+  return tait_pressure(p, rho) / (rho * rho);
+}
+
+// 1/sqrt(x): one special-function instruction on the GPU.
+SPHRAY_HD SPHRAY_FORCEINLINE float inv_sqrt(float x) {
+#if defined(__CUDA_ARCH__)
+  return rsqrtf(x);
+#else
+  return 1.0f / std::sqrt(x);
+#endif
 }
 
 }  // namespace sphray

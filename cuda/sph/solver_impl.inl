@@ -62,6 +62,7 @@ class SolverImpl final : public Solver {
     accel_.resize(n); drho_.resize(n);
     status_.assign(n, uint8_t(kStatusOk)); status_tmp_.resize(n);
     keys_.resize(n); order_.resize(n); offsets_.resize(cells);
+    parallel_for(n_, PressureTermOf{prm_, raw(pos_), raw(vel_)});
     if (presence_on_) presence_.resize(6 * n);
 
     // Static walls: sorted by the same grid once.
@@ -107,7 +108,7 @@ class SolverImpl final : public Solver {
     build_grid();
     clock_.mark(1);
     parallel_for(uint32_t(boundary_.size()),
-                 WallPressure{prm_, grid_, raw(offsets_), raw(pos_), raw(boundary_), raw(wall_pressure_)});
+                 WallPressure{prm_, grid_, raw(offsets_), raw(pos_), raw(vel_), raw(boundary_), raw(wall_pressure_)});
     parallel_for(n_, Acceleration{prm_, grid_, raw(offsets_), raw(pos_), raw(vel_), raw(boundary_offsets_),
                                   raw(boundary_), raw(wall_pressure_), raw(boundary_alpha_), raw(accel_)});
     clock_.mark(2);
