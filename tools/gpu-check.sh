@@ -3,11 +3,11 @@
 # build on all cores, run the cpu and gpu tests, the benchmarks and the CUDA
 # validation runs, leaving JSON and the test log under $OUT (at most 8 files
 # come back from the device tool; build logs stay in $B). Steps can be chosen:
-#   tools/gpu-check.sh [build] [test] [sanitize] [bench] [validate]   (default: all but sanitize)
+#   tools/gpu-check.sh [build] [test] [sanitize] [main] [bench] [validate]   (default: build test main bench validate)
 set -uo pipefail
 OUT=${OUT:-$PWD/gpu-out}
 mkdir -p "$OUT"
-steps=${*:-build test bench validate}
+steps=${*:-build test main bench validate}
 has() { [[ " $steps " == *" $1 "* ]]; }
 B=build-gpu
 
@@ -26,6 +26,10 @@ fi
 if has sanitize; then
   echo "== compute-sanitizer on the gpu tests"
   compute-sanitizer --tool memcheck $B/tests/sphray_tests "[gpu]" 2>&1 | tail -8 | tee "$OUT/sanitizer.log"
+fi
+if has main; then
+  echo "== the README's main job (dam break) on this machine"
+  SPHRAY_BUILD_DIR=$B tools/dam-break.sh --quiet 2>&1 | grep -v -E '^\[|^ninja' | tail -12
 fi
 if has bench; then
   echo "== bench sim"
