@@ -119,10 +119,9 @@ void apply_override(json& j, const std::string& file, const std::string& assignm
     pointer += "/" + part;
   }
   try {
-    json::json_pointer ptr(pointer);
-    if (ptr.parent_pointer() != json::json_pointer() && !j.contains(ptr.parent_pointer()))
-      throw SceneError(file + ": --set " + key + ": no such section '" + key.substr(0, key.rfind('.')) + "' in the scene");
-    j[ptr] = value;
+    // A missing section is created (so `--set run.end_time=1` works on a scene
+    // without "run"); a misspelt key is then caught by validation as unknown.
+    j[json::json_pointer(pointer)] = value;
   } catch (const json::exception& e) {
     throw SceneError(file + ": --set " + key + ": cannot set this path (" + e.what() + ")");
   }

@@ -4,7 +4,9 @@
 
 #include <algorithm>
 #include <cmath>
+#include <fstream>
 #include <sstream>
+#include <string>
 
 namespace sphray {
 
@@ -137,8 +139,19 @@ void check_fits(const Scene& s, Backend backend) {
   if (backend == Backend::Cuda) {
     avail = cuda_free_memory();
   } else {
-    const long pages = sysconf(_SC_AVPHYS_PAGES), page = sysconf(_SC_PAGE_SIZE);
-    avail = pages > 0 && page > 0 ? size_t(pages) * size_t(page) : 0;
+    // MemAvailable counts reclaimable page cache; free pages alone would refuse
+    // scenes on a machine that has merely read a lot of files.
+    std::ifstream meminfo("/proc/meminfo");
+    for (std::string key; meminfo >> key;) {
+      size_t kib = 0;
+      meminfo >> kib;
+      if (key == "MemAvailable:") { avail = kib * 1024; break; }
+      meminfo.ignore(64, '\n');
+    }
+    if (avail == 0) {
+      const long pages = sysconf(_SC_AVPHYS_PAGES), page = sysconf(_SC_PAGE_SIZE);
+      avail = pages > 0 && page > 0 ? size_t(pages) * size_t(page) : 0;
+    }
   }
   if (avail > 0 && z.bytes > avail * 0.9) {
     os.precision(3);

@@ -80,7 +80,10 @@ TEST_CASE("bad scenes get a message naming file, key and value", "[scene][cpu]")
   CHECK(contains(e, "unknown face"));
 
   e = error_of(kGood, {"nosuch.key=1"});
-  CHECK(contains(e, "no such section"));
+  CHECK(contains(e, "nosuch"));
+  CHECK(contains(e, "unknown key"));
+
+  CHECK(error_of(R"({"tank": {"min": [0,0,0], "max": [1,1,1]}, "sph": {"spacing": 0.1}})", {"run.end_time=2"}).empty());
 
   e = error_of(kGood, {"gravity"});
   CHECK(contains(e, "key.path=value"));
