@@ -1,7 +1,8 @@
 // One SPH step, written once for both backends. Included by solver_cpu.cpp and
 // solver_cuda.cu inside their backend namespace (which supplies Vector, raw,
 // policy, parallel_for, upload, download, read_one, StageClock and kBackend).
-// Stages (DESIGN.md): 1 grid, 2 density (+presence), 3 forces, 4 integrate.
+// Stages as DESIGN.md names them: grid, density (+presence), forces, integrate;
+// they run as grid, forces, kick, density, drift (integrate.h says why).
 
 // Its dependencies come from stages.h, included first outside the namespace.
 
@@ -12,18 +13,16 @@ void gather_swap(uint32_t n, const Vector<uint32_t>& order, Vector<T>& src, Vect
   src.swap(scratch);
 }
 
-struct KeyOfPosition {
-  GridGeom grid;
-  const Float4* pos;
-  uint32_t* keys;
-  SPHRAY_HD void operator()(uint32_t i) const { keys[i] = grid.key_of(xyz(pos[i])); }
-};
+SPHRAY_HD SPHRAY_FORCEINLINE Vec3f position_of(const Float4& p) { return xyz(p); }
+SPHRAY_HD SPHRAY_FORCEINLINE Vec3f position_of(const Vec3f& p) { return p; }
 
-struct KeyOfPoint {
+// Cell key of every point (particles as Float4, plain points as Vec3f).
+template <class P>
+struct KeyOf {
   GridGeom grid;
-  const Vec3f* pts;
+  const P* pts;
   uint32_t* keys;
-  SPHRAY_HD void operator()(uint32_t i) const { keys[i] = grid.key_of(pts[i]); }
+  SPHRAY_HD void operator()(uint32_t i) const { keys[i] = grid.key_of(position_of(pts[i])); }
 };
 
 // Sorts `n` keys with their order (stable, so both backends agree on the order
@@ -42,7 +41,7 @@ inline GridBuild build_grid_impl(const GridGeom& g, const std::vector<Vec3f>& po
   Vector<Vec3f> pts;
   upload(pts, points);
   Vector<uint32_t> keys(n), order(n), offsets(size_t(g.num_cells()) + 1);
-  parallel_for(n, KeyOfPoint{g, raw(pts), raw(keys)});
+  parallel_for(n, KeyOf<Vec3f>{g, raw(pts), raw(keys)});
   sort_and_offsets(g, n, keys, order, offsets);
   return {download(order, n), download(keys, n), download(offsets, offsets.size())};
 }
@@ -76,7 +75,7 @@ class SolverImpl final : public Solver {
     boundary_alpha_.resize(nb);
     wall_pressure_.resize(nb);
     boundary_offsets_.resize(cells);
-    parallel_for(nb, KeyOfPosition{grid_, raw(boundary_in), raw(bkeys)});
+    parallel_for(nb, KeyOf<Float4>{grid_, raw(boundary_in), raw(bkeys)});
     sort_and_offsets(grid_, nb, bkeys, border, boundary_offsets_);
     thrust::gather(policy(), border.begin(), border.end(), boundary_in.begin(), boundary_.begin());
     thrust::gather(policy(), border.begin(), border.end(), alpha_in.begin(), boundary_alpha_.begin());
@@ -163,7 +162,7 @@ class SolverImpl final : public Solver {
   }
 
   void build_grid() {
-    parallel_for(n_, KeyOfPosition{grid_, raw(pos_), raw(keys_)});
+    parallel_for(n_, KeyOf<Float4>{grid_, raw(pos_), raw(keys_)});
     sort_and_offsets(grid_, n_, keys_, order_, offsets_);
     gather_swap(n_, order_, pos_, pos_tmp_);
     gather_swap(n_, order_, vel_, vel_tmp_);
