@@ -83,8 +83,6 @@ SphParams make_params(const Scene& s) {
   p.density_diffusion = float(s.sph.density_diffusion);
   p.gravity = to_f(s.gravity);
   p.spacing = float(dx);
-  const auto kd = SmoothingKernel<double>::make(s.sph.kernel, h);
-  p.presence_scale = float(6.0 / (1.0 - dx * dx * dx * kd.W(0.0)));
   p.tank = {to_f(s.tank.min), to_f(s.tank.max)};
   p.open_top = s.open_top;
   return p;

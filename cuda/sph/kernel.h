@@ -37,20 +37,6 @@ struct SmoothingKernel {
     return sigma * T(0.25) * b * b * b;
   }
 
-  // W and dW/dr / r together, sharing the powers (the density loop needs both).
-  SPHRAY_HD SPHRAY_FORCEINLINE void eval(T r, T& w, T& dw_over_r) const {
-    const T q = r / h;
-    if (type == KernelType::WendlandC2 && q < T(2)) {
-      const T a = T(1) - T(0.5) * q;
-      const T a3 = a * a * a;
-      w = sigma * a3 * a * (T(2) * q + T(1));
-      dw_over_r = sigma * T(-5) * a3 / (h * h);
-      return;
-    }
-    w = W(r);
-    dw_over_r = dW_over_r(r);
-  }
-
   // dW/dr divided by r, so that grad_i W_ij = (x_i - x_j) * dW_over_r(r).
   // Finite at r -> 0 for both kernels, so coincident particles are harmless.
   SPHRAY_HD SPHRAY_FORCEINLINE T dW_over_r(T r) const {

@@ -42,7 +42,6 @@ struct SphParams {
   float density_diffusion;  // delta of Molteni & Colagrossi (2009), dimensionless
   Vec3f gravity;            // [m/s^2]
   float spacing;            // initial particle spacing dx [m]
-  float presence_scale;     // 6 / (1 - dx^3 W(0)): a particle deep in the liquid reads 1 (density.h)
   Aabb tank;                // fluid side of the tank walls [m]
   bool open_top;            // no lid: particles may leave through the top and are removed
 };
