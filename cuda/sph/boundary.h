@@ -10,8 +10,7 @@
 
 #include <cstdint>
 
-#include "grid.h"
-#include "params.h"
+#include "neighbours.h"
 
 namespace sphray {
 
@@ -29,11 +28,7 @@ struct WallPressure {
     const float support2 = prm.kernel.support() * prm.kernel.support();
     float sum_w = 0.0f, sum_pw = 0.0f;
     Vec3f sum_rho_r = {0.0f, 0.0f, 0.0f};
-    for_each_candidate(grid, fluid_offsets, xb, [&](uint32_t f) {
-      const Float4 pf = load(pos_rho + f);
-      const Vec3f r = xb - xyz(pf);
-      const float r2 = length2(r);
-      if (r2 >= support2) return;
+    for_each_neighbour(grid, fluid_offsets, pos_rho, xb, support2, kNoSkip, [&](uint32_t f, Float4 pf, Vec3f r, float r2) {
       const float w = prm.kernel.W(std::sqrt(r2));
       sum_w += w;
       sum_pw += load(vel + f).w * pf.w * pf.w * w;

@@ -23,8 +23,7 @@
 
 #include <cstdint>
 
-#include "grid.h"
-#include "params.h"
+#include "neighbours.h"
 
 namespace sphray {
 
@@ -57,11 +56,7 @@ struct DensityRate {
     // Two FMAs per axis instead of selects, all in registers.
     float tx = 0, ty = 0, tz = 0, ux = 0, uy = 0, uz = 0;
 
-    for_each_candidate(grid, fluid_offsets, xi, [&](uint32_t j) {
-      const Float4 pj = load(pos_rho + j);
-      const Vec3f r = xi - xyz(pj);
-      const float r2 = length2(r);
-      if (r2 >= support2 || j == i) return;
+    for_each_neighbour(grid, fluid_offsets, pos_rho, xi, support2, i, [&](uint32_t j, Float4 pj, Vec3f r, float r2) {
       const float dwr = prm.kernel.dW_over_r(r2 * inv_sqrt(r2));
       const float vol_j = prm.particle_mass / pj.w;
       const float weight = -dwr * vol_j;  // V_j (-dW/dr / r) >= 0
@@ -77,11 +72,7 @@ struct DensityRate {
 
     // Static walls (boundary particles of volume V_b, at rest): approaching a
     // wall compresses the particle (Adami et al. 2012, eq. 22 with v_w = 0).
-    for_each_candidate(grid, boundary_offsets, xi, [&](uint32_t b) {
-      const Float4 pb = load(boundary + b);
-      const Vec3f r = xi - xyz(pb);
-      const float r2 = length2(r);
-      if (r2 >= support2) return;
+    for_each_neighbour(grid, boundary_offsets, boundary, xi, support2, kNoSkip, [&](uint32_t, Float4 pb, Vec3f r, float r2) {
       rate += pi.w * pb.w * dot(vi, r) * prm.kernel.dW_over_r(std::sqrt(r2));
     });
 

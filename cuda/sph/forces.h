@@ -11,8 +11,7 @@
 #include <cstdint>
 
 #include "boundary.h"
-#include "grid.h"
-#include "params.h"
+#include "neighbours.h"
 
 namespace sphray {
 
@@ -40,11 +39,7 @@ struct Acceleration {
     const float eta2 = 0.01f * h * h;
     Vec3f a = {0.0f, 0.0f, 0.0f};
 
-    for_each_candidate(grid, fluid_offsets, xi, [&](uint32_t j) {
-      const Float4 pj = load(pos_rho + j);
-      const Vec3f r = xi - xyz(pj);
-      const float r2 = length2(r);
-      if (r2 >= support2 || j == i) return;
+    for_each_neighbour(grid, fluid_offsets, pos_rho, xi, support2, i, [&](uint32_t j, Float4 pj, Vec3f r, float r2) {
       const float dwr = prm.kernel.dW_over_r(r2 * inv_sqrt(r2));
       const Float4 vj = load(vel + j);
       float term = p_over_rho2_i + vj.w;
@@ -57,11 +52,7 @@ struct Acceleration {
     });
 
     const float p_wall_i = p_over_rho2_i > 0.0f ? p_over_rho2_i : 0.0f;
-    for_each_candidate(grid, boundary_offsets, xi, [&](uint32_t b) {
-      const Float4 pb = load(boundary + b);
-      const Vec3f r = xi - xyz(pb);
-      const float r2 = length2(r);
-      if (r2 >= support2) return;
+    for_each_neighbour(grid, boundary_offsets, boundary, xi, support2, kNoSkip, [&](uint32_t b, Float4 pb, Vec3f r, float r2) {
       const float p_w = wall_pressure[b];
       const float rho_w = tait_density(prm, p_w);
       float term = p_wall_i + p_w / (rho_w * rho_w);
