@@ -39,20 +39,27 @@ std::vector<size_t> parse_sizes(const std::string& text) {
 int cmd_run(const std::string& scene_path, const std::string& backend_name_arg, const std::vector<std::string>& sets,
             const std::string& metrics_csv, const std::string& summary_json, bool quiet) {
   const Scene scene = load_scene(scene_path, sets);
-  const Backend b = choose_backend(backend_name_arg, std::cout);
-  auto solver = make_solver(scene, b, needs_of(scene));
-  const SceneSize size = measure_scene(scene);
-  std::cout << "scene " << scene.name << " (" << scene_path << "): " << solver->num_fluid() << " fluid particles, "
-            << size.boundary << " wall particles, grid " << size.grid.nx << "x" << size.grid.ny << "x" << size.grid.nz
-            << ", c0 = " << make_params(scene).speed_of_sound << " m/s, to t = " << scene.run.end_time << " s\n";
-
-  std::ofstream csv;
+  // Outputs are opened before the run, so an unwritable path fails in a
+  // second, not after the simulation.
+  std::ofstream csv, summary;
   if (!metrics_csv.empty()) {
     csv.open(metrics_csv);
     if (!csv) throw std::runtime_error("--metrics-csv: cannot write '" + metrics_csv + "'");
     csv << "time_s,steps,fluid_particles,front_m,kinetic_energy_J,max_speed_m_s\n" << std::setprecision(9);
   }
-  const double mass = make_params(scene).particle_mass;
+  if (!summary_json.empty()) {
+    summary.open(summary_json);
+    if (!summary) throw std::runtime_error("--summary-json: cannot write '" + summary_json + "'");
+  }
+  const Backend b = choose_backend(backend_name_arg, std::cout);
+  auto solver = make_solver(scene, b, needs_of(scene));
+  const SceneSize size = measure_scene(scene);
+  const SphParams prm = make_params(scene);
+  std::cout << "scene " << scene.name << " (" << scene_path << "): " << solver->num_fluid() << " fluid particles, "
+            << size.boundary << " wall particles, grid " << size.grid.nx << "x" << size.grid.ny << "x" << size.grid.nz
+            << ", c0 = " << prm.speed_of_sound << " m/s, to t = " << scene.run.end_time << " s\n";
+
+  const double mass = prm.particle_mass;
   RunOptions opt;
   opt.progress = !quiet;
   if (csv.is_open())
@@ -69,8 +76,7 @@ int cmd_run(const std::string& scene_path, const std::string& backend_name_arg, 
                         {"sim_time_s", r.sim_time}, {"wall_s", r.wall_seconds}, {"fluid_start", r.fluid_start},
                         {"fluid_end", r.fluid_end}, {"removed", r.removed}, {"clamped", r.clamped},
                         {"spacing_m", scene.sph.spacing}, {"mean_dt_s", r.mean_dt}, {"max_speed_m_s", r.max_speed}};
-    std::ofstream f(summary_json);
-    if (!(f << j.dump(2) << "\n")) throw std::runtime_error("--summary-json: cannot write '" + summary_json + "'");
+    if (!(summary << j.dump(2) << "\n")) throw std::runtime_error("--summary-json: cannot write '" + summary_json + "'");
   }
   return 0;
 }

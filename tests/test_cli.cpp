@@ -49,6 +49,11 @@ TEST_CASE("sphray run reports bad input with exit code 2", "[cli][cpu]") {
   CHECK(r.code == 2);
   CHECK(has(r.output, "auto, cpu or cuda"));
 
+  r = run_cli("run " + scene + " --backend cpu --summary-json /nonexistent/dir/s.json");
+  CHECK(r.code == 2);
+  CHECK(has(r.output, "--summary-json: cannot write"));
+  CHECK_FALSE(has(r.output, "summary (cpu)"));  // refused before the run, not after
+
   r = run_cli("run " + scene + " --frobnicate");
   CHECK(r.code == 2);
 
