@@ -9,6 +9,7 @@
 #include <sstream>
 
 #include "../src/bench.h"
+#include "../src/bench_field.h"
 #include "../src/metrics.h"
 #include "../src/pipeline.h"
 #include "../src/scene.h"
@@ -52,7 +53,9 @@ int cmd_run(const std::string& scene_path, const std::string& backend_name_arg, 
     if (!summary) throw std::runtime_error("--summary-json: cannot write '" + summary_json + "'");
   }
   const Backend b = choose_backend(backend_name_arg, std::cout);
-  auto solver = make_solver(scene, b, needs_of(scene));
+  const StageNeeds needs = needs_of(scene);
+  auto solver = make_solver(scene, b, needs);
+  auto field = make_field(scene, b, needs);
   const SceneSize size = measure_scene(scene);
   const SphParams prm = make_params(scene);
   std::cout << "scene " << scene.name << " (" << scene_path << "): " << solver->num_fluid() << " fluid particles, "
@@ -62,6 +65,8 @@ int cmd_run(const std::string& scene_path, const std::string& backend_name_arg, 
   const double mass = prm.particle_mass;
   RunOptions opt;
   opt.progress = !quiet;
+  opt.field = field.get();
+  opt.field_kind = parse_field_kind(scene.field.builder);
   if (csv.is_open())
     opt.on_output = [&](const Solver& s, int) {
       const HostParticles p = s.download();
@@ -76,6 +81,9 @@ int cmd_run(const std::string& scene_path, const std::string& backend_name_arg, 
                         {"sim_time_s", r.sim_time}, {"wall_s", r.wall_seconds}, {"fluid_start", r.fluid_start},
                         {"fluid_end", r.fluid_end}, {"removed", r.removed}, {"clamped", r.clamped},
                         {"spacing_m", scene.sph.spacing}, {"mean_dt_s", r.mean_dt}, {"max_speed_m_s", r.max_speed}};
+    if (r.field_builds)
+      j["field"] = {{"builder", r.field_builder}, {"volume", r.field_dims}, {"builds", r.field_builds},
+                    {"ms_per_build", r.field_ms_mean}, {"builds_without_presence", r.field_without_presence}};
     if (!(summary << j.dump(2) << "\n")) throw std::runtime_error("--summary-json: cannot write '" + summary_json + "'");
   }
   return 0;
@@ -111,6 +119,21 @@ int main(int argc, char** argv) {
   bsim->add_option("--json", json_out, "write results as JSON");
   bsim->add_option("--set", bopt.overrides, "override a scene value for every size, e.g. --set sph.smoothing_ratio=1.3");
 
+  auto* bfield = bench->add_subcommand("field", "naive vs presence vs gather density-field builders on a collapsed dam break");
+  std::string field_sizes_text, field_json_out;
+  BenchFieldOptions fopt;
+  bfield->add_option("--backend", backend, "auto | cpu | cuda");
+  bfield->add_option("--sizes", field_sizes_text,
+                     "fluid particle counts (default 8k,27k,64k,125k,1M,4M on CUDA, 8k,27k on CPU)");
+  bfield->add_option("--volume", fopt.volume, "volume edge in voxels (default 64 up to 200k particles, else 256)")
+      ->check(CLI::Range(8, 1024));
+  bfield->add_option("--warmup", fopt.warmup, "warm-up builds per builder")->check(CLI::Range(0, 10000));
+  bfield->add_option("--frames", fopt.frames, "measured builds per builder")->check(CLI::Range(1, 100000));
+  bfield->add_option("--collapse", fopt.collapse, "build at T = t sqrt(2g/a) (column collapsed)")
+      ->check(CLI::Range(0.0, 100.0));
+  bfield->add_option("--json", field_json_out, "write results as JSON");
+  bfield->add_option("--set", fopt.overrides, "override a value of the generated scene, e.g. --set field.clip=2");
+
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
@@ -120,6 +143,22 @@ int main(int argc, char** argv) {
 
   try {
     if (run->parsed()) return cmd_run(scene_path, backend, sets, metrics_csv, summary_json, quiet);
+    if (bfield->parsed()) {
+      std::ofstream jf;
+      if (!field_json_out.empty()) {  // opened first: a bad path fails before the benchmark runs
+        jf.open(field_json_out);
+        if (!jf) throw std::runtime_error("--json: cannot write '" + field_json_out + "'");
+      }
+      const Backend b = choose_backend(backend, std::cout);
+      fopt.sizes = parse_sizes(!field_sizes_text.empty() ? field_sizes_text
+                               : b == Backend::Cuda   ? "8k,27k,64k,125k,1M,4M"
+                                                      : "8k,27k");
+      const auto rows = bench_field(b, fopt, std::cout);
+      print_table(rows, std::cout);
+      if (jf.is_open() && !(jf << to_json(rows, b, fopt).dump(2) << "\n"))
+        throw std::runtime_error("--json: cannot write '" + field_json_out + "'");
+      return 0;
+    }
     if (bsim->parsed()) {
       const Backend b = choose_backend(backend, std::cout);
       bopt.sizes = parse_sizes(!sizes_text.empty() ? sizes_text : b == Backend::Cuda ? "125k,1M,4M" : "8k,27k");

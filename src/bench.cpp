@@ -38,7 +38,7 @@ std::vector<BenchSimRow> bench_sim(const std::string& scene_path, Backend b, con
     overrides.push_back(set.str());
     const Scene s = load_scene(scene_path, overrides);
     for (bool presence : {false, true}) {
-      auto solver = make_solver(s, b, {presence});
+      auto solver = make_solver(s, b, {presence ? PresenceMode::EveryStep : PresenceMode::Off});
       BenchSimRow row;
       row.particles = solver->num_fluid();
       row.boundary = measure_scene(s).boundary;

@@ -33,4 +33,26 @@ struct CurveError {
 };
 CurveError relative_error(const Curve& sim, const Curve& experiment);
 
+// A density field against a reference field (the naive builder's), both on
+// the same nx x ny x nz voxels, classified inside where value >= iso
+// (docs/field.md, "Error"):
+// - misclassified share: voxels whose inside/outside differs, over the voxels
+//   within two voxels (Chebyshev) of the reference surface (a voxel with a
+//   face neighbour on the other side); differences farther away (holes, say)
+//   are counted separately;
+// - distance between the iso-surfaces in voxels: the surface points where the
+//   field crosses iso along voxel edges (linear interpolation, as a trilinear
+//   sampler sees it), each matched to the nearest point of the other surface,
+//   both ways; mean and max (capped at kMaxSurfaceDistance voxels, beyond which
+//   a point counts as unmatched).
+struct FieldError {
+  static constexpr double kMaxSurfaceDistance = 4.0;
+  uint64_t band = 0, misclassified_band = 0, misclassified_other = 0;
+  uint64_t ref_points = 0, test_points = 0, unmatched = 0;
+  double mean_distance = 0, max_distance = 0;
+  double misclassified_share() const { return band ? double(misclassified_band) / double(band) : 0.0; }
+};
+FieldError compare_fields(int nx, int ny, int nz, const std::vector<float>& ref, const std::vector<float>& test,
+                          float iso);
+
 }  // namespace sphray

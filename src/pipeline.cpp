@@ -28,12 +28,25 @@ Backend choose_backend(const std::string& name, std::ostream& log) {
   return Backend::Cpu;
 }
 
-StageNeeds needs_of(const Scene& s) { return {s.sph.presence}; }
+StageNeeds needs_of(const Scene& s) {
+  StageNeeds n;
+  n.field = s.field.given;
+  // The presence builder reads presence once per frame: only the step that
+  // reaches the frame computes it (sph.presence forces every step, for studies).
+  if (s.sph.presence) n.presence = PresenceMode::EveryStep;
+  else if (n.field && s.field.builder == "presence") n.presence = PresenceMode::AtUntil;
+  return n;
+}
 
 std::unique_ptr<Solver> make_solver(const Scene& s, Backend b, const StageNeeds& needs) {
   check_fits(s, b);
   const SolverInput in = make_solver_input(s, needs.presence);
   return b == Backend::Cuda ? make_cuda_solver(in) : make_cpu_solver(in);
+}
+
+std::unique_ptr<FieldBuilder> make_field(const Scene& s, Backend b, const StageNeeds& needs) {
+  if (!needs.field) return nullptr;
+  return make_field_builder(b, make_field_setup(s));
 }
 
 namespace {
@@ -55,7 +68,18 @@ RunSummary run_scene(const Scene& s, Solver& solver, const RunOptions& opt, std:
   const auto t0 = clock::now();
   auto last_print = t0;
   int frame = 0;
-  if (opt.on_output) opt.on_output(solver, frame);
+  double field_ms = 0;
+  auto output = [&] {
+    if (opt.field) {
+      const ParticleView v = solver.view();
+      if (opt.field_kind == FieldKind::Presence && !v.presence) ++r.field_without_presence;
+      opt.field->build(v, opt.field_kind);
+      field_ms += opt.field->last_ms();
+      ++r.field_builds;
+    }
+    if (opt.on_output) opt.on_output(solver, frame);
+  };
+  output();
   StageTimes sum;
   double dt_sum = 0;
   uint64_t particle_steps = 0;
@@ -73,7 +97,7 @@ RunSummary run_scene(const Scene& s, Solver& solver, const RunOptions& opt, std:
       particle_steps += solver.num_fluid();
     }
     ++frame;
-    if (opt.on_output) opt.on_output(solver, frame);
+    output();
     const auto now = clock::now();
     if (opt.progress && (std::chrono::duration<double>(now - last_print).count() > 1.0 || solver.time() >= end - 1e-12)) {
       last_print = now;
@@ -98,6 +122,12 @@ RunSummary run_scene(const Scene& s, Solver& solver, const RunOptions& opt, std:
     r.mean_dt = dt_sum * k;
   }
   if (r.min_dt > 1e299) r.min_dt = r.mean_dt;
+  if (opt.field) {
+    r.field_builder = field_kind_name(opt.field_kind);
+    r.field_ms_mean = r.field_builds ? field_ms / double(r.field_builds) : 0.0;
+    const VolumeGeom& g = opt.field->setup().geom;
+    r.field_dims[0] = g.nx; r.field_dims[1] = g.ny; r.field_dims[2] = g.nz;
+  }
   return r;
 }
 
@@ -115,6 +145,13 @@ void print_summary(const RunSummary& r, std::ostream& log) {
       << "  max speed      " << r.max_speed << " m/s\n"
       << "  ms per step    grid " << r.mean_stage_ms.grid << ", density " << r.mean_stage_ms.density << ", forces "
       << r.mean_stage_ms.forces << ", integrate " << r.mean_stage_ms.integrate << "\n";
+  if (r.field_builds)
+    log << "  field          " << r.field_builder << " builder, " << r.field_dims[0] << "x" << r.field_dims[1] << "x"
+        << r.field_dims[2] << " voxels, " << r.field_builds << " builds, " << r.field_ms_mean << " ms per build"
+        << (r.field_without_presence ? " (" + std::to_string(r.field_without_presence) +
+                                           " without presence, e.g. at t = 0: full extents)"
+                                     : std::string())
+        << "\n";
 }
 
 }  // namespace sphray

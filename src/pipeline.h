@@ -8,6 +8,7 @@
 #include <memory>
 #include <string>
 
+#include "field.h"
 #include "scene.h"
 #include "solver.h"
 
@@ -18,14 +19,20 @@ Backend choose_backend(const std::string& name, std::ostream& log);
 
 // What the scene's later stages need from the solver.
 struct StageNeeds {
-  bool presence = false;
+  PresenceMode presence = PresenceMode::Off;
+  bool field = false;  // build the density field at every output frame
 };
 StageNeeds needs_of(const Scene& s);
 
 std::unique_ptr<Solver> make_solver(const Scene& s, Backend b, const StageNeeds& needs);
+// The scene's field builder, or null when no stage needs a field.
+std::unique_ptr<FieldBuilder> make_field(const Scene& s, Backend b, const StageNeeds& needs);
 
 struct RunOptions {
   bool progress = true;
+  // Built at every output frame, before on_output (which may read it).
+  FieldBuilder* field = nullptr;
+  FieldKind field_kind = FieldKind::Presence;
   // Called at t = 0 and after every output interval, and at the end.
   std::function<void(const Solver&, int frame)> on_output;
 };
@@ -38,6 +45,10 @@ struct RunSummary {
   double mean_dt = 0, min_dt = 1e300;
   StageTimes mean_stage_ms;
   double max_speed = 0;
+  uint64_t field_builds = 0, field_without_presence = 0;  // presence builds that fell back to full extents
+  double field_ms_mean = 0;
+  std::string field_builder;
+  int field_dims[3] = {0, 0, 0};
 };
 
 RunSummary run_scene(const Scene& s, Solver& solver, const RunOptions& opt, std::ostream& log);

@@ -151,7 +151,7 @@ Scene parse_scene(const std::string& text, const std::string& file, const std::v
   s.file = file;
   s.json = j;
   const Reader root(j, file, "");
-  root.only({"name", "description", "tank", "fluid", "gravity", "sph", "run"});
+  root.only({"name", "description", "tank", "fluid", "gravity", "sph", "field", "run"});
   s.name = root.has("name") && root.at("name").is_string() ? root.at("name").get<std::string>() : "scene";
   if (root.has("name") && !root.at("name").is_string()) root.fail("name", root.at("name"), "must be a string");
   if (root.has("description") && !root.at("description").is_string())
@@ -202,6 +202,23 @@ Scene parse_scene(const std::string& text, const std::string& file, const std::v
     s.sph.boundary_layers = int(l);
   }
   s.sph.presence = sph.boolean("presence", false);
+
+  const Reader field = root.child("field");
+  field.only({"builder", "refine", "radius", "core", "clip", "min_extent", "shrink_from", "full_fraction", "full_value"});
+  s.field.given = root.has("field");
+  s.field.builder = field.string("builder", "presence", {"naive", "presence", "gather"});
+  const double refine = field.number("refine", 2, 0, 2);
+  if (refine != std::floor(refine)) field.fail("refine", field.at("refine"), "must be 0, 1 or 2 (voxels per cell edge = 2^refine)");
+  s.field.refine = int(refine);
+  s.field.radius = field.number("radius", 2.0, 1.0, 8.0);
+  s.field.core = field.number("core", 0.5, 0.05, 4.0);
+  s.field.clip = field.number("clip", 4.0, 1.01, 1e3);
+  s.field.min_extent = field.number("min_extent", 1.0, 0.0, 8.0);
+  if (s.field.min_extent > s.field.radius)
+    field.fail("min_extent", field.at("min_extent"), "must not exceed field.radius");
+  s.field.shrink_from = field.number("shrink_from", 0.5, 0.0, 0.95);
+  s.field.full_fraction = field.number("full_fraction", 0.9, 0.1, 2.0);
+  s.field.full_value = field.string("full_value", "clip", {"clip", "coarse"});
 
   const Reader run = root.child("run");
   run.only({"end_time", "output_interval", "min_dt", "max_dt"});

@@ -53,6 +53,20 @@ struct Scene {
     bool presence = false;
   } sph;
 
+  // The density field (docs/field.md). Built only when a later stage uses it.
+  struct Field {
+    bool given = false;              // the scene has a "field" section
+    std::string builder = "presence";  // "naive" | "presence" | "gather"
+    int refine = 2;                  // voxels per SPH cell edge = 2^refine
+    double radius = 2.0;             // influence radius R [voxels]
+    double core = 0.5;               // finite core of the inverse-square falloff [voxels]
+    double clip = 4.0;               // saturation value as a multiple of the iso value
+    double min_extent = 1.0;         // presence builder: extent toward a fully surrounded side [voxels]
+    double shrink_from = 0.5;        // presence builder: a side keeps its full extent up to this presence
+    double full_fraction = 0.9;      // presence coarse fill (refine > 0): share of (cell/dx)^3 that fills a cell
+    std::string full_value = "clip";  // ... and the value it gets: "clip" (saturated) or "coarse"
+  } field;
+
   struct Run {
     double end_time = 1.0;         // [s]
     double output_interval = 0.01; // [s]

@@ -8,6 +8,8 @@
 #include <sstream>
 #include <string>
 
+#include "field.h"
+
 namespace sphray {
 
 namespace {
@@ -133,6 +135,8 @@ void check_fits(const Scene& s, Backend backend) {
        << "Raise sph.spacing or shrink the tank.";
     throw SceneError(os.str());
   }
+  size_t bytes = z.bytes;
+  if (s.field.given) bytes += size_t(make_field_setup(s).geom.num_voxels()) * sizeof(float);
   size_t avail = 0;
   if (backend == Backend::Cuda) {
     avail = cuda_free_memory();
@@ -151,16 +155,17 @@ void check_fits(const Scene& s, Backend backend) {
       avail = pages > 0 && page > 0 ? size_t(pages) * size_t(page) : 0;
     }
   }
-  if (avail > 0 && z.bytes > avail * 0.9) {
+  if (avail > 0 && bytes > avail * 0.9) {
     os.precision(3);
-    os << s.file << ": sph.spacing = " << s.sph.spacing << " needs about " << z.bytes / gib << " GiB (" << z.fluid
-       << " fluid particles, " << z.boundary << " wall particles, " << z.cells << " grid cells), but the "
+    os << s.file << ": sph.spacing = " << s.sph.spacing << " needs about " << bytes / gib << " GiB (" << z.fluid
+       << " fluid particles, " << z.boundary << " wall particles, " << z.cells << " grid cells"
+       << (s.field.given ? ", the density field" : "") << "), but the "
        << backend_name(backend) << " backend has " << avail / gib << " GiB free. Raise sph.spacing or shrink the tank.";
     throw SceneError(os.str());
   }
 }
 
-SolverInput make_solver_input(const Scene& s, bool presence) {
+SolverInput make_solver_input(const Scene& s, PresenceMode presence) {
   SolverInput in;
   in.params = make_params(s);
   const SceneSize z = measure_scene(s);

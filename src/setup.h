@@ -18,7 +18,7 @@ struct SceneSize {
 
 SphParams make_params(const Scene& s);
 SceneSize measure_scene(const Scene& s);  // counts only; generates nothing
-SolverInput make_solver_input(const Scene& s, bool presence);
+SolverInput make_solver_input(const Scene& s, PresenceMode presence);
 
 // Throws SceneError when the scene would need more memory than `backend` has free.
 void check_fits(const Scene& s, Backend backend);

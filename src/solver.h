@@ -16,6 +16,11 @@
 namespace sphray {
 
 enum class Backend { Cpu, Cuda };
+
+// When the density stage also computes particle presence: never, every step,
+// or only on a step that reaches the time its step() call was given (the last
+// step before an output frame, which is when the field builder reads it).
+enum class PresenceMode { Off, EveryStep, AtUntil };
 const char* backend_name(Backend b);
 
 // A run that cannot go on (non-finite value, time step below its floor).
@@ -33,7 +38,7 @@ struct SolverInput {
   float cfl = 0.25f;
   float min_dt = 1e-9f;   // a step below this is an error
   float max_dt = 1e-2f;
-  bool presence = false;  // compute particle presence (only when a later stage needs it)
+  PresenceMode presence = PresenceMode::Off;  // only when a later stage needs it
 };
 
 // Host copy of the fluid state, in the solver's current (sorted) order.
@@ -42,6 +47,19 @@ struct HostParticles {
   std::vector<Vec3f> pos, vel;
   std::vector<float> density;
   std::vector<std::array<float, 6>> presence;  // empty when presence is off
+};
+
+// The solver's current fluid state where its backend keeps it (device pointers
+// on CUDA), for later stages that run on the same backend (the field builder).
+// Valid until the next step. Particles are sorted by cell and `offsets` matches
+// their positions exactly (the grid is rebuilt at the end of every step).
+struct ParticleView {
+  Backend backend{};
+  uint32_t n = 0;
+  const Float4* pos = nullptr;        // x, y, z, density
+  const uint32_t* offsets = nullptr;  // grid.num_cells() + 1
+  const float* presence = nullptr;    // [6][n] (+x,-x,+y,-y,+z,-z); null unless the last step computed it
+  GridGeom grid{};
 };
 
 struct StageTimes {  // milliseconds of the last step
@@ -67,7 +85,12 @@ class Solver {
   virtual uint64_t num_clamped() const = 0;   // particle-steps put back on a wall face
   virtual const StepLimits& last_limits() const = 0;
   virtual const StageTimes& last_stage_times() const = 0;
+  // Presence is computed by the steps that follow as the mode says (its
+  // buffers are allocated on the first mode other than Off); has_presence()
+  // says whether the last step computed it.
+  virtual void set_presence(PresenceMode mode) = 0;
   virtual bool has_presence() const = 0;
+  virtual ParticleView view() const = 0;
   virtual size_t device_bytes() const = 0;    // buffers this solver holds
   virtual HostParticles download() const = 0;
   // Cell offsets of the fluid grid (num_cells + 1): cell c holds sorted particles

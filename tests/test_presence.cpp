@@ -20,7 +20,7 @@ SolverInput lattice_input(int nx, int ny, int nz, const std::vector<Vec3d>& extr
   const std::string text = R"({"tank": {"min": [-0.1,-0.1,-0.1], "max": [0.4,0.4,0.4]},
     "gravity": [0,0,0], "sph": {"spacing": 0.01}, "run": {"end_time": 1}})";
   const Scene s = parse_scene(text, "presence.json");
-  SolverInput in = make_solver_input(s, true);
+  SolverInput in = make_solver_input(s, PresenceMode::EveryStep);
   for (int k = 0; k < nz; ++k)
     for (int j = 0; j < ny; ++j)
       for (int i = 0; i < nx; ++i)
@@ -106,11 +106,15 @@ TEST_CASE("presence is mirror symmetric", "[presence][cpu]") {
 TEST_CASE("presence costs nothing when no stage needs it", "[presence][cpu]") {
   SolverInput in = lattice_input(5, 5, 5);
   auto with = make_cpu_solver(in);
-  in.presence = false;
+  in.presence = PresenceMode::Off;
   auto without = make_cpu_solver(in);
+  CHECK_FALSE(with->has_presence());  // nothing computed before the first step
+  // Presence and its re-sort scratch, six floats each per particle.
+  CHECK(with->device_bytes() - without->device_bytes() == 2 * 6 * sizeof(float) * 125);
+  with->step(1e-6);
+  without->step(1e-6);
   CHECK(with->has_presence());
   CHECK_FALSE(without->has_presence());
-  CHECK(with->device_bytes() - without->device_bytes() == 6 * sizeof(float) * 125);
-  without->step(1e-6);
   CHECK(without->download().presence.empty());
+  CHECK(without->view().presence == nullptr);
 }

@@ -28,7 +28,7 @@ TEST_CASE("a tank at rest settles to hydrostatic pressure within 2%", "[sph][cpu
     "sph": {"spacing": 0.01, "viscosity_alpha": 0.5}, "run": {"end_time": 1.2}})";
   const Scene s = parse_scene(text, "hydrostatic.json");
   const SphParams prm = make_params(s);
-  auto solver = make_cpu_solver(make_solver_input(s, false));
+  auto solver = make_cpu_solver(make_solver_input(s, PresenceMode::Off));
   const size_t n = solver->num_fluid();
   std::vector<double> energy;
   for (int k = 1; k <= 8; ++k) {
@@ -96,7 +96,7 @@ TEST_CASE("a tank at rest settles to hydrostatic pressure within 2%", "[sph][cpu
 
 TEST_CASE("a non-finite value stops the run and names step, particle and quantity", "[sph][cpu]") {
   const Scene s = load_scene(test::source_path("scenes/stress/jet.json"));
-  SolverInput in = make_solver_input(s, false);
+  SolverInput in = make_solver_input(s, PresenceMode::Off);
   in.fluid_vel[17].y = std::numeric_limits<float>::quiet_NaN();
   auto solver = make_cpu_solver(in);
   std::string msg;
@@ -112,7 +112,7 @@ TEST_CASE("a non-finite value stops the run and names step, particle and quantit
 
 TEST_CASE("a time step below the floor is an error with its reason", "[sph][cpu]") {
   const Scene s = load_scene(test::source_path("scenes/stress/stiff.json"), {"run.min_dt=0.001", "run.max_dt=0.01"});
-  auto solver = make_cpu_solver(make_solver_input(s, false));
+  auto solver = make_cpu_solver(make_solver_input(s, PresenceMode::Off));
   std::string msg;
   try {
     solver->step(1.0);
@@ -128,7 +128,7 @@ TEST_CASE("particles leaving through an open top are removed and counted", "[sph
     "fluid": [{"min": [0.04,0.04,0.02], "max": [0.06,0.06,0.04], "velocity": [0,0,20]}],
     "sph": {"spacing": 0.01}, "run": {"end_time": 0.1}})";
   const Scene s = parse_scene(text, "open.json");
-  auto solver = make_cpu_solver(make_solver_input(s, false));
+  auto solver = make_cpu_solver(make_solver_input(s, PresenceMode::Off));
   CHECK(solver->num_fluid() == 8);
   test::run_until(*solver, 0.1);
   CHECK(solver->num_fluid() + solver->num_removed() == 8);
@@ -137,7 +137,7 @@ TEST_CASE("particles leaving through an open top are removed and counted", "[sph
 
 TEST_CASE("a dam break conserves particles and keeps them inside the walls", "[sph][cpu]") {
   const Scene s = load_scene(test::source_path("scenes/dam_break.json"), {"sph.spacing=0.04", "run.end_time=0.5"});
-  auto solver = make_cpu_solver(make_solver_input(s, false));
+  auto solver = make_cpu_solver(make_solver_input(s, PresenceMode::Off));
   const size_t n = solver->num_fluid();
   test::run_until(*solver, 0.5);
   const HostParticles p = solver->download();

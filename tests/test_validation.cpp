@@ -12,7 +12,7 @@ using namespace sphray;
 TEST_CASE("a coarse Martin-Moyce dam break follows the experimental surge front", "[validation][cpu]") {
   const double a = 0.05715, g = 9.81;
   const Scene s = load_scene(test::source_path("scenes/validation/martin_moyce.json"), {"sph.spacing=0.005715"});
-  auto solver = make_cpu_solver(make_solver_input(s, false));
+  auto solver = make_cpu_solver(make_solver_input(s, PresenceMode::Off));
   Curve sim;
   RunOptions opt;
   opt.progress = false;

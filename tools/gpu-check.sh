@@ -3,7 +3,8 @@
 # build on all cores, run the cpu and gpu tests, the benchmarks and the CUDA
 # validation runs, leaving JSON and the test log under $OUT (at most 8 files
 # come back from the device tool; build logs stay in $B). Steps can be chosen:
-#   tools/gpu-check.sh [build] [test] [sanitize] [main] [bench] [validate]   (default: build test main bench validate)
+#   tools/gpu-check.sh [build] [test] [sanitize] [main] [bench] [field] [ncu-field] [validate]
+#   (default: build test main bench validate; FIELD_SIZES picks the sizes of `field`)
 set -uo pipefail
 OUT=${OUT:-$PWD/gpu-out}
 mkdir -p "$OUT"
@@ -37,6 +38,20 @@ if has bench; then
   echo "== bench sim, h = 1.3 dx"
   $B/sphray bench sim --backend cuda --set sph.smoothing_ratio=1.3 --json "$OUT/bench_sim_h13.json" 2>&1 \
     | grep -v warm-up
+fi
+if has field; then
+  echo "== bench field (${FIELD_SIZES:-all sizes})"
+  $B/sphray bench field --backend cuda ${FIELD_SIZES:+--sizes $FIELD_SIZES} \
+    --json "$OUT/bench_field${FIELD_TAG:-}.json" 2>&1
+fi
+if has ncu-field; then
+  echo "== ncu: field kernels at ${NCU_SIZE:-1M} particles"
+  ncu --kernel-name-base demangled -k regex:'NaiveSplat|PresenceSplat|CoarseFill|MarkOccupied|GatherField' -c 30 \
+    --section SpeedOfLight --section MemoryWorkloadAnalysis --section LaunchStats --section Occupancy \
+    $B/sphray bench field --backend cuda --sizes "${NCU_SIZE:-1M}" --warmup 0 --frames 1 \
+    > "$OUT/ncu_field.txt" 2>&1
+  grep -E 'for_each_index_kernel|Duration|Memory Throughput|DRAM Throughput|Compute \(SM\) Throughput|L2 Cache Throughput' \
+    "$OUT/ncu_field.txt" | sed 's/void sphray::cuda_backend::for_each_index_kernel/kernel/' | cut -c1-160 | head -60
 fi
 if has validate; then
   echo "== validation (cuda)"

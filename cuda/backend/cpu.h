@@ -35,6 +35,9 @@ T* raw(Vector<T>& v) { return v.data(); }
 template <class T>
 const T* raw(const Vector<T>& v) { return v.data(); }
 
+// Threads the device keeps in flight at once (layout choices of the field splats).
+inline uint32_t resident_threads() { return 1; }
+
 inline auto policy() {
 #if defined(_OPENMP)
   return thrust::omp::par;

@@ -61,6 +61,18 @@ struct CachedTempAllocator {
   void deallocate(char* p, size_t) { SPHRAY_CUDA_CHECK(cache().DeviceFree(p)); }
 };
 
+// Threads the device keeps in flight at once (layout choices of the field splats).
+inline uint32_t resident_threads() {
+  static const uint32_t n = [] {
+    int dev = 0, sms = 0, per_sm = 0;
+    SPHRAY_CUDA_CHECK(cudaGetDevice(&dev));
+    SPHRAY_CUDA_CHECK(cudaDeviceGetAttribute(&sms, cudaDevAttrMultiProcessorCount, dev));
+    SPHRAY_CUDA_CHECK(cudaDeviceGetAttribute(&per_sm, cudaDevAttrMaxThreadsPerMultiProcessor, dev));
+    return uint32_t(sms) * uint32_t(per_sm);
+  }();
+  return n;
+}
+
 inline auto policy() {
   static CachedTempAllocator alloc;
   return thrust::cuda::par(alloc);

@@ -2,6 +2,7 @@
 // reports itself absent, and asking for it is a clear error.
 #include <stdexcept>
 
+#include "../../src/field.h"
 #include "../../src/solver.h"
 
 namespace sphray {
@@ -17,5 +18,6 @@ std::string cuda_device_name() { return {}; }
 size_t cuda_free_memory() { return 0; }
 std::unique_ptr<Solver> make_cuda_solver(const SolverInput&) { no_cuda(); }
 GridBuild build_grid_cuda(const GridGeom&, const std::vector<Vec3f>&) { no_cuda(); }
+std::unique_ptr<FieldBuilder> make_cuda_field_builder(const FieldSetup&) { no_cuda(); }
 
 }  // namespace sphray

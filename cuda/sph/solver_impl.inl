@@ -2,7 +2,10 @@
 // solver_cuda.cu inside their backend namespace (which supplies Vector, raw,
 // policy, parallel_for, upload, download, read_one, StageClock and kBackend).
 // Stages as DESIGN.md names them: grid, density (+presence), forces, integrate;
-// they run as grid, forces, kick, density, drift (integrate.h says why).
+// they run as forces, kick, density, drift, grid (integrate.h says why). The
+// grid is rebuilt at the end of a step (and once at construction), so between
+// steps the cell table matches the positions exactly: the field builder reads
+// both as they are (view()).
 
 // Its dependencies come from stages.h, included first outside the namespace.
 
@@ -17,6 +20,18 @@ SPHRAY_HD SPHRAY_FORCEINLINE Vec3f position_of(const Float4& p) { return xyz(p);
 SPHRAY_HD SPHRAY_FORCEINLINE Vec3f position_of(const Vec3f& p) { return p; }
 
 // Cell key of every point (particles as Float4, plain points as Vec3f).
+// Presence follows its particles through the re-sort: [6][n_old] -> [6][n_new].
+struct GatherPresence {
+  const uint32_t* order;
+  const float* src;
+  float* dst;
+  uint32_t n_old, n_new;
+  SPHRAY_HD void operator()(uint32_t i) const {
+    const uint32_t j = order[i];
+    for (uint32_t k = 0; k < 6; ++k) dst[k * n_new + i] = src[k * n_old + j];
+  }
+};
+
 template <class P>
 struct KeyOf {
   GridGeom grid;
@@ -50,7 +65,7 @@ class SolverImpl final : public Solver {
  public:
   explicit SolverImpl(const SolverInput& in)
       : prm_(in.params), grid_(in.grid), cfl_(in.cfl), min_dt_(in.min_dt), max_dt_(in.max_dt),
-        n_(uint32_t(in.fluid_pos_rho.size())), presence_on_(in.presence) {
+        n_(uint32_t(in.fluid_pos_rho.size())) {
     const size_t n = n_, cells = size_t(grid_.num_cells()) + 1;
     upload(pos_, in.fluid_pos_rho);
     upload(vel_, in.fluid_vel);
@@ -62,7 +77,7 @@ class SolverImpl final : public Solver {
     status_.assign(n, uint8_t(kStatusOk)); status_tmp_.resize(n);
     keys_.resize(n); order_.resize(n); offsets_.resize(cells);
     parallel_for(n_, PressureTermOf{prm_, raw(pos_), raw(vel_)});
-    if (presence_on_) presence_.resize(6 * n);
+    set_presence(in.presence);
 
     // Static walls: sorted by the same grid once.
     const uint32_t nb = uint32_t(in.boundary.size());
@@ -79,6 +94,7 @@ class SolverImpl final : public Solver {
     sort_and_offsets(grid_, nb, bkeys, border, boundary_offsets_);
     thrust::gather(policy(), border.begin(), border.end(), boundary_in.begin(), boundary_.begin());
     thrust::gather(policy(), border.begin(), border.end(), alpha_in.begin(), boundary_alpha_.begin());
+    build_grid();
   }
 
   Backend backend() const override { return kBackend; }
@@ -92,19 +108,27 @@ class SolverImpl final : public Solver {
   }
   const StepLimits& last_limits() const override { return limits_; }
   const StageTimes& last_stage_times() const override { return times_; }
-  bool has_presence() const override { return presence_on_; }
+  bool has_presence() const override { return presence_valid_; }
+  void set_presence(PresenceMode mode) override {
+    presence_mode_ = mode;
+    if (mode != PresenceMode::Off && presence_.size() < 6 * size_t(n_)) {  // allocated on first use only
+      presence_.resize(6 * size_t(n_));
+      presence_tmp_.resize(6 * size_t(n_));
+    }
+  }
+  ParticleView view() const override {
+    return {kBackend, n_, raw(pos_), raw(offsets_), presence_valid_ ? raw(presence_) : nullptr, grid_};
+  }
 
   size_t device_bytes() const override {
     auto b = [](const auto& v) { return v.size() * sizeof(typename std::decay_t<decltype(v)>::value_type); };
-    return b(pos_) + b(vel_) + b(pos_tmp_) + b(vel_tmp_) + b(accel_) + b(drho_) + b(presence_) + b(id_) +
+    return b(pos_) + b(vel_) + b(pos_tmp_) + b(vel_tmp_) + b(accel_) + b(drho_) + b(presence_) + b(presence_tmp_) + b(id_) +
            b(id_tmp_) + b(status_) + b(status_tmp_) + b(keys_) + b(order_) + b(offsets_) + b(boundary_) +
            b(boundary_alpha_) + b(wall_pressure_) + b(boundary_offsets_);
   }
 
-  // Stage order (integrate.h says why): grid, forces, kick, density (+presence), drift.
+  // Stage order (integrate.h says why): forces, kick, density (+presence), drift, grid.
   void step(double until) override {
-    clock_.mark(0);
-    build_grid();
     clock_.mark(1);
     parallel_for(uint32_t(boundary_.size()),
                  WallPressure{prm_, grid_, raw(offsets_), raw(pos_), raw(vel_), raw(boundary_), raw(wall_pressure_)});
@@ -118,15 +142,20 @@ class SolverImpl final : public Solver {
     if (s.first_bad != 0xffffffffu) throw SimulationError(describe_bad_particle(s.first_bad));
     clamped_total_ += s.clamped;
     const double dt = choose_dt(s, until);
+    const bool presence_now = presence_mode_ == PresenceMode::EveryStep ||
+                              (presence_mode_ == PresenceMode::AtUntil && t_ + dt >= until - 1e-12);
     parallel_for(n_, Kick{float(dt), raw(vel_), raw(accel_)});
     clock_.mark(3);
-    if (presence_on_) parallel_for(n_, density_stage<true>());
+    if (presence_now) parallel_for(n_, density_stage<true>());
     else parallel_for(n_, density_stage<false>());
+    presence_valid_ = presence_now;
     clock_.mark(4);
     parallel_for(n_, Drift{prm_, float(dt), raw(pos_), raw(vel_), raw(drho_), raw(status_)});
     clock_.mark(5);
-    clock_.finish(5);
-    times_ = {clock_.ms(0, 1), clock_.ms(3, 4), clock_.ms(1, 2), clock_.ms(2, 3) + clock_.ms(4, 5)};
+    build_grid();
+    clock_.mark(6);
+    clock_.finish(6);
+    times_ = {clock_.ms(5, 6), clock_.ms(3, 4), clock_.ms(1, 2), clock_.ms(2, 3) + clock_.ms(4, 5)};
     t_ += dt;
     ++steps_;
   }
@@ -141,8 +170,8 @@ class SolverImpl final : public Solver {
       h.vel[i] = xyz(v[i]);
       h.density[i] = p[i].w;
     }
-    if (presence_on_) {
-      const auto pr = sphray::SPHRAY_BK::download(presence_, presence_.size());
+    if (presence_valid_) {
+      const auto pr = sphray::SPHRAY_BK::download(presence_, 6 * size_t(n_));
       h.presence.resize(n_);
       for (size_t i = 0; i < n_; ++i)
         for (size_t k = 0; k < 6; ++k) h.presence[i][k] = pr[k * n_ + i];
@@ -170,6 +199,10 @@ class SolverImpl final : public Solver {
     gather_swap(n_, order_, status_, status_tmp_);
     // Particles outside the grid (only possible through an open top) sorted last: drop them.
     const uint32_t active = read_one(offsets_, grid_.num_cells());
+    if (presence_valid_) {
+      parallel_for(active, GatherPresence{raw(order_), raw(presence_), raw(presence_tmp_), n_, active});
+      presence_.swap(presence_tmp_);
+    }
     removed_ += n_ - active;
     n_ = active;
   }
@@ -220,7 +253,8 @@ class SolverImpl final : public Solver {
   GridGeom grid_;
   double cfl_, min_dt_, max_dt_;
   uint32_t n_;
-  bool presence_on_;
+  PresenceMode presence_mode_ = PresenceMode::Off;
+  bool presence_valid_ = false;
   double t_ = 0;
   uint64_t steps_ = 0;
   size_t removed_ = 0;
@@ -230,7 +264,7 @@ class SolverImpl final : public Solver {
   StageClock clock_;
 
   Vector<Float4> pos_, vel_, pos_tmp_, vel_tmp_, accel_, boundary_;
-  Vector<float> drho_, presence_, boundary_alpha_, wall_pressure_;
+  Vector<float> drho_, presence_, presence_tmp_, boundary_alpha_, wall_pressure_;
   Vector<uint32_t> id_, id_tmp_, keys_, order_, offsets_, boundary_offsets_;
   Vector<uint8_t> status_, status_tmp_;
 };

@@ -1,0 +1,17 @@
+// CPU build of the field builders: the shared implementation on the OpenMP backend.
+#include "../backend/cpu.h"
+#include "../../src/field.h"
+#include "builders.h"
+
+#define SPHRAY_BK cpu_backend
+namespace sphray::cpu_backend {
+#include "field_impl.inl"
+}  // namespace sphray::cpu_backend
+
+namespace sphray {
+
+std::unique_ptr<FieldBuilder> make_cpu_field_builder(const FieldSetup& s) {
+  return std::make_unique<cpu_backend::FieldBuilderImpl>(s);
+}
+
+}  // namespace sphray

@@ -1,0 +1,263 @@
+// Density-field builders (cuda/field/) against independent references: the
+// falloff and iso value in double, the naive field against a double brute-force
+// sum, gather against naive, the presence builder's guarantees (never past the
+// clip value; exactly naive's classification without presence; within 1% of
+// naive's surface voxels on a dam break after its collapse), and the error
+// metric itself on analytic spheres.
+#include <algorithm>
+#include <cmath>
+#include <random>
+#include <vector>
+
+#include "catch.h"
+#include "helpers.h"
+#include "../src/field.h"
+#include "../src/metrics.h"
+
+using namespace sphray;
+
+namespace {
+
+// A small closed tank: with dx = 0.01, cells of 0.04 m and refine 2, a voxel is one spacing.
+Scene small_scene(const std::vector<std::string>& sets = {}) {
+  const std::string text = R"({"tank": {"min": [0,0,0], "max": [0.4,0.2,0.3]},
+    "fluid": [{"min": [0,0,0], "max": [0.12,0.2,0.2]}],
+    "sph": {"spacing": 0.01}, "field": {"refine": 2}, "run": {"end_time": 1}})";
+  return parse_scene(text, "field.json", sets);
+}
+
+double falloff_ref(const FieldShape& s, double r) {
+  const double R = s.radius, c2 = s.core2;
+  return r < R ? 1.0 / (r * r + c2) - 1.0 / (R * R + c2) : 0.0;
+}
+
+// Field value at a voxel centre in double: the definition in volume.h.
+double brute_force(const FieldSetup& fs, const std::vector<Vec3f>& pts, int i, int j, int k) {
+  double sum = 0;
+  for (const Vec3f& p : pts) {
+    const double u[3] = {(double(p.x) - fs.geom.origin.x) / fs.geom.voxel, (double(p.y) - fs.geom.origin.y) / fs.geom.voxel,
+                         (double(p.z) - fs.geom.origin.z) / fs.geom.voxel};
+    const double d[3] = {i + 0.5 - u[0], j + 0.5 - u[1], k + 0.5 - u[2]};
+    sum += falloff_ref(fs.shape, std::sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2]));
+  }
+  return sum;
+}
+
+std::vector<Vec3f> random_points(const Scene& s, size_t n, unsigned seed) {
+  std::mt19937 rng(seed);
+  std::uniform_real_distribution<float> ux(float(s.tank.min.x), float(s.tank.max.x)),
+      uy(float(s.tank.min.y), float(s.tank.max.y)), uz(float(s.tank.min.z), float(s.tank.max.z));
+  std::vector<Vec3f> pts(n);
+  for (auto& p : pts) p = {ux(rng), uy(rng), uz(rng)};
+  return pts;
+}
+
+std::vector<float> build(FieldBuilder& b, const ParticleView& v, FieldKind k) {
+  b.build(v, k);
+  return b.download();
+}
+
+}  // namespace
+
+TEST_CASE("field geometry: the volume is the grid over the tank at 2^refine voxels per cell", "[field]") {
+  for (int refine : {0, 1, 2}) {
+    const Scene s = small_scene({"field.refine=" + std::to_string(refine)});
+    const FieldSetup fs = make_field_setup(s);
+    const GridGeom g = measure_scene(s).grid;
+    CHECK(fs.geom.voxel == Approx(g.cell_size / double(1 << refine)));
+    CHECK(fs.geom.nx % (1 << refine) == 0);
+    // Covers the tank, starts on a cell corner.
+    CHECK(fs.geom.origin.x <= s.tank.min.x);
+    CHECK(fs.geom.origin.x + fs.geom.nx * fs.geom.voxel >= s.tank.max.x - 1e-6);
+    CHECK(fs.geom.origin.z + fs.geom.nz * fs.geom.voxel >= s.tank.max.z - 1e-6);
+    CHECK(std::fmod((fs.geom.origin.x - g.origin.x) / g.cell_size + 1e-4, 1.0) < 1e-3);
+  }
+}
+
+TEST_CASE("falloff: inverse square with a finite core, zero at R, iso = f(sqrt(3)/2)", "[field]") {
+  const FieldSetup fs = make_field_setup(small_scene());
+  const FieldShape& s = fs.shape;
+  CHECK(s.falloff(0.0f) == Approx(falloff_ref(s, 0.0)).epsilon(1e-6));
+  CHECK(s.falloff(1.0f) == Approx(falloff_ref(s, 1.0)).epsilon(1e-6));
+  CHECK(s.falloff(s.radius * s.radius) == 0.0f);
+  CHECK(s.falloff(0.999f * s.radius * s.radius) > 0.0f);
+  CHECK(s.iso == Approx(falloff_ref(s, std::sqrt(3.0) / 2.0)).epsilon(1e-6));
+  CHECK(s.coarse > s.iso);
+  CHECK(s.clip == Approx(4.0 * s.iso));
+}
+
+TEST_CASE("a lone particle anywhere in a voxel makes that voxel inside (surface never below one voxel)", "[field]") {
+  const Scene s = small_scene();
+  const FieldSetup fs = make_field_setup(s);
+  auto b = make_cpu_field_builder(fs);
+  std::mt19937 rng(11);
+  std::uniform_real_distribution<float> u(0.0f, 1.0f);
+  for (int trial = 0; trial < 50; ++trial) {
+    const int vi = 10 + trial % 7, vj = 5 + trial % 5, vk = 8 + trial % 3;
+    const Vec3f p{fs.geom.origin.x + (vi + u(rng)) * fs.geom.voxel, fs.geom.origin.y + (vj + u(rng)) * fs.geom.voxel,
+                  fs.geom.origin.z + (vk + u(rng)) * fs.geom.voxel};
+    const HostParticleSet ps(measure_scene(s).grid, {p});
+    const std::vector<float> f = build(*b, ps.view(), FieldKind::Naive);
+    CHECK(f[fs.geom.index(vi, vj, vk)] >= fs.shape.iso);
+  }
+}
+
+TEST_CASE("naive and gather fields equal a double brute-force sum", "[field]") {
+  const Scene s = small_scene();
+  const FieldSetup fs = make_field_setup(s);
+  const std::vector<Vec3f> pts = random_points(s, 3000, 3);
+  const HostParticleSet ps(measure_scene(s).grid, pts);
+  auto b = make_cpu_field_builder(fs);
+  const std::vector<float> naive = build(*b, ps.view(), FieldKind::Naive);
+  const std::vector<float> gather = build(*b, ps.view(), FieldKind::Gather);
+  double worst_naive = 0, worst_gather = 0;
+  std::mt19937 rng(4);
+  for (int t = 0; t < 3000; ++t) {
+    const int i = int(rng() % fs.geom.nx), j = int(rng() % fs.geom.ny), k = int(rng() % fs.geom.nz);
+    const double ref = brute_force(fs, pts, i, j, k);
+    const size_t v = fs.geom.index(i, j, k);
+    worst_naive = std::max(worst_naive, std::abs(naive[v] - ref) / (1.0 + ref));
+    worst_gather = std::max(worst_gather, std::abs(gather[v] - ref) / (1.0 + ref));
+  }
+  INFO("worst relative error: naive " << worst_naive << ", gather " << worst_gather);
+  CHECK(worst_naive < 1e-5);
+  CHECK(worst_gather < 1e-5);
+}
+
+TEST_CASE("presence builder without presence classifies exactly as naive, and never passes the clip value", "[field]") {
+  for (int refine : {0, 1, 2}) {
+    const Scene s = small_scene({"field.refine=" + std::to_string(refine)});
+    const FieldSetup fs = make_field_setup(s);
+    const HostParticleSet ps(measure_scene(s).grid, random_points(s, 4000, 7 + refine));
+    auto b = make_cpu_field_builder(fs);
+    const std::vector<float> naive = build(*b, ps.view(), FieldKind::Naive);
+    const std::vector<float> pres = build(*b, ps.view(), FieldKind::Presence);
+    size_t differ = 0;
+    for (size_t v = 0; v < naive.size(); ++v) differ += (naive[v] >= fs.shape.iso) != (pres[v] >= fs.shape.iso);
+    INFO("refine " << refine);
+    CHECK(differ == 0);
+    CHECK(*std::max_element(pres.begin(), pres.end()) <= fs.shape.clip * (1.0f + 1e-6f));  // to float rounding
+    CHECK(*std::max_element(naive.begin(), naive.end()) > fs.shape.clip);  // so the clip did something
+  }
+}
+
+TEST_CASE("field error metric on analytic spheres", "[field]") {
+  const int n = 48;
+  auto sphere = [&](double radius) {
+    std::vector<float> f(size_t(n) * n * n);
+    for (int k = 0; k < n; ++k)
+      for (int j = 0; j < n; ++j)
+        for (int i = 0; i < n; ++i) {
+          const double d[3] = {i + 0.5 - 24.0, j + 0.5 - 24.0, k + 0.5 - 24.0};
+          f[(size_t(k) * n + j) * n + i] = float(radius - std::sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2]));
+        }
+    return f;
+  };
+  const std::vector<float> a = sphere(12.0), b = sphere(12.5);
+  const FieldError same = compare_fields(n, n, n, a, a, 0.0f);
+  CHECK(same.misclassified_band == 0);
+  CHECK(same.max_distance == 0.0);
+  const FieldError e = compare_fields(n, n, n, a, b, 0.0f);
+  // Shell between the radii: 4/3 pi (12.5^3 - 12^3) voxels, all within two voxels of the surface.
+  const double shell = 4.0 / 3.0 * M_PI * (std::pow(12.5, 3) - std::pow(12.0, 3));
+  CHECK(e.misclassified_band == Approx(shell).epsilon(0.05));
+  CHECK(e.misclassified_other == 0);
+  CHECK(e.mean_distance == Approx(0.5).margin(0.03));
+  CHECK(e.max_distance < 0.6);
+  CHECK(e.unmatched == 0);
+}
+
+TEST_CASE("presence builder on a dam break after its collapse: within 1% of naive, no holes, less work", "[field]") {
+  // Coarse (2,400 particles) to keep the CPU suite short; the column has
+  // collapsed by t = 0.3 s (front past 2.5 column widths).
+  const Scene s = small_scene({"sph.spacing=0.0125"});
+  auto solver = make_cpu_solver(make_solver_input(s, PresenceMode::AtUntil));
+  test::run_until(*solver, 0.3);
+  REQUIRE(solver->has_presence());
+  const ParticleView v = solver->view();
+  const FieldSetup fs = make_field_setup(s);
+  auto b = make_cpu_field_builder(fs);
+  b->build(v, FieldKind::Naive, true);
+  const std::vector<float> naive = b->download();
+  const FieldCounts cn = b->last_counts();
+  b->build(v, FieldKind::Presence, true);
+  const std::vector<float> pres = b->download();
+  const FieldCounts cp = b->last_counts();
+  const FieldError e = compare_fields(fs.geom.nx, fs.geom.ny, fs.geom.nz, naive, pres, fs.shape.iso);
+  INFO("misclassified " << 100 * e.misclassified_share() << "% of " << e.band << " band voxels, elsewhere "
+                        << e.misclassified_other << ", surface distance mean " << e.mean_distance << " max "
+                        << e.max_distance << "; touched " << cp.touched << " vs naive " << cn.touched << ", atomics "
+                        << cp.atomics << " vs " << cn.atomics << ", skipped " << cp.skipped);
+  CHECK(e.band > 1000);
+  CHECK(e.misclassified_share() < 0.01);
+  CHECK(e.misclassified_other == 0);
+  CHECK(e.mean_distance < 0.1);
+  CHECK(cp.touched < cn.touched);
+  CHECK(cp.atomics < cn.atomics / 2);
+  CHECK(cp.skipped > 0);
+  CHECK(*std::max_element(pres.begin(), pres.end()) <= fs.shape.clip * (1.0f + 1e-6f));  // to float rounding
+  // Gather computes the naive field.
+  b->build(v, FieldKind::Gather);
+  const FieldError g = compare_fields(fs.geom.nx, fs.geom.ny, fs.geom.nz, naive, b->download(), fs.shape.iso);
+  CHECK(g.misclassified_band + g.misclassified_other <= 2);  // float summation order only
+  CHECK(g.mean_distance < 1e-3);
+}
+
+TEST_CASE("presence at the frame only: the step that reaches `until` computes what every step would", "[field]") {
+  const Scene s = small_scene({"sph.spacing=0.0125"});
+  auto every = make_cpu_solver(make_solver_input(s, PresenceMode::EveryStep));
+  auto at = make_cpu_solver(make_solver_input(s, PresenceMode::AtUntil));
+  every->step(0.01);
+  at->step(0.01);
+  CHECK_FALSE(at->has_presence());  // the first step does not reach t = 0.01
+  CHECK(at->view().presence == nullptr);
+  test::run_until(*every, 0.01);
+  test::run_until(*at, 0.01);
+  REQUIRE(at->has_presence());
+  const HostParticles a = every->download(), b = at->download();
+  REQUIRE(a.presence.size() == b.presence.size());
+  for (size_t k = 0; k < a.presence.size(); ++k) REQUIRE(a.presence[k] == b.presence[k]);
+  // Presence follows the particles through the end-of-step re-sort: the view's
+  // presence is in the same order as its positions.
+  const ParticleView v = at->view();
+  for (size_t k = 0; k < a.pos.size(); k += 97) CHECK(b.presence[k][0] == v.presence[0 * v.n + k]);
+}
+
+TEST_CASE("a scene pays only for the stages it needs: no field, no presence", "[field]") {
+  const Scene plain = small_scene();
+  Scene no_field = plain;
+  no_field.field.given = false;
+  CHECK(needs_of(no_field).presence == PresenceMode::Off);
+  CHECK_FALSE(needs_of(no_field).field);
+  CHECK(make_field(no_field, Backend::Cpu, needs_of(no_field)) == nullptr);
+  CHECK(needs_of(plain).presence == PresenceMode::AtUntil);
+  const Scene naive = small_scene({"field.builder=naive"});
+  CHECK(needs_of(naive).presence == PresenceMode::Off);
+  auto off = make_cpu_solver(make_solver_input(plain, PresenceMode::Off));
+  auto on = make_cpu_solver(make_solver_input(plain, PresenceMode::AtUntil));
+  CHECK(on->device_bytes() >= off->device_bytes() + 2 * 6 * sizeof(float) * off->num_fluid());
+}
+
+TEST_CASE("field scene values are validated", "[field][scene]") {
+  auto error_of = [](const std::string& set) -> std::string {
+    try {
+      small_scene({set});
+    } catch (const SceneError& e) {
+      return e.what();
+    }
+    return "";
+  };
+  auto names = [&](const std::string& set, const std::string& part) {
+    const std::string e = error_of(set);
+    INFO(set << " -> " << e);
+    CHECK(e.find("field.json") != std::string::npos);
+    CHECK(e.find(part) != std::string::npos);
+  };
+  names("field.builder=fast", "field.builder");
+  names("field.refine=3", "field.refine");
+  names("field.refine=1.5", "field.refine");
+  names("field.radius=0.5", "field.radius");
+  names("field.min_extent=3", "field.min_extent");
+  names("field.clip=1", "field.clip");
+  names("field.colour=1", "unknown key");
+}
