@@ -78,3 +78,30 @@ TEST_CASE("sphray run simulates a small scene and prints a summary", "[cli][cpu]
   while (std::getline(csv, line)) ++rows;
   CHECK(rows == 6);  // t = 0 and five output intervals of 0.01 s
 }
+
+TEST_CASE("sphray run builds the field at every frame when the scene has one", "[cli][cpu]") {
+  const std::string scene = sphray::test::source_path("scenes/stress/one_cell.json");
+  const Result r = run_cli("run " + scene + " --backend cpu --quiet --set run.end_time=0.02 --set run.output_interval=0.01 "
+                           "--set field.builder=presence --summary-json /tmp/sphray_field_summary.json");
+  INFO(r.output);
+  CHECK(r.code == 0);
+  CHECK(has(r.output, "field          presence builder"));
+  CHECK(has(r.output, "3 builds"));               // t = 0 and two frames
+  CHECK(has(r.output, "1 without presence"));     // only t = 0: the frames' last steps computed it
+  std::ifstream f("/tmp/sphray_field_summary.json");
+  std::stringstream ss;
+  ss << f.rdbuf();
+  CHECK(has(ss.str(), "\"builds_without_presence\": 1"));
+}
+
+TEST_CASE("sphray bench field reports bad input with exit code 2", "[cli][cpu]") {
+  Result r = run_cli("bench field --backend cpu --sizes 8k --json /nonexistent/dir/out.json");
+  CHECK(r.code == 2);
+  CHECK(has(r.output, "--json: cannot write"));
+  r = run_cli("bench field --backend cpu --sizes lots");
+  CHECK(r.code == 2);
+  CHECK(has(r.output, "--sizes"));
+  r = run_cli("bench field --backend cpu --sizes 8k --set field.refine=7");
+  CHECK(r.code == 2);
+  CHECK(has(r.output, "field.refine"));
+}
