@@ -2,7 +2,10 @@
 // error becomes one line on stderr and exit code 2, a failed run exit code 1.
 #include <CLI/CLI.hpp>
 
+#include <algorithm>
+#include <cmath>
 #include <cstdio>
+#include <set>
 #include <fstream>
 #include <iomanip>
 #include <iostream>
@@ -10,6 +13,8 @@
 
 #include "../src/bench.h"
 #include "../src/bench_field.h"
+#include "../src/export.h"
+#include "../src/frames_h5.h"
 #include "../src/metrics.h"
 #include "../src/pipeline.h"
 #include "../src/scene.h"
@@ -37,9 +42,17 @@ std::vector<size_t> parse_sizes(const std::string& text) {
   return out;
 }
 
+struct ExportArgs {
+  std::string path;
+  int every = 1;
+  std::string fields;
+};
+
 int cmd_run(const std::string& scene_path, const std::string& backend_name_arg, const std::vector<std::string>& sets,
-            const std::string& metrics_csv, const std::string& summary_json, bool quiet) {
+            const std::string& metrics_csv, const std::string& summary_json, bool quiet, const ExportArgs& ex) {
   const Scene scene = load_scene(scene_path, sets);
+  const std::set<std::string> export_fields = parse_export_fields(ex.fields);
+  if (ex.path.empty() && !ex.fields.empty()) throw std::runtime_error("--export-fields needs --export FILE");
   // Outputs are opened before the run, so an unwritable path fails in a
   // second, not after the simulation.
   std::ofstream csv, summary;
@@ -53,7 +66,26 @@ int cmd_run(const std::string& scene_path, const std::string& backend_name_arg, 
     if (!summary) throw std::runtime_error("--summary-json: cannot write '" + summary_json + "'");
   }
   const Backend b = choose_backend(backend_name_arg, std::cout);
-  const StageNeeds needs = needs_of(scene);
+  StageNeeds needs = needs_of(scene);
+  if (!ex.path.empty()) {
+    if (export_fields.count("field")) needs.field = true;
+    if (export_fields.count("presence") && needs.presence == PresenceMode::Off) needs.presence = PresenceMode::AtUntil;
+  }
+  std::unique_ptr<FrameWriter> writer;
+  if (!ex.path.empty()) {  // created before the run: an unwritable path fails at once
+    FileHeader h;
+    h.scene_json = scene.json.dump(2);
+    h.version = sphray_version();
+    h.backend = backend_name(b);
+    for (const Float4& q : make_solver_input(scene, PresenceMode::Off).boundary) {
+      h.boundary.push_back(q.x); h.boundary.push_back(q.y); h.boundary.push_back(q.z);
+    }
+    try {
+      writer = std::make_unique<FrameWriter>(ex.path, h, scene.export_.gzip);
+    } catch (const FrameFileError& e) {
+      throw std::runtime_error(std::string("--export: ") + e.what());
+    }
+  }
   auto solver = make_solver(scene, b, needs);
   auto field = make_field(scene, b, needs);
   const SceneSize size = measure_scene(scene);
@@ -67,15 +99,22 @@ int cmd_run(const std::string& scene_path, const std::string& backend_name_arg, 
   opt.progress = !quiet;
   opt.field = field.get();
   opt.field_kind = parse_field_kind(scene.field.builder);
-  if (csv.is_open())
-    opt.on_output = [&](const Solver& s, int) {
+  opt.on_output = [&](const Solver& s, int frame) {
+    if (csv.is_open()) {
       const HostParticles p = s.download();
       csv << s.time() << "," << s.steps() << "," << s.num_fluid() << ","
           << surge_front(p, scene.tank.min.x, scene.sph.spacing) << "," << kinetic_energy(p, mass) << ","
           << s.last_limits().max_speed << "\n";
-    };
+    }
+    if (writer && frame % ex.every == 0) writer->submit(capture_frame(s, prm, export_fields, field.get()));
+  };
   const RunSummary r = run_scene(scene, *solver, opt, std::cout);
   print_summary(r, std::cout);
+  if (writer) {
+    writer->finish();
+    std::cout << "  export         " << writer->frames_written() << " frames to " << ex.path << " (XDMF sidecar for ParaView"
+              << " next to it); the run waited " << writer->seconds_waited() << " s on the writer\n";
+  }
   if (!summary_json.empty()) {
     nlohmann::json j = {{"scene", scene_path}, {"backend", backend_name(r.backend)}, {"steps", r.steps},
                         {"sim_time_s", r.sim_time}, {"wall_s", r.wall_seconds}, {"fluid_start", r.fluid_start},
@@ -85,6 +124,50 @@ int cmd_run(const std::string& scene_path, const std::string& backend_name_arg, 
       j["field"] = {{"builder", r.field_builder}, {"volume", r.field_dims}, {"builds", r.field_builds},
                     {"ms_per_build", r.field_ms_mean}, {"builds_without_presence", r.field_without_presence}};
     if (!(summary << j.dump(2) << "\n")) throw std::runtime_error("--summary-json: cannot write '" + summary_json + "'");
+  }
+  return 0;
+}
+
+int cmd_inspect(const std::string& path) {
+  const FrameReader r(path);
+  std::string name = "?";
+  try {
+    name = nlohmann::json::parse(r.header().scene_json).value("name", "?");
+  } catch (...) {
+  }
+  std::cout << path << ": sphray frames, format_version " << r.format_version() << ", written by sphray "
+            << r.header().version << " (" << r.header().backend << " backend), scene \"" << name << "\"\n"
+            << "  boundary particles " << r.header().boundary.size() / 3 << ", frames " << r.frames().size() << "\n";
+  auto range = [](const std::vector<float>& v, size_t stride, size_t c) {
+    float lo = 0, hi = 0;
+    for (size_t k = c; k < v.size(); k += stride) {
+      lo = k == c ? v[k] : std::min(lo, v[k]);
+      hi = k == c ? v[k] : std::max(hi, v[k]);
+    }
+    std::ostringstream os;
+    os << "[" << lo << ", " << hi << "]";
+    return os.str();
+  };
+  for (size_t k = 0; k < r.frames().size(); ++k) {
+    const FrameInfo& fi = r.frames()[k];
+    const Frame f = r.read(k);
+    std::cout << "  " << fi.name << "  t = " << fi.time << " s  step " << fi.step << "  " << fi.particles
+              << " particles  x " << range(f.position, 3, 0) << " y " << range(f.position, 3, 1) << " z "
+              << range(f.position, 3, 2);
+    if (!f.density.empty()) std::cout << "  density " << range(f.density, 1, 0);
+    if (!f.pressure.empty()) std::cout << "  pressure " << range(f.pressure, 1, 0);
+    if (!f.velocity.empty()) {
+      float vmax = 0;
+      for (size_t i = 0; i + 2 < f.velocity.size(); i += 3)
+        vmax = std::max(vmax, std::sqrt(f.velocity[i] * f.velocity[i] + f.velocity[i + 1] * f.velocity[i + 1] +
+                                        f.velocity[i + 2] * f.velocity[i + 2]));
+      std::cout << "  |v| max " << vmax;
+    }
+    if (!f.presence.empty()) std::cout << "  presence " << range(f.presence, 1, 0);
+    if (!f.field.empty())
+      std::cout << "  field " << f.field_dims[0] << "x" << f.field_dims[1] << "x" << f.field_dims[2] << " "
+                << range(f.field, 1, 0) << " iso " << f.field_iso;
+    std::cout << "\n";
   }
   return 0;
 }
@@ -105,6 +188,15 @@ int main(int argc, char** argv) {
   run->add_option("--metrics-csv", metrics_csv, "write time, surge front, kinetic energy per output interval");
   run->add_option("--summary-json", summary_json, "write the run summary as JSON");
   run->add_flag("--quiet", quiet, "no progress lines");
+  ExportArgs export_args;
+  run->add_option("--export", export_args.path, "write frames to this HDF5 file (docs/formats.md)");
+  run->add_option("--export-every", export_args.every, "export every K-th output frame (default 1)")
+      ->check(CLI::Range(1, 1000000));
+  run->add_option("--export-fields", export_args.fields,
+                  "comma-separated: velocity,density,pressure,presence,field (position is always written)");
+  auto* inspect = app.add_subcommand("inspect", "summary of an HDF5 frames file: frames, times, counts, value ranges");
+  std::string inspect_path;
+  inspect->add_option("file", inspect_path, "a file written by sphray run --export")->required();
 
   auto* bench = app.add_subcommand("bench", "benchmarks");
   bench->require_subcommand(1);
@@ -142,7 +234,8 @@ int main(int argc, char** argv) {
   }
 
   try {
-    if (run->parsed()) return cmd_run(scene_path, backend, sets, metrics_csv, summary_json, quiet);
+    if (run->parsed()) return cmd_run(scene_path, backend, sets, metrics_csv, summary_json, quiet, export_args);
+    if (inspect->parsed()) return cmd_inspect(inspect_path);
     if (bfield->parsed()) {
       std::ofstream jf;
       if (!field_json_out.empty()) {  // opened first: a bad path fails before the benchmark runs
@@ -170,6 +263,9 @@ int main(int argc, char** argv) {
       }
       return 0;
     }
+  } catch (const FrameFileError& e) {
+    std::fprintf(stderr, "sphray: error: %s\n", e.what());
+    return run->parsed() ? 1 : 2;  // a failed write during a run; a bad file given to read
   } catch (const SceneError& e) {
     std::fprintf(stderr, "sphray: error: %s\n", e.what());
     return 2;

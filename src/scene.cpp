@@ -151,7 +151,7 @@ Scene parse_scene(const std::string& text, const std::string& file, const std::v
   s.file = file;
   s.json = j;
   const Reader root(j, file, "");
-  root.only({"name", "description", "tank", "fluid", "gravity", "sph", "field", "run"});
+  root.only({"name", "description", "tank", "fluid", "gravity", "sph", "field", "export", "run"});
   s.name = root.has("name") && root.at("name").is_string() ? root.at("name").get<std::string>() : "scene";
   if (root.has("name") && !root.at("name").is_string()) root.fail("name", root.at("name"), "must be a string");
   if (root.has("description") && !root.at("description").is_string())
@@ -219,6 +219,12 @@ Scene parse_scene(const std::string& text, const std::string& file, const std::v
   s.field.shrink_from = field.number("shrink_from", 0.5, 0.0, 0.95);
   s.field.full_fraction = field.number("full_fraction", 0.9, 0.1, 2.0);
   s.field.full_value = field.string("full_value", "clip", {"clip", "coarse"});
+
+  const Reader exp = root.child("export");
+  exp.only({"gzip"});
+  const double gz = exp.number("gzip", 0, 0, 9);
+  if (gz != std::floor(gz)) exp.fail("gzip", exp.at("gzip"), "must be an integer 0 (off) .. 9");
+  s.export_.gzip = int(gz);
 
   const Reader run = root.child("run");
   run.only({"end_time", "output_interval", "min_dt", "max_dt"});

@@ -67,6 +67,10 @@ struct Scene {
     std::string full_value = "clip";  // ... and the value it gets: "clip" (saturated) or "coarse"
   } field;
 
+  struct Export {
+    int gzip = 0;  // HDF5 export: deflate level 0 (off) .. 9
+  } export_;
+
   struct Run {
     double end_time = 1.0;         // [s]
     double output_interval = 0.01; // [s]

@@ -62,6 +62,15 @@ struct ParticleView {
   GridGeom grid{};
 };
 
+// Device buffers copied as they are (sorted order, no conversion), for sinks
+// that convert on another thread (the HDF5 export).
+struct RawParticles {
+  std::vector<Float4> pos;       // x, y, z, density
+  std::vector<Float4> vel;       // vx, vy, vz, - (empty unless asked for)
+  std::vector<uint32_t> id;
+  std::vector<float> presence;   // [6][n] (empty unless asked for and computed)
+};
+
 struct StageTimes {  // milliseconds of the last step
   double grid = 0, density = 0, forces = 0, integrate = 0;
   double total() const { return grid + density + forces + integrate; }
@@ -93,6 +102,7 @@ class Solver {
   virtual ParticleView view() const = 0;
   virtual size_t device_bytes() const = 0;    // buffers this solver holds
   virtual HostParticles download() const = 0;
+  virtual void download_raw(RawParticles& out, bool velocity, bool presence) const = 0;
   // Cell offsets of the fluid grid (num_cells + 1): cell c holds sorted particles
   // [offsets[c], offsets[c+1]); its particle count is the difference.
   virtual std::vector<uint32_t> download_cell_offsets() const = 0;

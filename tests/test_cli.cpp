@@ -105,3 +105,30 @@ TEST_CASE("sphray bench field reports bad input with exit code 2", "[cli][cpu]")
   CHECK(r.code == 2);
   CHECK(has(r.output, "field.refine"));
 }
+
+TEST_CASE("sphray run --export and sphray inspect: bad paths and bad files exit 2 with a message", "[cli][export]") {
+  const std::string scene = sphray::test::source_path("scenes/stress/one_cell.json");
+  Result r = run_cli("run " + scene + " --backend cpu --quiet --export /nonexistent/dir/out.h5");
+  CHECK(r.code == 2);
+  CHECK(has(r.output, "--export: /nonexistent/dir/out.h5: cannot create the export file"));
+  r = run_cli("run " + scene + " --backend cpu --quiet --export /tmp/x.h5 --export-fields velocity,colour");
+  CHECK(r.code == 2);
+  CHECK(has(r.output, "unknown field 'colour'"));
+  r = run_cli("inspect /nonexistent.h5");
+  CHECK(r.code == 2);
+  CHECK(has(r.output, "missing or unreadable"));
+  std::ofstream("/tmp/sphray_cli_text.h5") << "plain text";
+  r = run_cli("inspect /tmp/sphray_cli_text.h5");
+  CHECK(r.code == 2);
+  CHECK(has(r.output, "not an HDF5 file"));
+
+  r = run_cli("run " + scene + " --backend cpu --quiet --set run.end_time=0.02 --set run.output_interval=0.01 "
+              "--export /tmp/sphray_cli.h5 --export-every 2 --export-fields density");
+  CHECK(r.code == 0);
+  CHECK(has(r.output, "2 frames to /tmp/sphray_cli.h5"));  // t = 0 and t = 0.02
+  r = run_cli("inspect /tmp/sphray_cli.h5");
+  CHECK(r.code == 0);
+  CHECK(has(r.output, "frames 2"));
+  CHECK(has(r.output, "000001  t = 0.02 s"));
+  CHECK(has(r.output, "density ["));
+}

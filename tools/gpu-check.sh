@@ -3,7 +3,7 @@
 # build on all cores, run the cpu and gpu tests, the benchmarks and the CUDA
 # validation runs, leaving JSON and the test log under $OUT (at most 8 files
 # come back from the device tool; build logs stay in $B). Steps can be chosen:
-#   tools/gpu-check.sh [build] [test] [sanitize] [main] [bench] [field] [ncu-field] [validate]
+#   tools/gpu-check.sh [build] [test] [sanitize] [main] [bench] [field] [ncu-field] [export] [validate]
 #   (default: build test main bench validate; FIELD_SIZES picks the sizes of `field`)
 set -uo pipefail
 OUT=${OUT:-$PWD/gpu-out}
@@ -52,6 +52,15 @@ if has ncu-field; then
     > "$OUT/ncu_field.txt" 2>&1
   grep -E 'for_each_index_kernel|Duration|Memory Throughput|DRAM Throughput|Compute \(SM\) Throughput|L2 Cache Throughput' \
     "$OUT/ncu_field.txt" | sed 's/void sphray::cuda_backend::for_each_index_kernel/kernel/' | cut -c1-160 | head -60
+fi
+if has export; then
+  echo "== export overhead: 1M-particle dam break, positions every frame (5 substeps), with and without --export"
+  S="scenes/bench/dam_break.json --backend cuda --quiet --set sph.spacing=0.00432 --set run.end_time=0.1 --set run.output_interval=0.0006"
+  for k in 1 2; do
+    echo "-- without export (run $k)"; $B/sphray run $S | grep -E "simulated|wall time"
+    echo "-- with --export (run $k)"; $B/sphray run $S --export /tmp/sphray_export_bench.h5 | grep -E "simulated|wall time|export "
+    rm -f /tmp/sphray_export_bench.h5 /tmp/sphray_export_bench.xmf
+  done
 fi
 if has validate; then
   echo "== validation (cuda)"

@@ -179,6 +179,19 @@ class SolverImpl final : public Solver {
     return h;
   }
 
+  void download_raw(RawParticles& out, bool velocity, bool presence) const override {
+    auto copy = [](const auto& src, auto& dst, size_t n) {
+      dst.resize(n);
+      if (n) thrust::copy(src.begin(), src.begin() + n, dst.begin());
+    };
+    copy(pos_, out.pos, n_);
+    copy(id_, out.id, n_);
+    if (velocity) copy(vel_, out.vel, n_);
+    else out.vel.clear();
+    if (presence && presence_valid_) copy(presence_, out.presence, 6 * size_t(n_));
+    else out.presence.clear();
+  }
+
   std::vector<uint32_t> download_cell_offsets() const override {
     return sphray::SPHRAY_BK::download(offsets_, offsets_.size());
   }

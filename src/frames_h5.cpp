@@ -1,0 +1,445 @@
+#include "frames_h5.h"
+
+#include <hdf5.h>
+
+#include <cerrno>
+#include <chrono>
+#include <cstdio>
+#include <cstring>
+#include <fstream>
+#include <sstream>
+
+namespace sphray {
+
+const char* sphray_version() { return SPHRAY_VERSION; }
+
+const std::vector<std::string>& exportable_fields() {
+  static const std::vector<std::string> f = {"velocity", "density", "pressure", "presence", "field"};
+  return f;
+}
+
+namespace {
+
+// The HDF5 library prints its error stack itself unless told not to; sphray
+// reports one message of its own instead, built from the stack's innermost
+// entries and errno.
+struct QuietHdf5 {
+  QuietHdf5() { H5Eset_auto2(H5E_DEFAULT, nullptr, nullptr); }
+};
+const QuietHdf5 quiet_hdf5;
+
+herr_t collect_error(unsigned n, const H5E_error2_t* e, void* out) {
+  auto* s = static_cast<std::string*>(out);
+  if (n < 2 && e->desc && *e->desc) *s += std::string(s->empty() ? "" : "; ") + e->desc;
+  return 0;
+}
+
+[[noreturn]] void fail(const std::string& path, const std::string& what) {
+  std::string stack;
+  H5Ewalk2(H5E_DEFAULT, H5E_WALK_DOWNWARD, collect_error, &stack);
+  const int err = errno;
+  std::ostringstream os;
+  os << path << ": " << what;
+  if (err != 0) os << ": " << std::strerror(err);
+  if (!stack.empty()) os << " (HDF5: " << stack << ")";
+  H5Eclear2(H5E_DEFAULT);
+  throw FrameFileError(os.str());
+}
+
+hid_t check(hid_t id, const std::string& path, const std::string& what) {
+  if (id < 0) fail(path, what);
+  return id;
+}
+
+// Closes an HDF5 handle at scope exit.
+struct Handle {
+  hid_t id;
+  herr_t (*close)(hid_t);
+  ~Handle() {
+    if (id >= 0) close(id);
+  }
+};
+
+void attr_string(hid_t loc, const char* name, const std::string& value, const std::string& path) {
+  Handle type{check(H5Tcopy(H5T_C_S1), path, "string type"), H5Tclose};
+  H5Tset_size(type.id, H5T_VARIABLE);
+  H5Tset_cset(type.id, H5T_CSET_UTF8);
+  Handle space{check(H5Screate(H5S_SCALAR), path, "dataspace"), H5Sclose};
+  Handle a{check(H5Acreate2(loc, name, type.id, space.id, H5P_DEFAULT, H5P_DEFAULT), path,
+                 std::string("creating attribute ") + name),
+           H5Aclose};
+  const char* p = value.c_str();
+  if (H5Awrite(a.id, type.id, &p) < 0) fail(path, std::string("writing attribute ") + name);
+}
+
+template <class T>
+void attr_array(hid_t loc, const char* name, hid_t mem_type, hid_t file_type, const T* v, hsize_t n,
+                const std::string& path) {
+  Handle space{check(n == 1 ? H5Screate(H5S_SCALAR) : H5Screate_simple(1, &n, nullptr), path, "dataspace"), H5Sclose};
+  Handle a{check(H5Acreate2(loc, name, file_type, space.id, H5P_DEFAULT, H5P_DEFAULT), path,
+                 std::string("creating attribute ") + name),
+           H5Aclose};
+  if (H5Awrite(a.id, mem_type, v) < 0) fail(path, std::string("writing attribute ") + name);
+}
+
+void attr_double(hid_t loc, const char* name, double v, const std::string& path) {
+  attr_array(loc, name, H5T_NATIVE_DOUBLE, H5T_IEEE_F64LE, &v, 1, path);
+}
+
+// A dataset of rows x cols (cols 1: one dimension; `shape` overrides for 3D),
+// chunked (with gzip when asked) unless empty.
+void dataset(hid_t loc, const char* name, hid_t mem_type, hid_t file_type, const void* data,
+             const std::vector<hsize_t>& dims, int gzip, const std::string& path) {
+  Handle space{check(H5Screate_simple(int(dims.size()), dims.data(), nullptr), path, "dataspace"), H5Sclose};
+  Handle dcpl{check(H5Pcreate(H5P_DATASET_CREATE), path, "property list"), H5Pclose};
+  hsize_t total = 1;
+  for (hsize_t d : dims) total *= d;
+  if (total > 0) {
+    std::vector<hsize_t> chunk = dims;
+    // About 1 MiB chunks: rows of particles, or z slices of the volume.
+    hsize_t row = 4;
+    for (size_t k = 1; k < dims.size(); ++k) row *= dims[k];
+    chunk[0] = std::max<hsize_t>(1, std::min<hsize_t>(dims[0], (hsize_t(1) << 20) / row));
+    H5Pset_chunk(dcpl.id, int(chunk.size()), chunk.data());
+    if (gzip > 0) {
+      H5Pset_shuffle(dcpl.id);
+      H5Pset_deflate(dcpl.id, unsigned(gzip));
+    }
+  }
+  Handle d{check(H5Dcreate2(loc, name, file_type, space.id, H5P_DEFAULT, dcpl.id, H5P_DEFAULT), path,
+                 std::string("creating dataset ") + name),
+           H5Dclose};
+  if (total > 0 && H5Dwrite(d.id, mem_type, H5S_ALL, H5S_ALL, H5P_DEFAULT, data) < 0)
+    fail(path, std::string("writing dataset ") + name);
+}
+
+std::string xdmf_path(const std::string& h5) {
+  const size_t dot = h5.rfind('.'), slash = h5.rfind('/');
+  const bool has_ext = dot != std::string::npos && (slash == std::string::npos || dot > slash);
+  return (has_ext ? h5.substr(0, dot) : h5) + ".xmf";
+}
+
+std::string frame_name(size_t k) {
+  char buf[32];
+  std::snprintf(buf, sizeof buf, "%06zu", k);
+  return buf;
+}
+
+}  // namespace
+
+// ---------------- writer ----------------
+
+FrameWriter::FrameWriter(const std::string& path, const FileHeader& header, int gzip) : path_(path), gzip_(gzip) {
+  errno = 0;
+  Handle fapl{check(H5Pcreate(H5P_FILE_ACCESS), path, "property list"), H5Pclose};
+  // The 1.8 file format: readable by every HDF5 >= 1.8 (h5py, ParaView).
+  H5Pset_libver_bounds(fapl.id, H5F_LIBVER_V18, H5F_LIBVER_V18);
+  file_ = H5Fcreate(path.c_str(), H5F_ACC_TRUNC, H5P_DEFAULT, fapl.id);
+  if (file_ < 0) fail(path, "cannot create the export file");
+  try {
+    attr_string(file_, "format", kFramesFormat, path);
+    const int version = kFramesFormatVersion;
+    attr_array(file_, "format_version", H5T_NATIVE_INT, H5T_STD_I32LE, &version, 1, path);
+    attr_string(file_, "scene", header.scene_json, path);
+    attr_string(file_, "sphray_version", header.version, path);
+    attr_string(file_, "backend", header.backend, path);
+    Handle g{check(H5Gcreate2(file_, "boundary", H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT), path, "creating /boundary"),
+             H5Gclose};
+    dataset(g.id, "position", H5T_NATIVE_FLOAT, H5T_IEEE_F32LE, header.boundary.data(),
+            {hsize_t(header.boundary.size() / 3), 3}, gzip_, path);
+    Handle f{check(H5Gcreate2(file_, "frames", H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT), path, "creating /frames"),
+             H5Gclose};
+    if (H5Fflush(file_, H5F_SCOPE_GLOBAL) < 0) fail(path, "flushing the header");
+  } catch (...) {
+    H5Fclose(file_);
+    throw;
+  }
+  thread_ = std::thread([this] { loop(); });
+}
+
+FrameWriter::~FrameWriter() {
+  try {
+    finish();
+  } catch (...) {  // reported by an explicit finish(); a destructor must not throw
+  }
+}
+
+void FrameWriter::submit(Frame&& f) {
+  auto shared = std::make_shared<Frame>(std::move(f));
+  submit(std::function<Frame()>([shared] { return std::move(*shared); }));
+}
+
+void FrameWriter::submit(std::function<Frame()> f) {
+  std::unique_lock<std::mutex> lock(m_);
+  const auto t0 = std::chrono::steady_clock::now();
+  cv_.wait(lock, [&] { return !pending_ || !error_.empty(); });
+  waited_ += std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  if (!error_.empty()) throw FrameFileError(error_);
+  pending_ = std::move(f);
+  cv_.notify_all();
+}
+
+void FrameWriter::finish() {
+  {
+    std::unique_lock<std::mutex> lock(m_);
+    if (!thread_.joinable()) {
+      if (!error_.empty()) throw FrameFileError(error_);
+      return;
+    }
+    stop_ = true;
+    cv_.notify_all();
+  }
+  thread_.join();
+  if (file_ >= 0) {
+    H5Fclose(file_);
+    file_ = -1;
+  }
+  if (!error_.empty()) throw FrameFileError(error_);
+}
+
+size_t FrameWriter::frames_written() const {
+  std::lock_guard<std::mutex> lock(m_);
+  return written_;
+}
+
+void FrameWriter::loop() {
+  for (;;) {
+    std::function<Frame()> make;
+    {
+      std::unique_lock<std::mutex> lock(m_);
+      cv_.wait(lock, [&] { return bool(pending_) || stop_; });
+      if (!pending_) return;  // stopped and drained
+      make = std::move(pending_);
+      pending_ = nullptr;
+      busy_ = true;
+      cv_.notify_all();  // the run may queue the next frame while this one is written
+    }
+    std::string err;
+    try {
+      write(make());
+    } catch (const std::exception& e) {
+      err = e.what();
+    }
+    std::lock_guard<std::mutex> lock(m_);
+    busy_ = false;
+    if (!err.empty()) {
+      error_ = err;
+      cv_.notify_all();
+      return;  // nothing more is written; what was flushed stays readable
+    }
+    ++written_;
+    cv_.notify_all();
+  }
+}
+
+void FrameWriter::write(const Frame& f) {
+  errno = 0;
+  const std::string name = frame_name(xdmf_.size());
+  Handle frames{check(H5Gopen2(file_, "frames", H5P_DEFAULT), path_, "opening /frames"), H5Gclose};
+  Handle g{check(H5Gcreate2(frames.id, name.c_str(), H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT), path_,
+                 "creating /frames/" + name),
+           H5Gclose};
+  attr_double(g.id, "time", f.time, path_);
+  attr_double(g.id, "dt", f.dt, path_);
+  const uint64_t step = f.step;
+  attr_array(g.id, "step", H5T_NATIVE_UINT64, H5T_STD_U64LE, &step, 1, path_);
+  const hsize_t n = f.count();
+  dataset(g.id, "id", H5T_NATIVE_UINT32, H5T_STD_U32LE, f.id.data(), {n}, gzip_, path_);
+  dataset(g.id, "position", H5T_NATIVE_FLOAT, H5T_IEEE_F32LE, f.position.data(), {n, 3}, gzip_, path_);
+  if (!f.velocity.empty())
+    dataset(g.id, "velocity", H5T_NATIVE_FLOAT, H5T_IEEE_F32LE, f.velocity.data(), {n, 3}, gzip_, path_);
+  if (!f.density.empty())
+    dataset(g.id, "density", H5T_NATIVE_FLOAT, H5T_IEEE_F32LE, f.density.data(), {n}, gzip_, path_);
+  if (!f.pressure.empty())
+    dataset(g.id, "pressure", H5T_NATIVE_FLOAT, H5T_IEEE_F32LE, f.pressure.data(), {n}, gzip_, path_);
+  if (!f.presence.empty())
+    dataset(g.id, "presence", H5T_NATIVE_FLOAT, H5T_IEEE_F32LE, f.presence.data(), {n, 6}, gzip_, path_);
+  if (!f.field.empty()) {
+    const std::vector<hsize_t> dims = {hsize_t(f.field_dims[2]), hsize_t(f.field_dims[1]), hsize_t(f.field_dims[0])};
+    dataset(g.id, "field", H5T_NATIVE_FLOAT, H5T_IEEE_F32LE, f.field.data(), dims, gzip_, path_);
+    Handle d{check(H5Dopen2(g.id, "field", H5P_DEFAULT), path_, "opening field"), H5Dclose};
+    attr_array(d.id, "origin", H5T_NATIVE_FLOAT, H5T_IEEE_F32LE, f.field_origin, 3, path_);
+    attr_array(d.id, "voxel_size", H5T_NATIVE_FLOAT, H5T_IEEE_F32LE, &f.field_voxel, 1, path_);
+    attr_array(d.id, "iso", H5T_NATIVE_FLOAT, H5T_IEEE_F32LE, &f.field_iso, 1, path_);
+  }
+  if (H5Fflush(file_, H5F_SCOPE_GLOBAL) < 0) fail(path_, "flushing frame " + name);
+  xdmf_.push_back({f.time, f.count()});
+  write_xdmf();
+}
+
+void FrameWriter::write_xdmf() {
+  const std::string xmf = xdmf_path(path_), tmp = xmf + ".tmp";
+  const size_t slash = path_.rfind('/');
+  const std::string h5 = slash == std::string::npos ? path_ : path_.substr(slash + 1);
+  std::ofstream o(tmp);
+  o << "<?xml version=\"1.0\" ?>\n<Xdmf Version=\"3.0\">\n <Domain>\n"
+    << "  <Grid Name=\"particles\" GridType=\"Collection\" CollectionType=\"Temporal\">\n";
+  o.precision(10);
+  for (size_t k = 0; k < xdmf_.size(); ++k) {
+    const std::string g = h5 + ":/frames/" + frame_name(k);
+    const size_t n = xdmf_[k].second;
+    o << "   <Grid Name=\"frame " << k << "\" GridType=\"Uniform\">\n"
+      << "    <Time Value=\"" << xdmf_[k].first << "\"/>\n"
+      << "    <Topology TopologyType=\"Polyvertex\" NumberOfElements=\"" << n << "\"/>\n"
+      << "    <Geometry GeometryType=\"XYZ\">\n"
+      << "     <DataItem Dimensions=\"" << n << " 3\" NumberType=\"Float\" Precision=\"4\" Format=\"HDF\">" << g
+      << "/position</DataItem>\n    </Geometry>\n   </Grid>\n";
+  }
+  o << "  </Grid>\n </Domain>\n</Xdmf>\n";
+  o.close();
+  if (!o || std::rename(tmp.c_str(), xmf.c_str()) != 0)
+    throw FrameFileError(xmf + ": cannot write the XDMF sidecar: " + std::strerror(errno));
+}
+
+// ---------------- reader ----------------
+
+namespace {
+
+std::string read_attr_string(hid_t loc, const char* name, const std::string& path) {
+  if (H5Aexists(loc, name) <= 0) return {};
+  Handle a{check(H5Aopen(loc, name, H5P_DEFAULT), path, std::string("opening attribute ") + name), H5Aclose};
+  Handle ftype{check(H5Aget_type(a.id), path, "attribute type"), H5Tclose};
+  if (H5Tget_class(ftype.id) != H5T_STRING) return {};
+  if (H5Tis_variable_str(ftype.id) > 0) {
+    Handle mtype{H5Tcopy(H5T_C_S1), H5Tclose};
+    H5Tset_size(mtype.id, H5T_VARIABLE);
+    H5Tset_cset(mtype.id, H5Tget_cset(ftype.id));
+    char* p = nullptr;
+    if (H5Aread(a.id, mtype.id, &p) < 0) fail(path, std::string("reading attribute ") + name);
+    std::string s = p ? p : "";
+    H5free_memory(p);
+    return s;
+  }
+  const size_t n = H5Tget_size(ftype.id);
+  std::string s(n, '\0');
+  if (H5Aread(a.id, ftype.id, s.data()) < 0) fail(path, std::string("reading attribute ") + name);
+  return s.substr(0, s.find('\0'));
+}
+
+template <class T>
+T read_attr(hid_t loc, const char* name, hid_t mem_type, const std::string& path) {
+  T v{};
+  Handle a{check(H5Aopen(loc, name, H5P_DEFAULT), path, std::string("attribute ") + name + " missing"), H5Aclose};
+  if (H5Aread(a.id, mem_type, &v) < 0) fail(path, std::string("reading attribute ") + name);
+  return v;
+}
+
+std::vector<hsize_t> dims_of(hid_t d) {
+  Handle s{H5Dget_space(d), H5Sclose};
+  std::vector<hsize_t> dims(size_t(std::max(0, H5Sget_simple_extent_ndims(s.id))));
+  H5Sget_simple_extent_dims(s.id, dims.data(), nullptr);
+  return dims;
+}
+
+template <class T>
+std::vector<T> read_dataset(hid_t loc, const char* name, hid_t mem_type, const std::string& path,
+                            std::vector<hsize_t>* dims_out = nullptr) {
+  Handle d{check(H5Dopen2(loc, name, H5P_DEFAULT), path, std::string("opening dataset ") + name), H5Dclose};
+  const std::vector<hsize_t> dims = dims_of(d.id);
+  size_t total = 1;
+  for (hsize_t x : dims) total *= size_t(x);
+  std::vector<T> v(total);
+  if (total && H5Dread(d.id, mem_type, H5S_ALL, H5S_ALL, H5P_DEFAULT, v.data()) < 0)
+    fail(path, std::string("reading dataset ") + name);
+  if (dims_out) *dims_out = dims;
+  return v;
+}
+
+herr_t collect_name(hid_t, const char* name, const H5L_info_t*, void* out) {
+  static_cast<std::vector<std::string>*>(out)->push_back(name);
+  return 0;
+}
+
+std::vector<std::string> members(hid_t g) {
+  std::vector<std::string> names;
+  hsize_t idx = 0;
+  H5Literate(g, H5_INDEX_NAME, H5_ITER_INC, &idx, collect_name, &names);
+  return names;
+}
+
+}  // namespace
+
+FrameReader::FrameReader(const std::string& path) {
+  errno = 0;
+  if (!std::ifstream(path, std::ios::binary)) throw FrameFileError(path + ": cannot open (missing or unreadable)");
+  const htri_t is = H5Fis_hdf5(path.c_str());
+  if (is == 0) throw FrameFileError(path + ": not an HDF5 file");
+  file_ = is > 0 ? H5Fopen(path.c_str(), H5F_ACC_RDONLY, H5P_DEFAULT) : -1;
+  if (file_ < 0) fail(path, "cannot open as HDF5 (truncated or damaged file?)");
+  try {
+    const std::string format = read_attr_string(file_, "format", path);
+    if (format != kFramesFormat)
+      throw FrameFileError(path + ": an HDF5 file, but not a sphray frames file (root attribute format = \"" + format +
+                           "\", expected \"" + kFramesFormat + "\")");
+    version_ = read_attr<int>(file_, "format_version", H5T_NATIVE_INT, path);
+    if (version_ > kFramesFormatVersion)
+      throw FrameFileError(path + ": format_version " + std::to_string(version_) +
+                           " is newer than this sphray reads (" + std::to_string(kFramesFormatVersion) + ")");
+    header_.scene_json = read_attr_string(file_, "scene", path);
+    header_.version = read_attr_string(file_, "sphray_version", path);
+    header_.backend = read_attr_string(file_, "backend", path);
+    if (H5Lexists(file_, "boundary", H5P_DEFAULT) > 0) {
+      Handle b{check(H5Gopen2(file_, "boundary", H5P_DEFAULT), path, "opening /boundary"), H5Gclose};
+      header_.boundary = read_dataset<float>(b.id, "position", H5T_NATIVE_FLOAT, path);
+    }
+    if (H5Lexists(file_, "frames", H5P_DEFAULT) <= 0) throw FrameFileError(path + ": no /frames group");
+    Handle frames{check(H5Gopen2(file_, "frames", H5P_DEFAULT), path, "opening /frames"), H5Gclose};
+    for (const std::string& name : members(frames.id)) {
+      Handle g{check(H5Gopen2(frames.id, name.c_str(), H5P_DEFAULT), path, "opening /frames/" + name), H5Gclose};
+      FrameInfo fi;
+      fi.name = name;
+      fi.time = read_attr<double>(g.id, "time", H5T_NATIVE_DOUBLE, path);
+      fi.dt = read_attr<double>(g.id, "dt", H5T_NATIVE_DOUBLE, path);
+      fi.step = read_attr<uint64_t>(g.id, "step", H5T_NATIVE_UINT64, path);
+      fi.datasets = members(g.id);
+      Handle d{check(H5Dopen2(g.id, "position", H5P_DEFAULT), path, "/frames/" + name + " has no position"),
+               H5Dclose};
+      const auto dims = dims_of(d.id);
+      if (dims.size() != 2 || dims[1] != 3) throw FrameFileError(path + ": /frames/" + name + "/position is not N x 3");
+      fi.particles = size_t(dims[0]);
+      frames_.push_back(fi);
+    }
+  } catch (...) {
+    H5Fclose(file_);
+    throw;
+  }
+}
+
+FrameReader::~FrameReader() {
+  if (file_ >= 0) H5Fclose(file_);
+}
+
+Frame FrameReader::read(size_t k) const {
+  const FrameInfo& fi = frames_.at(k);
+  const std::string path = "/frames/" + fi.name;
+  Handle g{check(H5Gopen2(file_, path.c_str(), H5P_DEFAULT), path, "opening"), H5Gclose};
+  Frame f;
+  f.time = fi.time;
+  f.dt = fi.dt;
+  f.step = fi.step;
+  auto has = [&](const char* n) { return H5Lexists(g.id, n, H5P_DEFAULT) > 0; };
+  if (has("id")) f.id = read_dataset<uint32_t>(g.id, "id", H5T_NATIVE_UINT32, path);
+  f.position = read_dataset<float>(g.id, "position", H5T_NATIVE_FLOAT, path);
+  if (has("velocity")) f.velocity = read_dataset<float>(g.id, "velocity", H5T_NATIVE_FLOAT, path);
+  if (has("density")) f.density = read_dataset<float>(g.id, "density", H5T_NATIVE_FLOAT, path);
+  if (has("pressure")) f.pressure = read_dataset<float>(g.id, "pressure", H5T_NATIVE_FLOAT, path);
+  if (has("presence")) f.presence = read_dataset<float>(g.id, "presence", H5T_NATIVE_FLOAT, path);
+  if (has("field")) {
+    std::vector<hsize_t> dims;
+    f.field = read_dataset<float>(g.id, "field", H5T_NATIVE_FLOAT, path, &dims);
+    if (dims.size() == 3) {
+      f.field_dims[0] = int(dims[2]);
+      f.field_dims[1] = int(dims[1]);
+      f.field_dims[2] = int(dims[0]);
+    }
+    Handle d{check(H5Dopen2(g.id, "field", H5P_DEFAULT), path, "opening field"), H5Dclose};
+    Handle a{check(H5Aopen(d.id, "origin", H5P_DEFAULT), path, "field origin"), H5Aclose};
+    H5Aread(a.id, H5T_NATIVE_FLOAT, f.field_origin);
+    f.field_voxel = read_attr<float>(d.id, "voxel_size", H5T_NATIVE_FLOAT, path);
+    f.field_iso = read_attr<float>(d.id, "iso", H5T_NATIVE_FLOAT, path);
+  }
+  if (f.id.size() != f.position.size() / 3) f.id.resize(f.position.size() / 3);
+  return f;
+}
+
+}  // namespace sphray
