@@ -1,6 +1,7 @@
 #include "frames_h5.h"
 
 #include <hdf5.h>
+#include <sys/statvfs.h>
 
 #include <cerrno>
 #include <chrono>
@@ -23,8 +24,14 @@ namespace {
 // The HDF5 library prints its error stack itself unless told not to; sphray
 // reports one message of its own instead, built from the stack's innermost
 // entries and errno.
+// Also: no library shutdown at exit. After a failed write sphray leaves the
+// file unclosed, so that nothing more reaches the disk than the last good
+// flush; HDF5's own exit handler would try to flush and close it.
 struct QuietHdf5 {
-  QuietHdf5() { H5Eset_auto2(H5E_DEFAULT, nullptr, nullptr); }
+  QuietHdf5() {
+    H5dont_atexit();
+    H5Eset_auto2(H5E_DEFAULT, nullptr, nullptr);
+  }
 };
 const QuietHdf5 quiet_hdf5;
 
@@ -190,10 +197,10 @@ void FrameWriter::finish() {
     cv_.notify_all();
   }
   thread_.join();
-  if (file_ >= 0) {
-    H5Fclose(file_);
-    file_ = -1;
-  }
+  // After a failed write the file is left as the last good flush left it:
+  // closing would flush the failed frame's partial metadata over it.
+  if (file_ >= 0 && error_.empty()) H5Fclose(file_);
+  file_ = -1;
   if (!error_.empty()) throw FrameFileError(error_);
 }
 
@@ -203,6 +210,7 @@ size_t FrameWriter::frames_written() const {
 }
 
 void FrameWriter::loop() {
+  H5Eset_auto2(H5E_DEFAULT, nullptr, nullptr);  // the error stack setting is per thread
   for (;;) {
     std::function<Frame()> make;
     {
@@ -235,6 +243,22 @@ void FrameWriter::loop() {
 void FrameWriter::write(const Frame& f) {
   errno = 0;
   const std::string name = frame_name(xdmf_.size());
+  // A frame that cannot fit is refused before the file is touched: a write
+  // that fails half way (disk full) can leave HDF5's metadata inconsistent.
+  const double payload = 4.0 * double(f.id.size() + f.position.size() + f.velocity.size() + f.density.size() +
+                                      f.pressure.size() + f.presence.size() + f.field.size());
+  const double need = 1.1 * payload + 64.0 * 1024.0;  // chunk indexes, group, attributes
+  struct statvfs fs {};
+  const size_t slash = path_.rfind('/');
+  const std::string dir = slash == std::string::npos ? "." : (slash == 0 ? "/" : path_.substr(0, slash));
+  if (statvfs(dir.c_str(), &fs) == 0 && double(fs.f_bavail) * double(fs.f_frsize) < need) {
+    std::ostringstream os;
+    os.precision(3);
+    os << path_ << ": not enough free space for frame " << name << " (needs about " << need / 1048576.0
+       << " MiB, " << double(fs.f_bavail) * double(fs.f_frsize) / 1048576.0 << " MiB free); the file holds the "
+       << xdmf_.size() << " frames written before";
+    throw FrameFileError(os.str());
+  }
   Handle frames{check(H5Gopen2(file_, "frames", H5P_DEFAULT), path_, "opening /frames"), H5Gclose};
   Handle g{check(H5Gcreate2(frames.id, name.c_str(), H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT), path_,
                  "creating /frames/" + name),
