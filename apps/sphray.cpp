@@ -68,7 +68,10 @@ int cmd_run(const std::string& scene_path, const std::string& backend_name_arg, 
   const Backend b = choose_backend(backend_name_arg, std::cout);
   StageNeeds needs = needs_of(scene);
   if (!ex.path.empty()) {
-    if (export_fields.count("field")) needs.field = true;
+    if (export_fields.count("field")) {
+      needs.field = true;
+      if (scene.field.builder == "presence" && needs.presence == PresenceMode::Off) needs.presence = PresenceMode::AtUntil;
+    }
     if (export_fields.count("presence") && needs.presence == PresenceMode::Off) needs.presence = PresenceMode::AtUntil;
   }
   std::unique_ptr<FrameWriter> writer;

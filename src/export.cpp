@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <functional>
 #include <memory>
+#include <mutex>
 #include <cstdint>
 #include <sstream>
 #include <stdexcept>
@@ -79,11 +80,39 @@ Frame convert(Snapshot& s) {
   return f;
 }
 
+// Snapshots are reused: a fresh 20 MB host buffer per frame costs its page
+// faults and zero fill on the run's thread, about as much as the copy itself.
+// Few are ever alive at once (one being captured, one queued, one written).
+class SnapshotPool {
+ public:
+  std::shared_ptr<Snapshot> take() {
+    std::lock_guard<std::mutex> lock(m_);
+    if (free_.empty()) return std::make_shared<Snapshot>();
+    auto s = std::move(free_.back());
+    free_.pop_back();
+    return s;
+  }
+  void give(std::shared_ptr<Snapshot> s) {
+    std::lock_guard<std::mutex> lock(m_);
+    if (free_.size() < 4) free_.push_back(std::move(s));
+  }
+
+ private:
+  std::mutex m_;
+  std::vector<std::shared_ptr<Snapshot>> free_;
+};
+
+SnapshotPool& pool() {
+  static SnapshotPool p;
+  return p;
+}
+
 }  // namespace
 
 std::function<Frame()> capture_frame(const Solver& solver, const SphParams& prm, const std::set<std::string>& fields,
                                      const FieldBuilder* field) {
-  auto s = std::make_shared<Snapshot>();
+  auto s = pool().take();
+  s->field.clear();
   s->velocity = fields.count("velocity") > 0;
   s->density = fields.count("density") > 0;
   s->pressure = fields.count("pressure") > 0;
@@ -98,7 +127,11 @@ std::function<Frame()> capture_frame(const Solver& solver, const SphParams& prm,
     s->geom = field->setup().geom;
     s->iso = field->setup().shape.iso;
   }
-  return [s] { return convert(*s); };
+  return [s] {
+    Frame f = convert(*s);
+    pool().give(s);
+    return f;
+  };
 }
 
 Frame frame_of(const Solver& s, const SphParams& prm, const std::set<std::string>& fields, const FieldBuilder* field) {
