@@ -66,31 +66,24 @@ int cmd_run(const std::string& scene_path, const std::string& backend_name_arg, 
     if (!summary) throw std::runtime_error("--summary-json: cannot write '" + summary_json + "'");
   }
   const Backend b = choose_backend(backend_name_arg, std::cout);
-  StageNeeds needs = needs_of(scene);
-  if (!ex.path.empty()) {
-    if (export_fields.count("field")) {
-      needs.field = true;
-      if (scene.field.builder == "presence" && needs.presence == PresenceMode::Off) needs.presence = PresenceMode::AtUntil;
-    }
-    if (export_fields.count("presence") && needs.presence == PresenceMode::Off) needs.presence = PresenceMode::AtUntil;
-  }
+  const bool exporting = !ex.path.empty();
+  const StageNeeds needs =
+      needs_of(scene, exporting && export_fields.count("field") > 0, exporting && export_fields.count("presence") > 0);
+  auto solver = make_solver(scene, b, needs);
+  auto field = make_field(scene, b, needs);
   std::unique_ptr<FrameWriter> writer;
-  if (!ex.path.empty()) {  // created before the run: an unwritable path fails at once
+  if (exporting) {  // created before the run: an unwritable path fails before any step
     FileHeader h;
     h.scene_json = scene.json.dump(2);
     h.version = sphray_version();
     h.backend = backend_name(b);
-    for (const Float4& q : make_solver_input(scene, PresenceMode::Off).boundary) {
-      h.boundary.push_back(q.x); h.boundary.push_back(q.y); h.boundary.push_back(q.z);
-    }
+    for (const Vec3f& q : solver->boundary_positions()) h.boundary.insert(h.boundary.end(), {q.x, q.y, q.z});
     try {
       writer = std::make_unique<FrameWriter>(ex.path, h, scene.export_.gzip);
     } catch (const FrameFileError& e) {
       throw std::runtime_error(std::string("--export: ") + e.what());
     }
   }
-  auto solver = make_solver(scene, b, needs);
-  auto field = make_field(scene, b, needs);
   const SceneSize size = measure_scene(scene);
   const SphParams prm = make_params(scene);
   std::cout << "scene " << scene.name << " (" << scene_path << "): " << solver->num_fluid() << " fluid particles, "

@@ -219,7 +219,6 @@ void FrameWriter::loop() {
       if (!pending_) return;  // stopped and drained
       make = std::move(pending_);
       pending_ = nullptr;
-      busy_ = true;
       cv_.notify_all();  // the run may queue the next frame while this one is written
     }
     std::string err;
@@ -229,7 +228,6 @@ void FrameWriter::loop() {
       err = e.what();
     }
     std::lock_guard<std::mutex> lock(m_);
-    busy_ = false;
     if (!err.empty()) {
       error_ = err;
       cv_.notify_all();

@@ -85,7 +85,7 @@ class FrameWriter {
   size_t written_ = 0;
   double waited_ = 0;
   std::function<Frame()> pending_;
-  bool stop_ = false, busy_ = false;
+  bool stop_ = false;
   std::string error_;
   mutable std::mutex m_;
   std::condition_variable cv_;

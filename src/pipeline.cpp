@@ -28,18 +28,18 @@ Backend choose_backend(const std::string& name, std::ostream& log) {
   return Backend::Cpu;
 }
 
-StageNeeds needs_of(const Scene& s) {
+StageNeeds needs_of(const Scene& s, bool field_sink, bool presence_sink) {
   StageNeeds n;
-  n.field = s.field.given;
+  n.field = s.field.given || field_sink;
   // The presence builder reads presence once per frame: only the step that
   // reaches the frame computes it (sph.presence forces every step, for studies).
   if (s.sph.presence) n.presence = PresenceMode::EveryStep;
-  else if (n.field && s.field.builder == "presence") n.presence = PresenceMode::AtUntil;
+  else if ((n.field && s.field.builder == "presence") || presence_sink) n.presence = PresenceMode::AtUntil;
   return n;
 }
 
 std::unique_ptr<Solver> make_solver(const Scene& s, Backend b, const StageNeeds& needs) {
-  check_fits(s, b);
+  check_fits(s, b, needs.field);
   const SolverInput in = make_solver_input(s, needs.presence);
   return b == Backend::Cuda ? make_cuda_solver(in) : make_cpu_solver(in);
 }

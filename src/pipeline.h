@@ -22,7 +22,9 @@ struct StageNeeds {
   PresenceMode presence = PresenceMode::Off;
   bool field = false;  // build the density field at every output frame
 };
-StageNeeds needs_of(const Scene& s);
+// The sinks may ask for more than the scene does: a field (an export of the
+// field) or presence (an export of presence).
+StageNeeds needs_of(const Scene& s, bool field_sink = false, bool presence_sink = false);
 
 std::unique_ptr<Solver> make_solver(const Scene& s, Backend b, const StageNeeds& needs);
 // The scene's field builder, or null when no stage needs a field.

@@ -125,7 +125,7 @@ SceneSize measure_scene(const Scene& s) {
   return z;
 }
 
-void check_fits(const Scene& s, Backend backend) {
+void check_fits(const Scene& s, Backend backend, bool field) {
   const SceneSize z = measure_scene(s);
   const double gib = 1024.0 * 1024.0 * 1024.0;
   std::ostringstream os;
@@ -136,7 +136,7 @@ void check_fits(const Scene& s, Backend backend) {
     throw SceneError(os.str());
   }
   size_t bytes = z.bytes;
-  if (s.field.given) bytes += size_t(make_field_setup(s).geom.num_voxels()) * sizeof(float);
+  if (field) bytes += size_t(make_field_setup(s).geom.num_voxels()) * sizeof(float);
   size_t avail = 0;
   if (backend == Backend::Cuda) {
     avail = cuda_free_memory();
@@ -159,7 +159,7 @@ void check_fits(const Scene& s, Backend backend) {
     os.precision(3);
     os << s.file << ": sph.spacing = " << s.sph.spacing << " needs about " << bytes / gib << " GiB (" << z.fluid
        << " fluid particles, " << z.boundary << " wall particles, " << z.cells << " grid cells"
-       << (s.field.given ? ", the density field" : "") << "), but the "
+       << (field ? ", the density field" : "") << "), but the "
        << backend_name(backend) << " backend has " << avail / gib << " GiB free. Raise sph.spacing or shrink the tank.";
     throw SceneError(os.str());
   }

@@ -20,7 +20,8 @@ SphParams make_params(const Scene& s);
 SceneSize measure_scene(const Scene& s);  // counts only; generates nothing
 SolverInput make_solver_input(const Scene& s, PresenceMode presence);
 
-// Throws SceneError when the scene would need more memory than `backend` has free.
-void check_fits(const Scene& s, Backend backend);
+// Throws SceneError when the scene (with its density field when `field`)
+// would need more memory than `backend` has free.
+void check_fits(const Scene& s, Backend backend, bool field = false);
 
 }  // namespace sphray

@@ -126,7 +126,7 @@ struct CoarseFill {
 
 // presence, pass 2 (refine > 0 only): the voxel that holds a particle is
 // inside (iso radius >= half the voxel diagonal), so it becomes `coarse` too.
-// Every writer writes the same value, so no atomic add is needed.
+// Every writer writes the same value, so a plain (relaxed) store will do.
 struct MarkOccupied {
   VolumeGeom vol;
   float coarse;
@@ -138,16 +138,17 @@ struct MarkOccupied {
     const int i = int(std::floor(u.x)), j = int(std::floor(u.y)), k = int(std::floor(u.z));
     if (i < 0 || j < 0 || k < 0 || i >= vol.nx || j >= vol.ny || k >= vol.nz) return;
     float* cell = field + vol.index(i, j, k);
-    if (load_relaxed(cell) < coarse) atomic_cas(cell, 0.0f, coarse);
+    if (load_relaxed(cell) < coarse) store_relaxed(cell, coarse);  // a full cell's voxel already holds more
   }
 };
 
 // presence, pass 3 (fine splat, sec. 4.2.2-4.2.4): each particle adds its
 // falloff over a box whose half-extent toward each of the six directions
 // shrinks with its presence there (FieldShape::extent: a deep particle
-// touches almost nothing, a lone one keeps the full sphere of radius R), skips voxels already at or above the clip (saturation)
-// value, and never pushes a voxel past it (compare-and-swap of
-// min(value + f, clip)). Without presence (null) every extent is R.
+// touches almost nothing, a lone one keeps the full sphere of radius R),
+// skips voxels already at or above the clip (saturation) value, and leaves
+// none past it (an atomic add, and a second one that takes back any
+// overshoot; see below). Without presence (null) every extent is R.
 template <bool Count, int G>
 struct PresenceSplat {
   VolumeGeom vol;

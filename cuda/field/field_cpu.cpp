@@ -3,6 +3,8 @@
 #include "../../src/field.h"
 #include "builders.h"
 
+#include <type_traits>
+
 #define SPHRAY_BK cpu_backend
 namespace sphray::cpu_backend {
 #include "field_impl.inl"

@@ -3,6 +3,8 @@
 #include "../../src/field.h"
 #include "builders.h"
 
+#include <type_traits>
+
 #define SPHRAY_BK cuda_backend
 namespace sphray::cuda_backend {
 #include "field_impl.inl"

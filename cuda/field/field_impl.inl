@@ -7,11 +7,24 @@ struct CounterToU64 {
   SPHRAY_HD uint64_t operator()(uint32_t i) const { return c[i]; }
 };
 
+// Launches over n items the functor that make(count_tag, group_tag) returns,
+// for the four instantiations (counted or not; 1 or 32 threads per particle).
+template <class Make>
+void launch_variant(uint32_t n, bool count, int group, Make&& make) {
+  using G1 = std::integral_constant<int, 1>;
+  using G32 = std::integral_constant<int, 32>;
+  if (count) {
+    if (group == 32) parallel_for(n, make(std::true_type{}, G32{}));
+    else parallel_for(n, make(std::true_type{}, G1{}));
+  } else {
+    if (group == 32) parallel_for(n, make(std::false_type{}, G32{}));
+    else parallel_for(n, make(std::false_type{}, G1{}));
+  }
+}
+
 class FieldBuilderImpl final : public FieldBuilder {
  public:
-  explicit FieldBuilderImpl(const FieldSetup& s) : setup_(s), full_fill_(s.full_fill) {
-    field_.resize(size_t(s.geom.num_voxels()));
-  }
+  explicit FieldBuilderImpl(const FieldSetup& s) : setup_(s) { field_.resize(size_t(s.geom.num_voxels())); }
 
   Backend backend() const override { return kBackend; }
   const FieldSetup& setup() const override { return setup_; }
@@ -49,31 +62,24 @@ class FieldBuilderImpl final : public FieldBuilder {
     switch (kind) {
       case FieldKind::Naive:
         thrust::fill(policy(), field_.begin(), field_.end(), 0.0f);
-        if (group == 32) {
-          if (count) parallel_for(items, NaiveSplat<true, 32>{vol, shape, pv.pos, f, sink});
-          else parallel_for(items, NaiveSplat<false, 32>{vol, shape, pv.pos, f, sink});
-        } else {
-          if (count) parallel_for(items, NaiveSplat<true, 1>{vol, shape, pv.pos, f, sink});
-          else parallel_for(items, NaiveSplat<false, 1>{vol, shape, pv.pos, f, sink});
-        }
+        launch_variant(items, count, group, [&](auto c, auto g) {
+          return NaiveSplat<decltype(c)::value, decltype(g)::value>{vol, shape, pv.pos, f, sink};
+        });
         break;
-      case FieldKind::Presence:
-      {
-        const CoarseFill fill{vol, pv.grid, pv.offsets, shape.coarse, full_fill_, setup_.full_count, f};
+      case FieldKind::Presence: {
+        const CoarseFill fill{vol, pv.grid, pv.offsets, shape.coarse, setup_.full_fill, setup_.full_count, f};
         parallel_for(fill.num_items(), fill);
-      }
         if (vol.refine > 0) parallel_for(pv.n, MarkOccupied{vol, shape.coarse, pv.pos, f});
-        if (group == 32) {
-          if (count) parallel_for(items, PresenceSplat<true, 32>{vol, shape, pv.pos, pv.presence, pv.n, f, sink, pv.grid, pv.offsets, full});
-          else parallel_for(items, PresenceSplat<false, 32>{vol, shape, pv.pos, pv.presence, pv.n, f, sink, pv.grid, pv.offsets, full});
-        } else {
-          if (count) parallel_for(items, PresenceSplat<true, 1>{vol, shape, pv.pos, pv.presence, pv.n, f, sink, pv.grid, pv.offsets, full});
-          else parallel_for(items, PresenceSplat<false, 1>{vol, shape, pv.pos, pv.presence, pv.n, f, sink, pv.grid, pv.offsets, full});
-        }
+        launch_variant(items, count, group, [&](auto c, auto g) {
+          return PresenceSplat<decltype(c)::value, decltype(g)::value>{
+              vol, shape, pv.pos, pv.presence, pv.n, f, sink, pv.grid, pv.offsets, full};
+        });
         break;
+      }
       case FieldKind::Gather:
-        if (count) parallel_for(voxels, GatherField<true>{vol, pv.grid, shape, pv.offsets, pv.pos, f, sink});
-        else parallel_for(voxels, GatherField<false>{vol, pv.grid, shape, pv.offsets, pv.pos, f, sink});
+        launch_variant(items, count, 1, [&](auto c, auto) {
+          return GatherField<decltype(c)::value>{vol, pv.grid, shape, pv.offsets, pv.pos, f, sink};
+        });
         break;
     }
     clock_.mark(1);
@@ -99,7 +105,7 @@ class FieldBuilderImpl final : public FieldBuilder {
  private:
   // Full cells are saturated when the coarse fill writes the clip value into them (refine > 0).
   uint32_t saturated_full_count() const {
-    return setup_.geom.refine > 0 && full_fill_ >= setup_.shape.clip ? setup_.full_count : 0u;
+    return setup_.geom.refine > 0 && setup_.full_fill >= setup_.shape.clip ? setup_.full_count : 0u;
   }
 
   FieldSetup setup_;
@@ -107,6 +113,5 @@ class FieldBuilderImpl final : public FieldBuilder {
   Vector<uint32_t> counters_;
   StageClock clock_;
   double ms_ = 0;
-  float full_fill_ = 0;
   FieldCounts counts_;
 };

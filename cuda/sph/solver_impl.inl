@@ -192,6 +192,13 @@ class SolverImpl final : public Solver {
     else out.presence.clear();
   }
 
+  std::vector<Vec3f> boundary_positions() const override {
+    const auto b = sphray::SPHRAY_BK::download(boundary_, boundary_.size());
+    std::vector<Vec3f> out(b.size());
+    for (size_t k = 0; k < b.size(); ++k) out[k] = xyz(b[k]);
+    return out;
+  }
+
   std::vector<uint32_t> download_cell_offsets() const override {
     return sphray::SPHRAY_BK::download(offsets_, offsets_.size());
   }
