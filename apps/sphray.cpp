@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <filesystem>
 #include <set>
 #include <fstream>
 #include <iomanip>
@@ -17,6 +18,8 @@
 #include "../src/frames_h5.h"
 #include "../src/metrics.h"
 #include "../src/pipeline.h"
+#include "../src/render.h"
+#include "../src/bench_frame.h"
 #include "../src/scene.h"
 #include "../src/setup.h"
 
@@ -48,8 +51,38 @@ struct ExportArgs {
   std::string fields;
 };
 
-int cmd_run(const std::string& scene_path, const std::string& backend_name_arg, const std::vector<std::string>& sets,
-            const std::string& metrics_csv, const std::string& summary_json, bool quiet, const ExportArgs& ex) {
+struct FrameArgs {
+  std::string dir;   // --frames-dir
+  std::string size;  // --size WxH
+  int every = 0;     // --frames-every (0: the scene's render.frames_every)
+};
+
+// --size WxH and --frames-every as scene overrides (so the run's scene records them).
+void add_frame_overrides(const FrameArgs& fa, std::vector<std::string>& sets) {
+  if (!fa.size.empty()) {
+    const size_t x = fa.size.find('x');
+    int w = 0, h = 0;
+    size_t uw = 0, uh = 0;
+    try {
+      w = std::stoi(fa.size.substr(0, x), &uw);
+      h = std::stoi(fa.size.substr(x + 1), &uh);
+    } catch (...) {
+      uw = 0;
+    }
+    if (x == std::string::npos || uw != x || uh != fa.size.size() - x - 1)
+      throw std::runtime_error("--size '" + fa.size + "': must be WIDTHxHEIGHT, e.g. 1280x720");
+    sets.push_back("render.width=" + std::to_string(w));
+    sets.push_back("render.height=" + std::to_string(h));
+  }
+  if (fa.every > 0) sets.push_back("render.frames_every=" + std::to_string(fa.every));
+}
+
+int cmd_run(const std::string& scene_path, const std::string& backend_name_arg, std::vector<std::string> sets,
+            const std::string& metrics_csv, const std::string& summary_json, bool quiet, const ExportArgs& ex,
+            const FrameArgs& fa) {
+  if (fa.dir.empty() && (!fa.size.empty() || fa.every > 0))
+    throw std::runtime_error("--size and --frames-every need --frames-dir DIR");
+  add_frame_overrides(fa, sets);
   const Scene scene = load_scene(scene_path, sets);
   const std::set<std::string> export_fields = parse_export_fields(ex.fields);
   if (ex.path.empty() && !ex.fields.empty()) throw std::runtime_error("--export-fields needs --export FILE");
@@ -66,11 +99,13 @@ int cmd_run(const std::string& scene_path, const std::string& backend_name_arg, 
     if (!summary) throw std::runtime_error("--summary-json: cannot write '" + summary_json + "'");
   }
   const Backend b = choose_backend(backend_name_arg, std::cout);
-  const bool exporting = !ex.path.empty();
-  const StageNeeds needs =
-      needs_of(scene, exporting && export_fields.count("field") > 0, exporting && export_fields.count("presence") > 0);
+  const bool exporting = !ex.path.empty(), export_field = exporting && export_fields.count("field") > 0;
+  const bool rendering = !fa.dir.empty();
+  const StageNeeds needs = needs_of(scene, export_field || rendering, exporting && export_fields.count("presence") > 0);
   auto solver = make_solver(scene, b, needs);
   auto field = make_field(scene, b, needs);
+  std::unique_ptr<FrameRenderer> frames;
+  if (rendering) frames = std::make_unique<FrameRenderer>(scene, b, field->setup(), fa.dir);
   std::unique_ptr<FrameWriter> writer;
   if (exporting) {  // created before the run: an unwritable path fails before any step
     FileHeader h;
@@ -95,7 +130,13 @@ int cmd_run(const std::string& scene_path, const std::string& backend_name_arg, 
   opt.progress = !quiet;
   opt.field = field.get();
   opt.field_kind = parse_field_kind(scene.field.builder);
+  const int frames_every = scene.render.frames_every;
+  if (!scene.field.given)  // the field is built only for the frames that use it
+    opt.field_at = [&](int frame) {
+      return (rendering && frame % frames_every == 0) || (export_field && frame % ex.every == 0);
+    };
   opt.on_output = [&](const Solver& s, int frame) {
+    if (frames && frame % frames_every == 0) frames->write_frame(s.view(), *field, frame);
     if (csv.is_open()) {
       const HostParticles p = s.download();
       csv << s.time() << "," << s.steps() << "," << s.num_fluid() << ","
@@ -106,6 +147,10 @@ int cmd_run(const std::string& scene_path, const std::string& backend_name_arg, 
   };
   const RunSummary r = run_scene(scene, *solver, opt, std::cout);
   print_summary(r, std::cout);
+  if (frames)
+    std::cout << "  frames         " << frames->frames_written() << " PNGs (" << scene.render.width << "x"
+              << scene.render.height << ", " << scene.render.interfaces << " interfaces) to " << fa.dir << ", "
+              << frames->mean_render_ms() << " ms per render\n";
   if (writer) {
     writer->finish();
     std::cout << "  export         " << writer->frames_written() << " frames to " << ex.path << " (XDMF sidecar for ParaView"
@@ -168,6 +213,108 @@ int cmd_inspect(const std::string& path) {
   return 0;
 }
 
+bool is_png_path(const std::string& p) {
+  return p.size() > 4 && (p.compare(p.size() - 4, 4, ".png") == 0 || p.compare(p.size() - 4, 4, ".PNG") == 0);
+}
+
+// A file we are about to write after a long computation: fail now if we cannot.
+void check_writable(const std::string& path) {
+  const bool existed = std::filesystem::exists(path);
+  std::FILE* f = std::fopen(path.c_str(), "ab");
+  if (!f) throw std::runtime_error("--out: cannot write '" + path + "'");
+  std::fclose(f);
+  if (!existed) std::remove(path.c_str());
+}
+
+struct RenderArgs {
+  std::string scene, from, out;
+  double time = -1;  // scene: render the state at this time (default: run.end_time)
+  int frame = -1;    // --from: this frame of the file (default: all)
+};
+
+// `sphray render SCENE --out x.png [--time T]`: one frame at time T;
+// `sphray render SCENE --out DIR`: every output frame (as run --frames-dir).
+int render_scene(const RenderArgs& ra, const std::string& backend_arg, std::vector<std::string> sets) {
+  const bool single = is_png_path(ra.out);
+  if (single && ra.time >= 0) {
+    std::ostringstream t;
+    t.precision(17);
+    t << ra.time;
+    sets.push_back("run.end_time=" + t.str());
+  }
+  Scene scene = load_scene(ra.scene, sets);
+  if (single) {
+    check_writable(ra.out);
+    if (scene.run.end_time > 0) scene.run.output_interval = scene.run.end_time;  // frames 0 and 1 (the end)
+  }
+  const Backend b = choose_backend(backend_arg, std::cout);
+  const StageNeeds needs = needs_of(scene, true, false);
+  auto solver = make_solver(scene, b, needs);
+  auto field = make_field(scene, b, needs);
+  FrameRenderer frames(scene, b, field->setup(), single ? "" : ra.out);
+  const int last = scene.run.end_time > 0 ? 1 : 0;
+  const int every = scene.render.frames_every;
+  RunOptions opt;
+  opt.field = field.get();
+  opt.field_kind = parse_field_kind(scene.field.builder);
+  opt.field_at = [&](int f) { return single ? f == last : f % every == 0; };
+  opt.on_output = [&](const Solver& s, int f) {
+    if (!opt.field_at(f)) return;
+    if (single) frames.render_to(s.view(), *field, ra.out);
+    else frames.write_frame(s.view(), *field, f);
+  };
+  std::cout << "rendering scene " << scene.name << " (" << solver->num_fluid() << " particles) to "
+            << (single ? "t = " + std::to_string(scene.run.end_time) + " s" : "every output frame") << "\n";
+  const RunSummary r = run_scene(scene, *solver, opt, std::cout);
+  print_summary(r, std::cout);
+  std::cout << "  frames         " << frames.frames_written() << " PNG" << (frames.frames_written() == 1 ? "" : "s")
+            << " to " << ra.out << ", " << frames.mean_render_ms() << " ms per render\n";
+  return 0;
+}
+
+// `sphray render --from out.h5 --out DIR|x.png [--frame K]`: the exported
+// particles, their field rebuilt on the chosen backend, rendered.
+int render_file(const RenderArgs& ra, const std::string& backend_arg, const std::vector<std::string>& sets) {
+  const FrameReader reader(ra.from);
+  const Scene scene = parse_scene(reader.header().scene_json, ra.from + " (its scene)", sets);
+  const size_t n = reader.frames().size();
+  if (n == 0) throw std::runtime_error("--from '" + ra.from + "': the file holds no frames");
+  if (ra.frame >= 0 && size_t(ra.frame) >= n)
+    throw std::runtime_error("--frame " + std::to_string(ra.frame) + ": '" + ra.from + "' holds frames 0 .. " +
+                             std::to_string(n - 1));
+  const bool single = is_png_path(ra.out);
+  if (single && ra.frame < 0 && n > 1)
+    throw std::runtime_error("--out '" + ra.out + "' is one image but '" + ra.from + "' holds " + std::to_string(n) +
+                             " frames: give --frame K, or a directory");
+  if (single) check_writable(ra.out);
+  const Backend b = choose_backend(backend_arg, std::cout);
+  const FieldSetup fs = make_field_setup(scene);
+  auto field = make_field_builder(b, fs);
+  FrameRenderer frames(scene, b, fs, single ? "" : ra.out);
+  const FieldKind kind = parse_field_kind(scene.field.builder);
+  const size_t first = ra.frame >= 0 ? size_t(ra.frame) : 0, end = ra.frame >= 0 ? first + 1 : n;
+  for (size_t k = first; k < end; ++k) {
+    const Frame f = reader.read(k);
+    SolverInput in = make_solver_input(scene, PresenceMode::Off);
+    const float rho0 = float(scene.sph.rest_density);
+    in.fluid_pos_rho.resize(f.count());
+    for (size_t i = 0; i < f.count(); ++i)
+      in.fluid_pos_rho[i] = {f.position[3 * i], f.position[3 * i + 1], f.position[3 * i + 2], rho0};
+    in.fluid_vel.assign(f.count(), Float4{0, 0, 0, 0});
+    auto solver = b == Backend::Cuda ? make_cuda_solver(in) : make_cpu_solver(in);  // sorts them into the grid
+    // exported presence is in the file's order, not the grid's: the presence
+    // builder uses full extents (its field then classifies as naive's)
+    field->build(solver->view(), kind);
+    if (single) frames.render_to(solver->view(), *field, ra.out);
+    else frames.write_frame(solver->view(), *field, int(k));
+    std::cout << "  frame " << k << " (t = " << f.time << " s, " << f.count() << " particles): field "
+              << field->last_ms() << " ms\n";
+  }
+  std::cout << "rendered " << frames.frames_written() << " frame" << (frames.frames_written() == 1 ? "" : "s")
+            << " of " << ra.from << " to " << ra.out << ", " << frames.mean_render_ms() << " ms per render\n";
+  return 0;
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -190,6 +337,29 @@ int main(int argc, char** argv) {
       ->check(CLI::Range(1, 1000000));
   run->add_option("--export-fields", export_args.fields,
                   "comma-separated: velocity,density,pressure,presence,field (position is always written)");
+  FrameArgs frame_args;
+  run->add_option("--frames-dir", frame_args.dir, "render PNG frames into this directory (docs/rendering.md)");
+  run->add_option("--frames-every", frame_args.every, "a PNG every K-th output frame (default: render.frames_every)")
+      ->check(CLI::Range(1, 1000000));
+  run->add_option("--size", frame_args.size, "PNG size WIDTHxHEIGHT (default: render.width x render.height)");
+
+  auto* render = app.add_subcommand("render", "render one frame or a sequence to PNG, from a scene or an HDF5 export");
+  RenderArgs render_args;
+  FrameArgs render_frame_args;
+  render->add_option("scene", render_args.scene, "scene JSON file (or --from FILE)");
+  render->add_option("--from", render_args.from, "an HDF5 file written by sphray run --export");
+  render->add_option("--out", render_args.out, "x.png: one image; otherwise a directory for frame_NNNNNN.png")
+      ->required();
+  render->add_option("--time", render_args.time, "scene: simulate to this time and render it (default run.end_time)")
+      ->check(CLI::Range(0.0, 1e6));
+  render->add_option("--frame", render_args.frame, "--from: render this frame only (default: all)")
+      ->check(CLI::Range(0, 100000000));
+  render->add_option("--backend", backend, "auto | cpu | cuda");
+  render->add_option("--set", sets, "override a scene value, e.g. --set render.interfaces=8");
+  render->add_option("--size", render_frame_args.size, "image size WIDTHxHEIGHT");
+  render->add_option("--frames-every", render_frame_args.every, "a directory --out: every K-th output frame")
+      ->check(CLI::Range(1, 1000000));
+
   auto* inspect = app.add_subcommand("inspect", "summary of an HDF5 frames file: frames, times, counts, value ranges");
   std::string inspect_path;
   inspect->add_option("file", inspect_path, "a file written by sphray run --export")->required();
@@ -222,6 +392,38 @@ int main(int argc, char** argv) {
   bfield->add_option("--json", field_json_out, "write results as JSON");
   bfield->add_option("--set", fopt.overrides, "override a value of the generated scene, e.g. --set field.clip=2");
 
+  auto* bframe = bench->add_subcommand("frame", "whole frames: SPH substeps + field + raycast, per-stage medians");
+  std::string frame_sizes_text, frame_json_out;
+  BenchFrameOptions bfo;
+  bframe->add_option("--backend", backend, "auto | cpu | cuda");
+  bframe->add_option("--sizes", frame_sizes_text, "fluid particle counts (default 125k,1M on CUDA, 8k on CPU)");
+  bframe->add_option("--width", bfo.width, "image width")->check(CLI::Range(16, 8192));
+  bframe->add_option("--height", bfo.height, "image height")->check(CLI::Range(16, 8192));
+  bframe->add_option("--interfaces", bfo.interfaces, "interfaces per ray")->check(CLI::Range(1, 8));
+  bframe->add_option("--substeps", bfo.substeps, "SPH steps per frame")->check(CLI::Range(1, 1000));
+  bframe->add_option("--builder", bfo.builder, "naive | presence | gather");
+  bframe->add_option("--warmup", bfo.warmup, "warm-up frames")->check(CLI::Range(0, 10000));
+  bframe->add_option("--frames", bfo.frames, "measured frames")->check(CLI::Range(1, 100000));
+  bframe->add_option("--collapse", bfo.collapse, "start at T = t sqrt(2g/a)")->check(CLI::Range(0.0, 100.0));
+  bframe->add_option("--png-dir", bfo.png_dir, "write each size's last frame here");
+  bframe->add_option("--json", frame_json_out, "write results as JSON");
+  bframe->add_option("--set", bfo.overrides, "override a value of the generated scene, e.g. --set render.step=0.25");
+
+  auto* brender = bench->add_subcommand("render", "raycast image error (PSNR vs a fine reference) against render time");
+  std::string render_json_out, render_size_text;
+  BenchRenderOptions bro;
+  brender->add_option("--backend", backend, "auto | cpu | cuda");
+  brender->add_option("--size", render_size_text, "fluid particle count (default 125k on CUDA, 8k on CPU)");
+  brender->add_option("--width", bro.width, "image width")->check(CLI::Range(16, 8192));
+  brender->add_option("--height", bro.height, "image height")->check(CLI::Range(16, 8192));
+  brender->add_option("--reference-step", bro.reference_step, "reference march step [voxels]")
+      ->check(CLI::Range(0.001, 0.5));
+  brender->add_option("--warmup", bro.warmup, "warm-up renders")->check(CLI::Range(0, 10000));
+  brender->add_option("--frames", bro.frames, "measured renders")->check(CLI::Range(1, 100000));
+  brender->add_option("--png-dir", bro.png_dir, "write the reference and the default-setting image here");
+  brender->add_option("--json", render_json_out, "write results as JSON");
+  brender->add_option("--set", bro.overrides, "override a value of the generated scene");
+
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
@@ -230,7 +432,42 @@ int main(int argc, char** argv) {
   }
 
   try {
-    if (run->parsed()) return cmd_run(scene_path, backend, sets, metrics_csv, summary_json, quiet, export_args);
+    if (run->parsed())
+      return cmd_run(scene_path, backend, sets, metrics_csv, summary_json, quiet, export_args, frame_args);
+    if (render->parsed()) {
+      if (render_args.scene.empty() == render_args.from.empty())
+        throw std::runtime_error("render: give either a scene file or --from FILE.h5");
+      if (!render_args.from.empty() && render_args.time >= 0) throw std::runtime_error("--time applies to a scene, not --from");
+      if (render_args.from.empty() && render_args.frame >= 0) throw std::runtime_error("--frame applies to --from FILE");
+      add_frame_overrides(render_frame_args, sets);
+      return render_args.from.empty() ? render_scene(render_args, backend, sets) : render_file(render_args, backend, sets);
+    }
+    if (bframe->parsed() || brender->parsed()) {
+      const std::string& jpath = bframe->parsed() ? frame_json_out : render_json_out;
+      std::ofstream jf;
+      if (!jpath.empty()) {
+        jf.open(jpath);
+        if (!jf) throw std::runtime_error("--json: cannot write '" + jpath + "'");
+      }
+      const Backend b = choose_backend(backend, std::cout);
+      nlohmann::json j;
+      if (bframe->parsed()) {
+        bfo.sizes = parse_sizes(!frame_sizes_text.empty() ? frame_sizes_text : b == Backend::Cuda ? "125k,1M" : "8k");
+        parse_field_kind(bfo.builder);  // a bad name fails before the simulation
+        const auto rows = bench_frame(b, bfo, std::cout);
+        print_table(rows, std::cout);
+        j = to_json(rows, b, bfo);
+      } else {
+        const auto sizes = parse_sizes(!render_size_text.empty() ? render_size_text : b == Backend::Cuda ? "125k" : "8k");
+        if (sizes.size() != 1) throw std::runtime_error("--size: one particle count");
+        bro.particles = sizes[0];
+        const auto rows = bench_render(b, bro, std::cout);
+        print_table(rows, std::cout);
+        j = to_json(rows, b, bro);
+      }
+      if (jf.is_open() && !(jf << j.dump(2) << "\n")) throw std::runtime_error("--json: cannot write '" + jpath + "'");
+      return 0;
+    }
     if (inspect->parsed()) return cmd_inspect(inspect_path);
     if (bfield->parsed()) {
       std::ofstream jf;
@@ -261,7 +498,7 @@ int main(int argc, char** argv) {
     }
   } catch (const FrameFileError& e) {
     std::fprintf(stderr, "sphray: error: %s\n", e.what());
-    return run->parsed() ? 1 : 2;  // a failed write during a run; a bad file given to read
+    return run->parsed() ? 1 : 2;  // a failed write during a run; a bad file given to read (run, render --from)
   } catch (const SceneError& e) {
     std::fprintf(stderr, "sphray: error: %s\n", e.what());
     return 2;

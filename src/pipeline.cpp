@@ -70,7 +70,7 @@ RunSummary run_scene(const Scene& s, Solver& solver, const RunOptions& opt, std:
   int frame = 0;
   double field_ms = 0;
   auto output = [&] {
-    if (opt.field) {
+    if (opt.field && (!opt.field_at || opt.field_at(frame))) {
       const ParticleView v = solver.view();
       if (opt.field_kind == FieldKind::Presence && !v.presence) ++r.field_without_presence;
       opt.field->build(v, opt.field_kind);

@@ -35,6 +35,8 @@ struct RunOptions {
   // Built at every output frame, before on_output (which may read it).
   FieldBuilder* field = nullptr;
   FieldKind field_kind = FieldKind::Presence;
+  // Which output frames need the field (null: all of them).
+  std::function<bool(int frame)> field_at;
   // Called at t = 0 and after every output interval, and at the end.
   std::function<void(const Solver&, int frame)> on_output;
 };

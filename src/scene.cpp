@@ -1,5 +1,6 @@
 #include "scene.h"
 
+#include <algorithm>
 #include <cmath>
 #include <fstream>
 #include <set>
@@ -151,7 +152,7 @@ Scene parse_scene(const std::string& text, const std::string& file, const std::v
   s.file = file;
   s.json = j;
   const Reader root(j, file, "");
-  root.only({"name", "description", "tank", "fluid", "gravity", "sph", "field", "export", "run"});
+  root.only({"name", "description", "tank", "fluid", "gravity", "sph", "field", "render", "export", "run"});
   s.name = root.has("name") && root.at("name").is_string() ? root.at("name").get<std::string>() : "scene";
   if (root.has("name") && !root.at("name").is_string()) root.fail("name", root.at("name"), "must be a string");
   if (root.has("description") && !root.at("description").is_string())
@@ -219,6 +220,33 @@ Scene parse_scene(const std::string& text, const std::string& file, const std::v
   s.field.shrink_from = field.number("shrink_from", 0.5, 0.0, 0.95);
   s.field.full_fraction = field.number("full_fraction", 0.9, 0.1, 2.0);
   s.field.full_value = field.string("full_value", "clip", {"clip", "coarse"});
+
+  const Reader rd = root.child("render");
+  rd.only({"width", "height", "interfaces", "step", "secant_steps", "ior", "absorption", "skip_empty", "eye", "target",
+           "fov", "frames_every"});
+  auto integer = [](const Reader& r, const char* key, double def, double lo, double hi) {
+    const double v = r.number(key, def, lo, hi);
+    if (v != std::floor(v)) r.fail(key, r.at(key), "must be an integer");
+    return int(v);
+  };
+  RenderSettings& R = s.render;
+  R.width = integer(rd, "width", R.width, 16, 8192);
+  R.height = integer(rd, "height", R.height, 16, 8192);
+  R.interfaces = integer(rd, "interfaces", R.interfaces, 1, 8);
+  R.step = float(rd.number("step", R.step, 0.0, 0.5, false, true));
+  R.secant_steps = integer(rd, "secant_steps", R.secant_steps, 0, 16);
+  R.ior = float(rd.number("ior", R.ior, 1.0, 3.0));
+  R.absorption = rd.vec3("absorption", R.absorption);
+  if (std::min({R.absorption.x, R.absorption.y, R.absorption.z}) < 0 ||
+      std::max({R.absorption.x, R.absorption.y, R.absorption.z}) > 1e4)
+    rd.fail("absorption", rd.at("absorption"), "must be three coefficients in [0, 1e4] per metre");
+  R.skip_empty = rd.boolean("skip_empty", R.skip_empty);
+  R.eye = rd.vec3("eye", R.eye);
+  R.target = rd.vec3("target", R.target);
+  if (rd.has("eye") != rd.has("target")) rd.fail(rd.has("eye") ? "target" : "eye", json(), "is required with the other camera point");
+  if (rd.has("eye") && !(length(R.eye - R.target) > 0)) rd.fail("target", rd.at("target"), "must differ from render.eye");
+  R.fov = rd.number("fov", R.fov, 1.0, 170.0);
+  R.frames_every = integer(rd, "frames_every", R.frames_every, 1, 1000000);
 
   const Reader exp = root.child("export");
   exp.only({"gzip"});

@@ -11,6 +11,7 @@
 
 #include "../cuda/common/vec.h"
 #include "../cuda/sph/kernel.h"
+#include "render_settings.h"
 
 namespace sphray {
 
@@ -66,6 +67,9 @@ struct Scene {
     double full_fraction = 0.9;      // presence coarse fill (refine > 0): share of (cell/dx)^3 that fills a cell
     std::string full_value = "clip";  // ... and the value it gets: "clip" (saturated) or "coarse"
   } field;
+
+  // The raycaster (docs/rendering.md). Used only by renders (--frames-dir, render, view).
+  RenderSettings render;
 
   struct Export {
     int gzip = 0;  // HDF5 export: deflate level 0 (off) .. 9

@@ -7,6 +7,7 @@
 #include "helpers.h"
 #include "../src/field.h"
 #include "../src/metrics.h"
+#include "../src/render.h"
 
 using namespace sphray;
 
@@ -72,5 +73,37 @@ TEST_CASE("cuda field builders agree with the cpu builders", "[gpu]") {
     if (kind != FieldKind::Presence) CHECK(worst < 1e-3);  // the presence splat's order decides where clipping lands
     CHECK(fg->last_counts().counted);
     CHECK(double(fg->last_counts().touched) == Approx(double(fc->last_counts().touched)).epsilon(0.01));
+  }
+}
+
+TEST_CASE("cuda raycast agrees with the cpu raycast", "[gpu]") {
+  const Scene s = load_scene(test::source_path("scenes/dam_break.json"),
+                             {"sph.spacing=0.02", "run.end_time=1", "render.width=320", "render.height=180"});
+  const SolverInput in = make_solver_input(s, PresenceMode::Off);
+  auto cpu = make_cpu_solver(in), gpu = make_cuda_solver(in);
+  const FieldSetup fs = make_field_setup(s);
+  auto fc = make_cpu_field_builder(fs), fg = make_cuda_field_builder(fs);
+  fc->build(cpu->view(), FieldKind::Naive);
+  fg->build(gpu->view(), FieldKind::Naive);
+  const Camera cam = make_camera(s, s.render);
+  const Environment env = make_environment(s, fs.geom);
+  auto rc = make_cpu_renderer(), rg = make_cuda_renderer();
+  for (int interfaces : {1, 4, 8}) {
+    RenderSettings rs = s.render;
+    rs.interfaces = interfaces;
+    const ParticleView vc = cpu->view(), vg = gpu->view();
+    rc->render(fc->data(), fs, &vc, cam, env, rs);
+    rg->render(fg->data(), fs, &vg, cam, env, rs);
+    const Image a = rc->download(), b = rg->download();
+    size_t differ = 0;
+    for (size_t p = 0; p < a.rgba.size(); ++p)
+      for (int ch = 0; ch < 3; ++ch)
+        if (std::abs(int((a.rgba[p] >> (8 * ch)) & 0xff) - int((b.rgba[p] >> (8 * ch)) & 0xff)) > 3) {
+          ++differ;
+          break;
+        }
+    INFO(interfaces << " interfaces: PSNR " << psnr(a, b) << " dB, " << differ << " pixels differ by more than 3 levels");
+    CHECK(psnr(a, b) > 40.0);
+    CHECK(differ < a.rgba.size() / 200);
   }
 }

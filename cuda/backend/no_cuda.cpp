@@ -3,6 +3,7 @@
 #include <stdexcept>
 
 #include "../../src/field.h"
+#include "../../src/render.h"
 #include "../../src/solver.h"
 
 namespace sphray {
@@ -19,5 +20,6 @@ size_t cuda_free_memory() { return 0; }
 std::unique_ptr<Solver> make_cuda_solver(const SolverInput&) { no_cuda(); }
 GridBuild build_grid_cuda(const GridGeom&, const std::vector<Vec3f>&) { no_cuda(); }
 std::unique_ptr<FieldBuilder> make_cuda_field_builder(const FieldSetup&) { no_cuda(); }
+std::unique_ptr<Renderer> make_cuda_renderer() { no_cuda(); }
 
 }  // namespace sphray

@@ -1,0 +1,427 @@
+// The raycaster, once for both backends: one ray per pixel through the
+// density volume (cuda/field/volume.h), to the iso-surface and through it.
+//
+// All tracing is in voxel units (voxel centres at integer + 0.5, the frame of
+// VolumeGeom::to_voxels): the field is sampled there and the march step is a
+// fraction of a voxel. Per ray (docs/rendering.md has the reasoning):
+//  1. clip to the volume box; march with a step of at most half a voxel,
+//     jumping over SPH cells whose field is known to be zero (occupancy below);
+//  2. at a sign change of f - iso, refine between the last two samples: linear
+//     interpolation, then secant (regula falsi) steps that keep the bracket;
+//  3. normal from the central-difference gradient of the trilinear field;
+//  4. split with Schlick's Fresnel (Schlick 1994): the reflected part goes to
+//     the environment, the refracted part (Snell, index `ior`) is followed; a
+//     ray that cannot leave (total internal reflection) is reflected whole;
+//  5. repeat up to `interfaces` interfaces; Beer-Lambert absorption on every
+//     segment inside the liquid; the last ray goes to the environment.
+// Every contribution is weight x environment colour, and the weights of one
+// ray sum to at most 1 (exactly 1 without absorption): tests check it.
+//
+// The environment makes refraction visible: the tank is a box with an open
+// top, glass toward the camera (not drawn), a tiled floor and tiled walls;
+// outside it a large checker ground and a procedural sky with a sun.
+#pragma once
+
+#include <cmath>
+#include <cstdint>
+
+#include "../common/hd.h"
+#include "../common/vec.h"
+#include "../field/volume.h"
+
+namespace sphray {
+
+struct Rgb {
+  float r, g, b;
+};
+SPHRAY_HD SPHRAY_FORCEINLINE Rgb operator*(Rgb a, Rgb b) { return {a.r * b.r, a.g * b.g, a.b * b.b}; }
+SPHRAY_HD SPHRAY_FORCEINLINE Rgb operator*(Rgb a, float s) { return {a.r * s, a.g * s, a.b * s}; }
+SPHRAY_HD SPHRAY_FORCEINLINE Rgb operator+(Rgb a, Rgb b) { return {a.r + b.r, a.g + b.g, a.b + b.b}; }
+
+SPHRAY_HD SPHRAY_FORCEINLINE Vec3f normalized(Vec3f a) { return a * (1.0f / std::sqrt(dot(a, a))); }
+SPHRAY_HD SPHRAY_FORCEINLINE Vec3f cross(Vec3f a, Vec3f b) {
+  return {a.y * b.z - a.z * b.y, a.z * b.x - a.x * b.z, a.x * b.y - a.y * b.x};
+}
+SPHRAY_HD SPHRAY_FORCEINLINE Vec3f reflect(Vec3f d, Vec3f n) { return d - n * (2.0f * dot(d, n)); }
+
+// Snell refraction of unit d at unit normal n (facing against d), eta = n1 / n2.
+// False on total internal reflection.
+SPHRAY_HD SPHRAY_FORCEINLINE bool refract(Vec3f d, Vec3f n, float eta, Vec3f& out, float& cos_t) {
+  const float cos_i = -dot(n, d);
+  const float k = 1.0f - eta * eta * (1.0f - cos_i * cos_i);
+  if (k < 0.0f) return false;
+  cos_t = std::sqrt(k);
+  out = d * eta + n * (eta * cos_i - cos_t);
+  return true;
+}
+
+// Schlick's approximation; `cos_theta` is the cosine on the optically thinner
+// side (the transmitted angle when leaving the denser medium).
+SPHRAY_HD SPHRAY_FORCEINLINE float schlick(float n1, float n2, float cos_theta) {
+  float r0 = (n1 - n2) / (n1 + n2);
+  r0 *= r0;
+  const float m = 1.0f - cos_theta;
+  const float m2 = m * m;
+  return r0 + (1.0f - r0) * m2 * m2 * m;
+}
+
+// Ray against the box [lo, hi]: entry and exit distances, false when missed.
+SPHRAY_HD SPHRAY_FORCEINLINE bool ray_box(Vec3f o, Vec3f d, Vec3f lo, Vec3f hi, float& t0, float& t1) {
+  float a = -1e30f, b = 1e30f;
+  t0 = 0.0f;
+  t1 = -1.0f;
+  const float oo[3] = {o.x, o.y, o.z}, dd[3] = {d.x, d.y, d.z}, l[3] = {lo.x, lo.y, lo.z}, h[3] = {hi.x, hi.y, hi.z};
+  for (int k = 0; k < 3; ++k) {
+    if (dd[k] == 0.0f) {
+      if (oo[k] < l[k] || oo[k] > h[k]) return false;
+      continue;
+    }
+    const float inv = 1.0f / dd[k];
+    float ta = (l[k] - oo[k]) * inv, tb = (h[k] - oo[k]) * inv;
+    if (ta > tb) { const float s = ta; ta = tb; tb = s; }
+    a = ta > a ? ta : a;
+    b = tb < b ? tb : b;
+  }
+  t0 = a;
+  t1 = b;
+  return b >= a && b > 0.0f;
+}
+
+// Pinhole camera: pixel (x, y), row 0 at the top, to a unit world direction.
+struct Camera {
+  Vec3f eye, forward, right, up;  // orthonormal; up is the image's up
+  float tan_half_fov;             // vertical
+  int width, height;
+
+  SPHRAY_HD SPHRAY_FORCEINLINE Vec3f direction(float px, float py) const {
+    const float aspect = float(width) / float(height);
+    const float sx = (2.0f * px / float(width) - 1.0f) * tan_half_fov * aspect;
+    const float sy = (1.0f - 2.0f * py / float(height)) * tan_half_fov;
+    return normalized(forward + right * sx + up * sy);
+  }
+};
+
+// The surroundings, in voxel units (the tracer's frame).
+struct Environment {
+  Vec3f tank_lo, tank_hi;  // the tank's inner box
+  float tile;              // floor and wall tile edge [voxels]
+  Vec3f sun;               // unit direction toward the sun
+
+  SPHRAY_HD SPHRAY_FORCEINLINE Rgb sky(Vec3f d) const {
+    const float up = d.z < 0.0f ? 0.0f : d.z;
+    const Rgb horizon{0.80f, 0.87f, 0.95f}, zenith{0.22f, 0.42f, 0.78f};
+    const float s = std::sqrt(up);
+    Rgb c = horizon * (1.0f - s) + zenith * s;
+    const float cs = dot(d, sun);
+    if (cs > 0.0f) {  // a soft glow and a small bright disc
+      const float g = cs * cs * cs * cs;
+      c = c + Rgb{1.0f, 0.9f, 0.7f} * (0.25f * g * g * g * g);
+      if (cs > 0.9995f) c = c + Rgb{6.0f, 5.5f, 4.5f};
+    }
+    return c;
+  }
+
+  // Tiles with dark grout lines; a checker of two tints.
+  SPHRAY_HD SPHRAY_FORCEINLINE Rgb tiles(float u, float v, Rgb a, Rgb b) const {
+    const float fu = u / tile, fv = v / tile;
+    const float iu = std::floor(fu), iv = std::floor(fv);
+    const float gu = fu - iu, gv = fv - iv;
+    const float grout = 0.04f;
+    if (gu < grout || gv < grout) return Rgb{0.18f, 0.18f, 0.2f};
+    return (int(iu) + int(iv)) & 1 ? a : b;
+  }
+
+  SPHRAY_HD Rgb operator()(Vec3f p, Vec3f d) const {
+    float t0, t1;
+    if (ray_box(p, d, tank_lo, tank_hi, t0, t1)) {
+      // The glass toward the viewer is not drawn: the ray leaves the tank
+      // through a far face (floor, wall or the open top).
+      const Vec3f q = p + d * t1;
+      const float eps = 1e-3f * tile;
+      const float light = 0.55f + 0.45f * (d.z < 0.0f ? -d.z : 0.0f);  // a little darker at grazing angles
+      if (q.z >= tank_hi.z - eps) return sky(d);
+      if (q.z <= tank_lo.z + eps) return tiles(q.x, q.y, Rgb{0.95f, 0.95f, 0.92f}, Rgb{0.25f, 0.45f, 0.75f}) * light;
+      const Rgb wa{0.85f, 0.82f, 0.75f}, wb{0.65f, 0.62f, 0.55f};
+      if (q.x <= tank_lo.x + eps || q.x >= tank_hi.x - eps) return tiles(q.y, q.z, wa, wb) * 0.8f;
+      return tiles(q.x, q.z, wa, wb) * 0.8f;
+    }
+    if (p.z < tank_lo.z) return tiles(p.x, p.y, Rgb{0.42f, 0.4f, 0.38f}, Rgb{0.3f, 0.29f, 0.28f});  // under the floor
+    if (d.z < 0.0f) {  // the ground around the tank
+      const float t = (tank_lo.z - p.z) / d.z;
+      const Vec3f q = p + d * t;
+      const float fade = 1.0f / (1.0f + 0.002f * t / tile);
+      const Rgb g = tiles(q.x, q.y, Rgb{0.42f, 0.4f, 0.38f}, Rgb{0.3f, 0.29f, 0.28f}) * fade;
+      return g + sky(Vec3f{d.x, d.y, -d.z}) * (0.5f * (1.0f - fade));
+    }
+    return sky(d);
+  }
+};
+
+// Trilinear field lookup between voxel centres; zero outside the volume.
+struct TrilinearField {
+  const float* f;
+  int nx, ny, nz;
+
+  SPHRAY_HD SPHRAY_FORCEINLINE float at(int i, int j, int k) const {
+    if (i < 0 || j < 0 || k < 0 || i >= nx || j >= ny || k >= nz) return 0.0f;
+    return f[(size_t(k) * size_t(ny) + size_t(j)) * size_t(nx) + size_t(i)];
+  }
+  SPHRAY_HD SPHRAY_FORCEINLINE float operator()(Vec3f u) const {
+    const float x = u.x - 0.5f, y = u.y - 0.5f, z = u.z - 0.5f;
+    const float fx = std::floor(x), fy = std::floor(y), fz = std::floor(z);
+    const int i = int(fx), j = int(fy), k = int(fz);
+    const float a = x - fx, b = y - fy, c = z - fz;
+    const float c00 = at(i, j, k) * (1 - a) + at(i + 1, j, k) * a;
+    const float c10 = at(i, j + 1, k) * (1 - a) + at(i + 1, j + 1, k) * a;
+    const float c01 = at(i, j, k + 1) * (1 - a) + at(i + 1, j, k + 1) * a;
+    const float c11 = at(i, j + 1, k + 1) * (1 - a) + at(i + 1, j + 1, k + 1) * a;
+    return (c00 * (1 - b) + c10 * b) * (1 - c) + (c01 * (1 - b) + c11 * b) * c;
+  }
+};
+
+// Which SPH cells of the volume may hold field above zero: a cell whose
+// neighbourhood within `reach` cells has no particle has f = 0 everywhere in
+// it (no splat or gather reaches it, and neither does a trilinear lookup).
+struct Occupancy {
+  const uint8_t* occ;  // per volume cell, x fastest; null: every cell may be occupied
+  int cx, cy, cz;      // volume cells per axis
+  int cell;            // voxels per cell edge
+
+  SPHRAY_HD SPHRAY_FORCEINLINE bool empty_at(Vec3f u) const {
+    if (!occ) return false;
+    const int i = int(std::floor(u.x)) / cell, j = int(std::floor(u.y)) / cell, k = int(std::floor(u.z)) / cell;
+    if (u.x < 0.0f || u.y < 0.0f || u.z < 0.0f || i >= cx || j >= cy || k >= cz) return true;
+    return occ[(size_t(k) * size_t(cy) + size_t(j)) * size_t(cx) + size_t(i)] == 0;
+  }
+  // Distance along d from u to the far side of u's cell.
+  SPHRAY_HD SPHRAY_FORCEINLINE float cell_exit(Vec3f u, Vec3f d) const {
+    const float c = float(cell);
+    const float uu[3] = {u.x, u.y, u.z}, dd[3] = {d.x, d.y, d.z};
+    float t = 1e30f;
+    for (int k = 0; k < 3; ++k) {
+      if (dd[k] == 0.0f) continue;
+      const float base = std::floor(uu[k] / c) * c;
+      const float wall = dd[k] > 0.0f ? base + c : base;
+      const float tk = (wall - uu[k]) / dd[k];
+      t = tk < t ? tk : t;
+    }
+    return t;
+  }
+};
+
+// The per-cell occupancy functor: one thread per volume cell.
+struct BuildOccupancy {
+  VolumeGeom vol;
+  GridGeom grid;
+  const uint32_t* offsets;
+  int reach;  // cells
+  uint8_t* occ;
+
+  SPHRAY_HD void operator()(uint32_t c) const {
+    const int cx = vol.nx >> vol.refine, cy = vol.ny >> vol.refine;
+    const int i = int(c % uint32_t(cx)), j = int((c / uint32_t(cx)) % uint32_t(cy)), k = int(c / uint32_t(cx * cy));
+    uint8_t any = 0;
+    for (int dk = -reach; dk <= reach && !any; ++dk)
+      for (int dj = -reach; dj <= reach && !any; ++dj)
+        for (int di = -reach; di <= reach && !any; ++di) {
+          const int gx = vol.cell0[0] + i + di, gy = vol.cell0[1] + j + dj, gz = vol.cell0[2] + k + dk;
+          if (gx < 0 || gy < 0 || gz < 0 || gx >= grid.nx || gy >= grid.ny || gz >= grid.nz) continue;
+          const uint32_t key = (uint32_t(gz) * uint32_t(grid.ny) + uint32_t(gy)) * uint32_t(grid.nx) + uint32_t(gx);
+          any = offsets[key + 1] > offsets[key];
+        }
+    occ[c] = any;
+  }
+};
+
+struct TraceSettings {
+  float iso;
+  float step;        // march step [voxels], at most 0.5
+  int interfaces;    // 1 .. 8
+  float ior;         // liquid / air
+  Rgb absorption;    // Beer-Lambert coefficient per voxel of path
+  int secant_steps;  // after the linear interpolation
+};
+
+// What a test may watch (the renderer passes NoTrace: compiled away).
+struct NoTrace {
+  SPHRAY_HD void segment(Vec3f, Vec3f, bool) const {}
+  SPHRAY_HD void interface(Vec3f, Vec3f, Vec3f, bool, float) const {}
+  SPHRAY_HD void contribution(Rgb) const {}
+};
+
+template <class Field>
+struct Tracer {
+  Field field;
+  Occupancy occupancy;
+  Vec3f box_hi;  // the volume box is [0, box_hi] in voxels
+  Environment env;
+  TraceSettings ts;
+
+  // March from o along d for at most t_max, looking for f crossing iso in
+  // the direction that leaves the current side (inside: f >= iso). Returns
+  // the refined distance, or -1 when no crossing comes before t_max.
+  SPHRAY_HD float find_crossing(Vec3f o, Vec3f d, float t_max, bool inside) const {
+    const float iso = ts.iso;
+    float t = 0.0f;
+    float g = field(o) - iso;
+    // A ray that starts on the wrong side of its own state (it just crossed)
+    // is nudged forward: the state is what the last interface decided.
+    while (t < t_max) {
+      if (!inside && occupancy.empty_at(o + d * t)) {
+        t += occupancy.cell_exit(o + d * t, d) + 1e-3f;
+        if (t >= t_max) return -1.0f;
+        g = field(o + d * t) - iso;
+        continue;
+      }
+      float tn = t + ts.step;
+      if (tn > t_max) tn = t_max;
+      const float gn = field(o + d * tn) - iso;
+      const bool crossed = inside ? gn < 0.0f : gn >= 0.0f;
+      if (crossed) {
+        // linear interpolation between the two samples, then regula falsi
+        float ta = t, ga = g, tb = tn, gb = gn;
+        float tm = ga != gb ? ta + (tb - ta) * (ga / (ga - gb)) : tb;
+        for (int s = 0; s < ts.secant_steps; ++s) {
+          const float gm = field(o + d * tm) - iso;
+          if ((gm >= 0.0f) == (ga >= 0.0f)) { ta = tm; ga = gm; }
+          else { tb = tm; gb = gm; }
+          if (ga == gb) break;
+          tm = ta + (tb - ta) * (ga / (ga - gb));
+        }
+        return tm;
+      }
+      t = tn;
+      g = gn;
+    }
+    return -1.0f;
+  }
+
+  // Outward normal (toward lower field) at u.
+  SPHRAY_HD Vec3f normal(Vec3f u) const {
+    const float h = 0.5f;
+    const Vec3f gr{field(u + Vec3f{h, 0, 0}) - field(u - Vec3f{h, 0, 0}),
+                   field(u + Vec3f{0, h, 0}) - field(u - Vec3f{0, h, 0}),
+                   field(u + Vec3f{0, 0, h}) - field(u - Vec3f{0, 0, h})};
+    const float l2 = dot(gr, gr);
+    if (!(l2 > 0.0f)) return Vec3f{0, 0, 0};
+    return gr * (-1.0f / std::sqrt(l2));
+  }
+
+  // The colour seen along the ray o + t d (o, d in voxel units, d unit).
+  template <class Watch = NoTrace>
+  SPHRAY_HD Rgb trace(Vec3f o, Vec3f d, const Watch& watch = Watch{}) const {
+    Rgb colour{0, 0, 0}, w{1, 1, 1};
+    float t0, t1;
+    if (!ray_box(o, d, Vec3f{0, 0, 0}, box_hi, t0, t1)) {
+      watch.contribution(w);
+      return env(o, d);
+    }
+    Vec3f p = t0 > 0.0f ? o + d * t0 : o;  // start on the box (or at o inside it)
+    bool inside = field(p) >= ts.iso;
+    int k = 0;
+    if (inside && t0 > 0.0f) {
+      // The liquid touches the box face: the ray enters it through a wall of
+      // the tank (glass), an interface with the face's normal.
+      inside = false;
+      interface_at(p, box_face_normal(p), d, inside, w, colour, watch);
+      ++k;
+    }
+    for (; k < ts.interfaces; ++k) {
+      float b0, b1;
+      ray_box(p, d, Vec3f{0, 0, 0}, box_hi, b0, b1);
+      const float t_max = b1 > 0.0f ? b1 : 0.0f;
+      const float th = find_crossing(p, d, t_max, inside);
+      const float len = th >= 0.0f ? th : t_max;
+      watch.segment(p, p + d * len, inside);
+      if (inside) absorb(w, len);
+      if (th < 0.0f) {
+        if (!inside) break;  // left the volume: the environment
+        // still inside at the box: leave through the tank's glass
+        p = p + d * t_max;
+        interface_at(p, box_face_normal(p), d, inside, w, colour, watch);
+        continue;
+      }
+      p = p + d * th;
+      Vec3f n = normal(p);
+      if (n.x == 0.0f && n.y == 0.0f && n.z == 0.0f) n = -d;
+      interface_at(p, n, d, inside, w, colour, watch);
+    }
+    watch.contribution(w);
+    // A ray that met no interface looks at the environment from its own
+    // origin (the volume box reaches below the floor, where the ground would
+    // otherwise be seen from underneath).
+    return colour + w * env(k == 0 ? o : p, d);
+  }
+
+ private:
+  SPHRAY_HD Vec3f box_face_normal(Vec3f p) const {
+    const float dist[6] = {p.x, box_hi.x - p.x, p.y, box_hi.y - p.y, p.z, box_hi.z - p.z};
+    int best = 0;
+    for (int k = 1; k < 6; ++k) best = dist[k] < dist[best] ? k : best;
+    Vec3f n{0, 0, 0};
+    const float s = (best & 1) ? 1.0f : -1.0f;
+    if (best < 2) n.x = s; else if (best < 4) n.y = s; else n.z = s;
+    return n;  // outward
+  }
+
+  SPHRAY_HD void absorb(Rgb& w, float len) const {
+    w.r *= std::exp(-ts.absorption.r * len);
+    w.g *= std::exp(-ts.absorption.g * len);
+    w.b *= std::exp(-ts.absorption.b * len);
+  }
+
+  // One interface at p with outward normal n_out: the reflected part to the
+  // environment, the refracted part followed (d, inside, w updated). Total
+  // internal reflection keeps everything inside.
+  template <class Watch>
+  SPHRAY_HD void interface_at(Vec3f& p, Vec3f n_out, Vec3f& d, bool& inside, Rgb& w, Rgb& colour,
+                              const Watch& watch) const {
+    const Vec3f n = dot(n_out, d) < 0.0f ? n_out : -n_out;  // facing the incoming ray
+    const float n1 = inside ? ts.ior : 1.0f, n2 = inside ? 1.0f : ts.ior;
+    const float cos_i = -dot(n, d);
+    Vec3f r;
+    float cos_t;
+    const Vec3f refl = reflect(d, n);
+    if (!refract(d, n, n1 / n2, r, cos_t)) {  // total internal reflection
+      watch.interface(p, n, refl, true, 1.0f);
+      d = refl;
+      return;
+    }
+    const float F = schlick(n1, n2, n1 <= n2 ? cos_i : cos_t);
+    const Rgb wr = w * F;
+    watch.contribution(wr);
+    colour = colour + wr * env(p, refl);
+    watch.interface(p, n, r, false, F);
+    w = w * (1.0f - F);
+    d = normalized(r);
+    inside = !inside;
+  }
+};
+
+// sRGB-ish encoding of a linear colour to 8 bits (gamma 2.2, clamped).
+SPHRAY_HD SPHRAY_FORCEINLINE uint32_t encode_rgba8(Rgb c) {
+  auto q = [](float v) {
+    v = v < 0.0f ? 0.0f : (v > 1.0f ? 1.0f : v);
+    return uint32_t(std::pow(v, 1.0f / 2.2f) * 255.0f + 0.5f);
+  };
+  return q(c.r) | (q(c.g) << 8) | (q(c.b) << 16) | (255u << 24);
+}
+
+// One thread per pixel: camera ray (world) to voxel units, trace, encode.
+template <class Field>
+struct RaycastPixels {
+  Camera cam;
+  Tracer<Field> tracer;
+  Vec3f origin;  // volume origin [m]
+  float inv_voxel;
+  uint32_t* rgba;  // width x height, row 0 at the top
+
+  SPHRAY_HD void operator()(uint32_t idx) const {
+    const int x = int(idx % uint32_t(cam.width)), y = int(idx / uint32_t(cam.width));
+    const Vec3f d = cam.direction(float(x) + 0.5f, float(y) + 0.5f);
+    const Vec3f o = (cam.eye - origin) * inv_voxel;
+    rgba[idx] = encode_rgba8(tracer.trace(o, d));
+  }
+};
+
+}  // namespace sphray

@@ -1,0 +1,140 @@
+#include "render.h"
+
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <cstring>
+#include <limits>
+#include <stdexcept>
+
+#include <stb_image.h>
+#include <stb_image_write.h>
+
+#include "scene.h"
+
+namespace sphray {
+
+namespace {
+
+Vec3f to_f(Vec3d v) { return {float(v.x), float(v.y), float(v.z)}; }
+
+}  // namespace
+
+Camera make_camera(const Scene& s, const RenderSettings& r) {
+  Vec3d eye = r.eye, target = r.target;
+  const double tan_half = std::tan(r.fov * M_PI / 360.0);
+  if (length(eye - target) == 0) {
+    // Three-quarter view from the front (-y), a little to the right and above,
+    // far enough that the whole tank fits the vertical field of view.
+    const Vec3d lo = s.tank.min, hi = s.tank.max, size = hi - lo;
+    target = {lo.x + 0.5 * size.x, lo.y + 0.5 * size.y, lo.z + 0.3 * size.z};
+    Vec3d dir{0.3, -1.0, 0.55};
+    dir = dir * (1.0 / length(dir));
+    const double aspect = double(r.width) / double(r.height);
+    const double radius = 0.5 * length(size);
+    const double dist = radius / std::min(tan_half, tan_half * aspect) * 0.95;
+    eye = target + dir * dist;
+  }
+  Camera c{};
+  const Vec3d f = (target - eye) * (1.0 / length(target - eye));
+  Vec3d right{f.y * 1.0 - f.z * 0.0, f.z * 0.0 - f.x * 1.0, 0.0};  // f x (0, 0, 1)
+  if (length(right) < 1e-9) right = {1, 0, 0};  // looking straight up or down
+  right = right * (1.0 / length(right));
+  const Vec3d up{right.y * f.z - right.z * f.y, right.z * f.x - right.x * f.z, right.x * f.y - right.y * f.x};
+  c.eye = to_f(eye);
+  c.forward = to_f(f);
+  c.right = to_f(right);
+  c.up = to_f(up);
+  c.tan_half_fov = float(tan_half);
+  c.width = r.width;
+  c.height = r.height;
+  return c;
+}
+
+Environment make_environment(const Scene& s, const VolumeGeom& vol) {
+  const Vec3d size = s.tank.max - s.tank.min;
+  Environment e{};
+  e.tank_lo = vol.to_voxels(to_f(s.tank.min));
+  e.tank_hi = vol.to_voxels(to_f(s.tank.max));
+  e.tile = float(std::max(size.x, size.y) / 16.0 / vol.voxel);
+  e.sun = normalized(Vec3f{0.45f, 0.25f, 0.86f});
+  return e;
+}
+
+TraceSettings make_trace_settings(const RenderSettings& r, const FieldSetup& fs) {
+  const double v = fs.geom.voxel;
+  return TraceSettings{fs.shape.iso,
+                       r.step,
+                       r.interfaces,
+                       r.ior,
+                       Rgb{float(r.absorption.x * v), float(r.absorption.y * v), float(r.absorption.z * v)},
+                       r.secant_steps};
+}
+
+std::unique_ptr<Renderer> make_renderer(Backend b) {
+  return b == Backend::Cuda ? make_cuda_renderer() : make_cpu_renderer();
+}
+
+FrameRenderer::FrameRenderer(const Scene& s, Backend b, const FieldSetup& fs, const std::string& dir)
+    : renderer_(make_renderer(b)), rs_(s.render), cam_(make_camera(s, s.render)), env_(make_environment(s, fs.geom)),
+      dir_(dir) {
+  if (dir_.empty()) return;
+  std::error_code ec;
+  std::filesystem::create_directories(dir_, ec);
+  if (ec || !std::filesystem::is_directory(dir_))
+    throw std::runtime_error("--frames-dir: cannot create directory '" + dir_ + "'" + (ec ? ": " + ec.message() : ""));
+  const std::string probe = (std::filesystem::path(dir_) / ".sphray_write_test").string();
+  std::FILE* f = std::fopen(probe.c_str(), "wb");
+  if (!f) throw std::runtime_error("--frames-dir: cannot write into '" + dir_ + "'");
+  std::fclose(f);
+  std::remove(probe.c_str());
+}
+
+void FrameRenderer::render_to(const ParticleView& pv, const FieldBuilder& field, const std::string& png_path) {
+  renderer_->render(field.data(), field.setup(), &pv, cam_, env_, rs_);
+  render_ms_ += renderer_->last_ms();
+  write_png(png_path, renderer_->download());
+  ++written_;
+}
+
+void FrameRenderer::write_frame(const ParticleView& pv, const FieldBuilder& field, int frame) {
+  char name[32];
+  std::snprintf(name, sizeof name, "frame_%06d.png", frame);
+  render_to(pv, field, (std::filesystem::path(dir_) / name).string());
+}
+
+void write_png(const std::string& path, const Image& img) {
+  if (img.width <= 0 || img.height <= 0 || img.rgba.size() != size_t(img.width) * size_t(img.height))
+    throw std::runtime_error("write_png: '" + path + "': image has no pixels or the wrong size");
+  if (!stbi_write_png(path.c_str(), img.width, img.height, 4, img.rgba.data(), img.width * 4))
+    throw std::runtime_error("cannot write PNG '" + path + "'");
+}
+
+Image read_png(const std::string& path) {
+  int w = 0, h = 0, ch = 0;
+  unsigned char* data = stbi_load(path.c_str(), &w, &h, &ch, 4);
+  if (!data) throw std::runtime_error("cannot read PNG '" + path + "': " + stbi_failure_reason());
+  Image img;
+  img.width = w;
+  img.height = h;
+  img.rgba.resize(size_t(w) * size_t(h));
+  std::memcpy(img.rgba.data(), data, img.rgba.size() * 4);
+  stbi_image_free(data);
+  return img;
+}
+
+double psnr(const Image& a, const Image& b) {
+  if (a.width != b.width || a.height != b.height || a.rgba.size() != b.rgba.size() || a.rgba.empty())
+    throw std::invalid_argument("psnr: images differ in size");
+  double se = 0;
+  for (size_t i = 0; i < a.rgba.size(); ++i)
+    for (int c = 0; c < 3; ++c) {
+      const double d = double((a.rgba[i] >> (8 * c)) & 0xff) - double((b.rgba[i] >> (8 * c)) & 0xff);
+      se += d * d;
+    }
+  const double mse = se / (3.0 * double(a.rgba.size()));
+  if (mse == 0) return std::numeric_limits<double>::infinity();
+  return 10.0 * std::log10(255.0 * 255.0 / mse);
+}
+
+}  // namespace sphray

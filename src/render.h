@@ -1,0 +1,84 @@
+// Rendering as the host sees it: settings from the scene's "render" section,
+// the camera, one renderer interface over both backends (cuda/render/), and
+// images (PNG via stb, PSNR). docs/rendering.md describes the method and its
+// error against run time.
+#pragma once
+
+#include <cstdint>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "../cuda/render/raycast.h"
+#include "field.h"
+#include "render_settings.h"
+#include "solver.h"
+
+namespace sphray {
+
+struct Scene;
+
+// The scene's camera (render.eye/target/fov, or the automatic view) at the render's size.
+Camera make_camera(const Scene& s, const RenderSettings& r);
+// The tank, floor and sky in the voxel units of `vol`.
+Environment make_environment(const Scene& s, const VolumeGeom& vol);
+
+struct Image {
+  int width = 0, height = 0;
+  std::vector<uint32_t> rgba;  // row 0 at the top, R in the low byte
+};
+
+class Renderer {
+ public:
+  virtual ~Renderer() = default;
+  virtual Backend backend() const = 0;
+  // Renders `field` (the backend's memory, layout and iso of `fs`) into the
+  // renderer's image. `particles` gives the SPH cell occupancy for the
+  // empty-space skip (null, or settings.skip_empty false: no skip).
+  virtual void render(const float* field, const FieldSetup& fs, const ParticleView* particles, const Camera& cam,
+                      const Environment& env, const RenderSettings& rs) = 0;
+  virtual double last_ms() const = 0;               // device time of the last render (occupancy included)
+  virtual const uint32_t* pixels() const = 0;       // the image in the backend's memory
+  virtual Image download() const = 0;
+  // The viewer's interop target: the next renders write here instead (device
+  // memory on CUDA, host memory on CPU), width x height pixels; null: own buffer.
+  virtual void set_target(uint32_t* pixels) = 0;
+};
+
+std::unique_ptr<Renderer> make_cpu_renderer();
+std::unique_ptr<Renderer> make_cuda_renderer();  // throws if CUDA is unavailable
+std::unique_ptr<Renderer> make_renderer(Backend b);
+
+// The tracer's settings in voxel units for a volume (iso from the field shape).
+TraceSettings make_trace_settings(const RenderSettings& r, const FieldSetup& fs);
+
+// The PNG sink of `run --frames-dir` and `render`: renders a solver's current
+// particles from the field built for them and writes the image.
+class FrameRenderer {
+ public:
+  // `dir` (may be empty when only render_to is used) is created; a directory
+  // that cannot be written is an error here, before any simulation.
+  FrameRenderer(const Scene& s, Backend b, const FieldSetup& fs, const std::string& dir);
+  void write_frame(const ParticleView& pv, const FieldBuilder& field, int frame);  // dir/frame_NNNNNN.png
+  void render_to(const ParticleView& pv, const FieldBuilder& field, const std::string& png_path);
+  int frames_written() const { return written_; }
+  double mean_render_ms() const { return written_ ? render_ms_ / written_ : 0.0; }
+  const std::string& dir() const { return dir_; }
+
+ private:
+  std::unique_ptr<Renderer> renderer_;
+  RenderSettings rs_;
+  Camera cam_;
+  Environment env_;
+  std::string dir_;
+  int written_ = 0;
+  double render_ms_ = 0;
+};
+
+// PNG through stb_image_write; throws std::runtime_error naming the path.
+void write_png(const std::string& path, const Image& img);
+Image read_png(const std::string& path);
+// Peak signal-to-noise ratio over R, G, B (8-bit), in dB; +inf for equal images.
+double psnr(const Image& a, const Image& b);
+
+}  // namespace sphray

@@ -1,0 +1,404 @@
+// The raycaster (cuda/render/raycast.h) on the CPU backend against analytic
+// answers computed in double: the hit distance and normal on a sphere field,
+// Snell refraction through a sphere, total internal reflection at a flat
+// surface, weights that never sum above 1; the empty-space skip against no
+// skip; images, PNG and PSNR.
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <random>
+#include <vector>
+
+#include "catch.h"
+#include "helpers.h"
+#include "../src/field.h"
+#include "../src/render.h"
+
+using namespace sphray;
+
+namespace {
+
+constexpr int N = 48;          // analytic volumes: N^3 voxels
+constexpr double kIso = 10.0;  // f = iso + (signed distance inside), clamped at 0
+
+struct AnalyticVolume {
+  std::vector<float> f;
+  explicit AnalyticVolume(double (*inside_distance)(double, double, double)) : f(size_t(N) * N * N) {
+    for (int k = 0; k < N; ++k)
+      for (int j = 0; j < N; ++j)
+        for (int i = 0; i < N; ++i)
+          f[(size_t(k) * N + j) * N + i] = float(std::max(0.0, kIso + inside_distance(i + 0.5, j + 0.5, k + 0.5)));
+  }
+};
+
+constexpr double kC = 24.0, kRho = 12.0;  // sphere centre (each axis) and radius [voxels]
+double sphere(double x, double y, double z) {
+  return kRho - std::sqrt((x - kC) * (x - kC) + (y - kC) * (y - kC) + (z - kC) * (z - kC));
+}
+constexpr double kZ0 = 30.0;  // liquid below this plane
+double half_space(double, double, double z) { return kZ0 - z; }
+
+TraceSettings settings(int interfaces, double absorption = 0.0) {
+  const float a = float(absorption);
+  return TraceSettings{float(kIso), 0.5f, interfaces, 1.33f, Rgb{a, a, a}, 3};
+}
+
+Tracer<TrilinearField> make_tracer(const AnalyticVolume& v, const TraceSettings& ts) {
+  Environment env{};
+  env.tank_lo = {0, 0, 0};
+  env.tank_hi = {float(N), float(N), float(N)};
+  env.tile = 4;
+  env.sun = normalized(Vec3f{0.3f, 0.2f, 0.9f});
+  return Tracer<TrilinearField>{TrilinearField{v.f.data(), N, N, N}, Occupancy{nullptr, 0, 0, 0, 1},
+                                Vec3f{float(N), float(N), float(N)}, env, ts};
+}
+
+struct Event {
+  Vec3f p, n, d;
+  bool tir;
+  float F;
+};
+// Records what one trace did.
+struct Watch {
+  std::vector<Event>* events;
+  std::vector<Rgb>* weights;
+  void segment(Vec3f, Vec3f, bool) const {}
+  void interface(Vec3f p, Vec3f n, Vec3f d, bool tir, float F) const { events->push_back({p, n, d, tir, F}); }
+  void contribution(Rgb w) const { weights->push_back(w); }
+};
+
+Vec3d dbl(Vec3f v) { return {v.x, v.y, v.z}; }
+Vec3d unit(Vec3d v) { return v * (1.0 / length(v)); }
+double angle(Vec3d a, Vec3d b) { return std::acos(std::clamp(dot(unit(a), unit(b)), -1.0, 1.0)); }
+
+// Double-precision Snell (n facing against d).
+bool refract_d(Vec3d d, Vec3d n, double eta, Vec3d& out) {
+  const double ci = -dot(n, d), k = 1 - eta * eta * (1 - ci * ci);
+  if (k < 0) return false;
+  out = d * eta + n * (eta * ci - std::sqrt(k));
+  return true;
+}
+// Ray against the analytic sphere: nearest t > eps (inside or outside).
+double hit_sphere(Vec3d o, Vec3d d, double eps = 1e-6) {
+  const Vec3d oc = o - Vec3d{kC, kC, kC};
+  const double b = dot(oc, d), c = dot(oc, oc) - kRho * kRho, disc = b * b - c;
+  if (disc < 0) return -1;
+  const double t0 = -b - std::sqrt(disc), t1 = -b + std::sqrt(disc);
+  return t0 > eps ? t0 : (t1 > eps ? t1 : -1);
+}
+double schlick_d(double n1, double n2, double c) {
+  const double r0 = std::pow((n1 - n2) / (n1 + n2), 2);
+  return r0 + (1 - r0) * std::pow(1 - c, 5);
+}
+
+template <class F>
+std::string error_of(F&& f) {
+  try {
+    f();
+  } catch (const std::exception& e) {
+    return e.what();
+  }
+  return "(no error)";
+}
+
+// f of the volume at u (voxel units) in double: the trilinear interpolant the tracer samples.
+double trilinear_d(const AnalyticVolume& v, Vec3d u) {
+  const double x = u.x - 0.5, y = u.y - 0.5, z = u.z - 0.5;
+  const int i = int(std::floor(x)), j = int(std::floor(y)), k = int(std::floor(z));
+  const double a = x - i, b = y - j, c = z - k;
+  auto at = [&](int ii, int jj, int kk) -> double {
+    if (ii < 0 || jj < 0 || kk < 0 || ii >= N || jj >= N || kk >= N) return 0.0;
+    return v.f[(size_t(kk) * N + jj) * N + ii];
+  };
+  double s = 0;
+  for (int dk = 0; dk < 2; ++dk)
+    for (int dj = 0; dj < 2; ++dj)
+      for (int di = 0; di < 2; ++di)
+        s += at(i + di, j + dj, k + dk) * (di ? a : 1 - a) * (dj ? b : 1 - b) * (dk ? c : 1 - c);
+  return s;
+}
+
+}  // namespace
+
+TEST_CASE("ray hits a sphere field at the analytic distance with the analytic normal", "[render]") {
+  const AnalyticVolume vol(sphere);
+  const auto tracer = make_tracer(vol, settings(1));
+  std::mt19937 rng(11);
+  std::uniform_real_distribution<double> off(-0.9 * kRho, 0.9 * kRho);
+  double worst_root = 0, worst_radius = 0, worst_n = 0;
+  int hits = 0;
+  for (int r = 0; r < 200; ++r) {
+    // from outside the box toward a random point of the sphere's silhouette disc
+    const Vec3d o{-20.0, kC + off(rng), kC + off(rng) * 0.5};
+    const Vec3d aim{kC, kC + off(rng) * 0.6, kC + off(rng) * 0.6};
+    const Vec3d d = unit(aim - o);
+    const double t_ref = hit_sphere(o, d);
+    if (t_ref < 0) continue;
+    ++hits;
+    std::vector<Event> ev;
+    std::vector<Rgb> w;
+    tracer.trace(Vec3f{float(o.x), float(o.y), float(o.z)}, Vec3f{float(d.x), float(d.y), float(d.z)},
+                 Watch{&ev, &w});
+    REQUIRE(ev.size() == 1);
+    const double t = dot(dbl(ev[0].p) - o, d);
+    // (1) the marcher: the root of the sampled (trilinear) field along the ray, by bisection in double
+    double lo = t_ref - 1.0, hi = t_ref + 1.0;
+    REQUIRE(trilinear_d(vol, o + d * lo) < kIso);
+    REQUIRE(trilinear_d(vol, o + d * hi) >= kIso);
+    for (int it = 0; it < 60; ++it) (trilinear_d(vol, o + d * (0.5 * (lo + hi))) < kIso ? lo : hi) = 0.5 * (lo + hi);
+    worst_root = std::max(worst_root, std::abs(t - 0.5 * (lo + hi)));
+    // (2) the surface: trilinear interpolation of a distance field deviates from the sphere by at most
+    // sum_i h_i^2 |d2f/dxi2| / 8 = 3 / (8 rho) = 0.031 voxels along the normal
+    worst_radius = std::max(worst_radius, std::abs(length(dbl(ev[0].p) - Vec3d{kC, kC, kC}) - kRho));
+    // the recorded normal faces the incoming ray: outward at an entry
+    const Vec3d hit = o + d * t_ref;
+    worst_n = std::max(worst_n, angle(dbl(ev[0].n), hit - Vec3d{kC, kC, kC}));
+  }
+  INFO(hits << " hits: worst distance to the field's root " << worst_root << ", worst radial error " << worst_radius
+            << " voxels, worst normal error " << worst_n << " rad");
+  CHECK(hits > 100);
+  CHECK(worst_root < 2e-3);
+  CHECK(worst_radius < 0.031);
+  CHECK(worst_n < 0.01);
+}
+
+TEST_CASE("a ray refracts through a sphere as Snell's law says", "[render]") {
+  const AnalyticVolume vol(sphere);
+  const auto tracer = make_tracer(vol, settings(2));
+  const double eta = 1.33;
+  for (double b : {0.0, 0.3, 0.6, 0.85}) {
+    const Vec3d o{-20.0, kC + b * kRho * 0.8, kC + b * kRho * 0.6}, d{1, 0, 0};
+    // analytic path in double
+    const double t1 = hit_sphere(o, d);
+    const Vec3d p1 = o + d * t1, n1 = unit(p1 - Vec3d{kC, kC, kC});
+    Vec3d r1;
+    REQUIRE(refract_d(d, n1, 1.0 / eta, r1));
+    const double t2 = hit_sphere(p1, r1, 1e-6);
+    const Vec3d p2 = p1 + r1 * t2, n2 = unit(Vec3d{kC, kC, kC} - p2);  // inward: faces the ray inside
+    Vec3d r2;
+    REQUIRE(refract_d(r1, n2, eta, r2));
+    // total deviation 2 (theta_i - theta_t) around the incidence plane
+    const double ti = std::asin(b), tt = std::asin(b / eta);
+    CHECK(angle(d, r2) == Approx(2 * (ti - tt)).margin(1e-9));
+
+    std::vector<Event> ev;
+    std::vector<Rgb> w;
+    tracer.trace(Vec3f{float(o.x), float(o.y), float(o.z)}, Vec3f{1, 0, 0}, Watch{&ev, &w});
+    INFO("impact parameter " << b);
+    REQUIRE(ev.size() == 2);
+    CHECK(!ev[0].tir);
+    CHECK(!ev[1].tir);
+    // along the ray the surface error (0.031 voxels along the normal, see above) grows as 1 / cos
+    const double cos_i = std::cos(ti), cos_t = std::cos(tt);
+    CHECK(length(dbl(ev[0].p) - p1) < 0.031 / cos_i + 1e-3);
+    CHECK(angle(dbl(ev[0].d), r1) < 0.01);
+    CHECK(length(dbl(ev[1].p) - p2) < 2 * 0.031 / cos_t + 1e-3);
+    CHECK(angle(dbl(ev[1].d), r2) < 0.02);
+    // Fresnel weights: Schlick at the analytic angles (entering: cos_i; leaving: the cosine outside)
+    CHECK(ev[0].F == Approx(schlick_d(1, eta, std::cos(ti))).margin(2e-3));
+    CHECK(ev[1].F == Approx(schlick_d(eta, 1, std::cos(ti))).margin(2e-3));
+  }
+}
+
+TEST_CASE("total internal reflection beyond the critical angle, refraction below it", "[render]") {
+  const AnalyticVolume vol(half_space);
+  const auto tracer = make_tracer(vol, settings(1));
+  const double critical = std::asin(1 / 1.33) * 180 / M_PI;  // 48.75 degrees
+  for (double deg : {20.0, 45.0, critical - 1.0, critical + 1.0, 60.0, 80.0}) {
+    const double a = deg * M_PI / 180;
+    const Vec3d d{std::sin(a), 0, std::cos(a)};
+    const Vec3d o{4.0, kC, kZ0 - 6.0};  // in the liquid, under the surface
+    std::vector<Event> ev;
+    std::vector<Rgb> w;
+    tracer.trace(Vec3f{float(o.x), float(o.y), float(o.z)}, Vec3f{float(d.x), float(d.y), float(d.z)},
+                 Watch{&ev, &w});
+    INFO(deg << " degrees from the normal");
+    REQUIRE(ev.size() == 1);
+    const Vec3d hit = o + d * (6.0 / std::cos(a));
+    CHECK(length(dbl(ev[0].p) - hit) < 0.02);
+    const bool tir = deg > critical;
+    CHECK(ev[0].tir == tir);
+    if (tir) {
+      CHECK(angle(dbl(ev[0].d), Vec3d{d.x, 0, -d.z}) < 1e-3);
+      CHECK(ev[0].F == 1.0f);
+    } else {
+      Vec3d r;
+      REQUIRE(refract_d(d, Vec3d{0, 0, -1}, 1.33, r));
+      CHECK(std::sin(angle(dbl(ev[0].d), Vec3d{0, 0, 1})) == Approx(1.33 * std::sin(a)).margin(2e-3));
+      CHECK(angle(dbl(ev[0].d), r) < 2e-3);
+    }
+  }
+}
+
+TEST_CASE("the weights of one ray sum to 1 without absorption and never above 1", "[render]") {
+  // a realistic field: random clusters of particles through the naive builder
+  const Scene s = parse_scene(R"({"tank": {"min": [0,0,0], "max": [0.4,0.2,0.3]},
+    "fluid": [{"min": [0,0,0], "max": [0.12,0.2,0.2]}], "sph": {"spacing": 0.01}, "run": {"end_time": 1}})",
+                              "render.json");
+  const FieldSetup fs = make_field_setup(s);
+  std::mt19937 rng(5);
+  std::uniform_real_distribution<float> u(0, 1);
+  std::normal_distribution<float> g(0, 0.02f);
+  std::vector<Vec3f> pts;
+  for (int c = 0; c < 12; ++c) {
+    const Vec3f centre{0.05f + 0.3f * u(rng), 0.03f + 0.14f * u(rng), 0.03f + 0.2f * u(rng)};
+    for (int k = 0; k < 250; ++k) pts.push_back({centre.x + g(rng), centre.y + g(rng), centre.z + g(rng)});
+  }
+  for (auto& p : pts) {
+    p.x = std::clamp(p.x, 0.001f, 0.399f);
+    p.y = std::clamp(p.y, 0.001f, 0.199f);
+    p.z = std::clamp(p.z, 0.001f, 0.299f);
+  }
+  const HostParticleSet ps(measure_scene(s).grid, pts);
+  auto builder = make_cpu_field_builder(fs);
+  builder->build(ps.view(), FieldKind::Naive);
+  const std::vector<float> field = builder->download();
+  const Environment env = make_environment(s, fs.geom);
+  const Vec3f box{float(fs.geom.nx), float(fs.geom.ny), float(fs.geom.nz)};
+  for (double absorption : {0.0, 0.05}) {
+    for (int interfaces : {1, 4, 8}) {
+      const TraceSettings ts{fs.shape.iso, 0.5f, interfaces, 1.33f,
+                             Rgb{float(absorption), float(absorption * 0.5), 0.0f}, 3};
+      const Tracer<TrilinearField> tracer{TrilinearField{field.data(), fs.geom.nx, fs.geom.ny, fs.geom.nz},
+                                          Occupancy{nullptr, 0, 0, 0, 1}, box, env, ts};
+      double worst_over = -1, worst_missing = 0;
+      int with_interfaces = 0;
+      for (int r = 0; r < 400; ++r) {
+        const Vec3f o{box.x * u(rng), -10.0f, box.z * (0.2f + 0.8f * u(rng))};
+        const Vec3f target{box.x * u(rng), box.y * u(rng), box.z * u(rng)};
+        std::vector<Event> ev;
+        std::vector<Rgb> w;
+        tracer.trace(o, normalized(target - o), Watch{&ev, &w});
+        with_interfaces += !ev.empty();
+        CHECK(int(ev.size()) <= interfaces);
+        Rgb sum{0, 0, 0};
+        for (const Rgb& c : w) {
+          CHECK(std::min({c.r, c.g, c.b}) >= 0.0f);
+          sum = sum + c;
+        }
+        for (float c : {sum.r, sum.g, sum.b}) worst_over = std::max(worst_over, double(c) - 1.0);
+        if (absorption == 0) worst_missing = std::max(worst_missing, 1.0 - std::min({sum.r, sum.g, sum.b}));
+      }
+      INFO("absorption " << absorption << ", " << interfaces << " interfaces: " << with_interfaces
+                         << " of 400 rays met the liquid");
+      CHECK(with_interfaces > 100);
+      CHECK(worst_over <= 1e-5);
+      if (absorption == 0) CHECK(worst_missing < 1e-5);
+    }
+  }
+}
+
+TEST_CASE("empty-space skipping is conservative and leaves the image unchanged", "[render]") {
+  const Scene s = load_scene(test::source_path("scenes/dam_break.json"),
+                             {"sph.spacing=0.04", "render.width=160", "render.height=90"});
+  const SolverInput in = make_solver_input(s, PresenceMode::Off);
+  auto solver = make_cpu_solver(in);
+  for (int k = 0; k < 60; ++k) solver->step(1.0);  // the column starts to fall: a surface with a front
+  for (int refine : {0, 2}) {
+    const Scene sr = load_scene(test::source_path("scenes/dam_break.json"),
+                                {"sph.spacing=0.04", "render.width=160", "render.height=90",
+                                 "field.refine=" + std::to_string(refine)});
+    const FieldSetup fs = make_field_setup(sr);
+    auto builder = make_cpu_field_builder(fs);
+    const ParticleView pv = solver->view();
+    builder->build(pv, FieldKind::Naive);
+    const std::vector<float> f = builder->download();
+    // the guarantee: a cell the occupancy calls empty has zero field within one voxel of it
+    const int cell = 1 << fs.geom.refine;
+    const int cx = fs.geom.nx / cell, cy = fs.geom.ny / cell, cz = fs.geom.nz / cell;
+    std::vector<uint8_t> occ(size_t(cx) * cy * cz);
+    const int reach = int(std::ceil((fs.shape.radius + 1.0f) / float(cell)));
+    for (uint32_t c = 0; c < occ.size(); ++c)
+      BuildOccupancy{fs.geom, pv.grid, pv.offsets, reach, occ.data()}(c);
+    size_t empty = 0, violations = 0;
+    for (int k = 0; k < fs.geom.nz; ++k)
+      for (int j = 0; j < fs.geom.ny; ++j)
+        for (int i = 0; i < fs.geom.nx; ++i) {
+          const float v = f[fs.geom.index(i, j, k)];
+          if (v == 0) continue;
+          // every cell within one voxel of a non-zero voxel must be occupied
+          for (int dk = -1; dk <= 1; ++dk)
+            for (int dj = -1; dj <= 1; ++dj)
+              for (int di = -1; di <= 1; ++di) {
+                const int a = (i + di) / cell, b = (j + dj) / cell, c = (k + dk) / cell;
+                if (i + di < 0 || j + dj < 0 || k + dk < 0 || a >= cx || b >= cy || c >= cz) continue;
+                violations += occ[(size_t(c) * cy + b) * cx + a] == 0;
+              }
+        }
+    for (uint8_t o : occ) empty += o == 0;
+    INFO("refine " << refine << ": " << empty << " of " << occ.size() << " cells empty");
+    CHECK(violations == 0);
+    CHECK(empty > occ.size() / 4);  // the skip has something to skip
+
+    RenderSettings rs = sr.render;
+    const Camera cam = make_camera(sr, rs);
+    const Environment env = make_environment(sr, fs.geom);
+    auto renderer = make_cpu_renderer();
+    rs.skip_empty = false;
+    renderer->render(builder->data(), fs, &pv, cam, env, rs);
+    const Image plain = renderer->download();
+    rs.skip_empty = true;
+    renderer->render(builder->data(), fs, &pv, cam, env, rs);
+    const Image skipped = renderer->download();
+    size_t differ = 0;
+    for (size_t p = 0; p < plain.rgba.size(); ++p) {
+      for (int ch = 0; ch < 3; ++ch) {
+        const int a = int((plain.rgba[p] >> (8 * ch)) & 0xff), b = int((skipped.rgba[p] >> (8 * ch)) & 0xff);
+        if (std::abs(a - b) > 2) { ++differ; break; }
+      }
+    }
+    INFO("PSNR " << psnr(plain, skipped) << " dB, " << differ << " pixels differ by more than 2 levels");
+    CHECK(psnr(plain, skipped) > 45.0);
+    CHECK(differ < plain.rgba.size() / 500);
+    // the liquid is in the picture: an empty field renders differently
+    const std::vector<float> zero(f.size(), 0.0f);
+    renderer->render(zero.data(), fs, nullptr, cam, env, rs);
+    CHECK(psnr(renderer->download(), skipped) < 30.0);
+  }
+}
+
+TEST_CASE("PNG round trip and PSNR against a known difference", "[render]") {
+  Image a;
+  a.width = 37;
+  a.height = 21;
+  a.rgba.resize(size_t(a.width) * a.height);
+  std::mt19937 rng(3);
+  for (auto& p : a.rgba) p = (rng() & 0x00ffffffu) | 0xff000000u;
+  const std::string path = (std::filesystem::temp_directory_path() / "sphray_test_png.png").string();
+  write_png(path, a);
+  const Image b = read_png(path);
+  CHECK(b.width == a.width);
+  CHECK(b.height == a.height);
+  CHECK(b.rgba == a.rgba);
+  CHECK(std::isinf(psnr(a, b)));
+  Image c = a;  // red off by exactly one level everywhere (never wrapping)
+  for (auto& p : c.rgba) p = (p & 0xffffff00u) | (((p & 0xff) == 255 ? 254 : (p & 0xff) + 1));
+  CHECK(psnr(a, c) == Approx(10 * std::log10(255.0 * 255.0 * 3.0)).margin(1e-9));
+  std::remove(path.c_str());
+  CHECK(error_of([&] { read_png(path); }).find("cannot read PNG") != std::string::npos);
+  CHECK(error_of([&] { write_png("/nonexistent-dir/x.png", a); }).find("/nonexistent-dir/x.png") != std::string::npos);
+}
+
+TEST_CASE("render settings are validated", "[render][scene]") {
+  const std::string base = test::source_path("scenes/dam_break.json");
+  auto bad = [&](const std::string& set, const std::string& what) {
+    const std::string e = error_of([&] { load_scene(base, {set}); });
+    INFO(set << ": " << e);
+    CHECK(e.find(what) != std::string::npos);
+  };
+  bad("render.interfaces=9", "render.interfaces");
+  bad("render.interfaces=0", "render.interfaces");
+  bad("render.step=0.6", "render.step");
+  bad("render.step=0", "render.step");
+  bad("render.width=10", "render.width");
+  bad("render.ior=0.5", "render.ior");
+  bad("render.absorption=[1,-1,0]", "render.absorption");
+  bad("render.eye=[0,-2,1]", "render.target");
+  bad("render.fov=\"wide\"", "render.fov");
+  bad("render.colour=1", "unknown key");
+  const Scene ok = load_scene(base, {"render.interfaces=8", "render.step=0.25", "render.eye=[0,-2,1]",
+                                     "render.target=[0.8,0.3,0.2]"});
+  CHECK(ok.render.interfaces == 8);
+  CHECK(ok.render.step == 0.25f);
+}
