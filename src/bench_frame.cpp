@@ -53,7 +53,7 @@ std::vector<BenchFrameRow> bench_frame(Backend b, const BenchFrameOptions& opt, 
     auto renderer = make_renderer(b);
     simulate_collapse(s, *solver, opt.collapse, log);
     const Camera cam = make_camera(s, s.render);
-    const Environment env = make_environment(s, field->setup().geom);
+    const Environment env = make_environment(s, field->setup().geom, cam);
     std::vector<double> sim, fld, ren, tot, wall;
     for (int f = 0; f < opt.warmup + opt.frames; ++f) {
       const auto t0 = std::chrono::steady_clock::now();
@@ -138,7 +138,7 @@ std::vector<BenchRenderRow> bench_render(Backend b, const BenchRenderOptions& op
   simulate_collapse(s, *solver, opt.collapse, log);
   const ParticleView pv = solver->view();
   const Camera cam = make_camera(s, s.render);
-  const Environment env = make_environment(s, field->setup().geom);
+  const Environment env = make_environment(s, field->setup().geom, cam);
 
   RenderSettings ref = s.render;
   ref.step = float(opt.reference_step);

@@ -20,24 +20,10 @@ Vec3f to_f(Vec3d v) { return {float(v.x), float(v.y), float(v.z)}; }
 
 }  // namespace
 
-Camera make_camera(const Scene& s, const RenderSettings& r) {
-  Vec3d eye = r.eye, target = r.target;
-  const double tan_half = std::tan(r.fov * M_PI / 360.0);
-  if (length(eye - target) == 0) {
-    // Three-quarter view from the front (-y), a little to the right and above,
-    // far enough that the whole tank fits the vertical field of view.
-    const Vec3d lo = s.tank.min, hi = s.tank.max, size = hi - lo;
-    target = {lo.x + 0.5 * size.x, lo.y + 0.5 * size.y, lo.z + 0.3 * size.z};
-    Vec3d dir{0.3, -1.0, 0.55};
-    dir = dir * (1.0 / length(dir));
-    const double aspect = double(r.width) / double(r.height);
-    const double radius = 0.5 * length(size);
-    const double dist = radius / std::min(tan_half, tan_half * aspect) * 0.95;
-    eye = target + dir * dist;
-  }
+Camera look_at(Vec3d eye, Vec3d target, double fov_deg, int width, int height) {
   Camera c{};
   const Vec3d f = (target - eye) * (1.0 / length(target - eye));
-  Vec3d right{f.y * 1.0 - f.z * 0.0, f.z * 0.0 - f.x * 1.0, 0.0};  // f x (0, 0, 1)
+  Vec3d right{f.y, -f.x, 0.0};  // f x (0, 0, 1)
   if (length(right) < 1e-9) right = {1, 0, 0};  // looking straight up or down
   right = right * (1.0 / length(right));
   const Vec3d up{right.y * f.z - right.z * f.y, right.z * f.x - right.x * f.z, right.x * f.y - right.y * f.x};
@@ -45,19 +31,39 @@ Camera make_camera(const Scene& s, const RenderSettings& r) {
   c.forward = to_f(f);
   c.right = to_f(right);
   c.up = to_f(up);
-  c.tan_half_fov = float(tan_half);
-  c.width = r.width;
-  c.height = r.height;
+  c.tan_half_fov = float(std::tan(fov_deg * M_PI / 360.0));
+  c.width = width;
+  c.height = height;
   return c;
 }
 
-Environment make_environment(const Scene& s, const VolumeGeom& vol) {
+void auto_view(const Scene& s, const RenderSettings& r, Vec3d& eye, Vec3d& target) {
+  // Three-quarter view from the front (-y), a little to the right and above,
+  // far enough that the whole tank fits the field of view.
+  const Vec3d lo = s.tank.min, hi = s.tank.max, size = hi - lo;
+  target = {lo.x + 0.5 * size.x, lo.y + 0.5 * size.y, lo.z + 0.3 * size.z};
+  Vec3d dir{0.3, -1.0, 0.55};
+  dir = dir * (1.0 / length(dir));
+  const double tan_half = std::tan(r.fov * M_PI / 360.0), aspect = double(r.width) / double(r.height);
+  eye = target + dir * (0.5 * length(size) / std::min(tan_half, tan_half * aspect) * 0.95);
+}
+
+Camera make_camera(const Scene& s, const RenderSettings& r) {
+  Vec3d eye = r.eye, target = r.target;
+  if (length(eye - target) == 0) auto_view(s, r, eye, target);
+  return look_at(eye, target, r.fov, r.width, r.height);
+}
+
+Environment make_environment(const Scene& s, const VolumeGeom& vol, const Camera& cam) {
   const Vec3d size = s.tank.max - s.tank.min;
   Environment e{};
   e.tank_lo = vol.to_voxels(to_f(s.tank.min));
   e.tank_hi = vol.to_voxels(to_f(s.tank.max));
   e.tile = float(std::max(size.x, size.y) / 16.0 / vol.voxel);
   e.sun = normalized(Vec3f{0.45f, 0.25f, 0.86f});
+  // a wall is glass when the camera is on its outer side
+  e.glass = (cam.eye.x < s.tank.min.x ? 1 : 0) | (cam.eye.x > s.tank.max.x ? 2 : 0) |
+            (cam.eye.y < s.tank.min.y ? 4 : 0) | (cam.eye.y > s.tank.max.y ? 8 : 0);
   return e;
 }
 
@@ -76,8 +82,9 @@ std::unique_ptr<Renderer> make_renderer(Backend b) {
 }
 
 FrameRenderer::FrameRenderer(const Scene& s, Backend b, const FieldSetup& fs, const std::string& dir)
-    : renderer_(make_renderer(b)), rs_(s.render), cam_(make_camera(s, s.render)), env_(make_environment(s, fs.geom)),
+    : renderer_(make_renderer(b)), rs_(s.render), cam_(make_camera(s, s.render)),
       dir_(dir) {
+  env_ = make_environment(s, fs.geom, cam_);
   if (dir_.empty()) return;
   std::error_code ec;
   std::filesystem::create_directories(dir_, ec);

@@ -18,10 +18,15 @@ namespace sphray {
 
 struct Scene;
 
+// A pinhole camera at eye looking at target, z up; vertical field of view in degrees.
+Camera look_at(Vec3d eye, Vec3d target, double fov_deg, int width, int height);
+// The automatic view of a scene's tank (render.eye/target unset).
+void auto_view(const Scene& s, const RenderSettings& r, Vec3d& eye, Vec3d& target);
 // The scene's camera (render.eye/target/fov, or the automatic view) at the render's size.
 Camera make_camera(const Scene& s, const RenderSettings& r);
-// The tank, floor and sky in the voxel units of `vol`.
-Environment make_environment(const Scene& s, const VolumeGeom& vol);
+// The tank, floor and sky in the voxel units of `vol`; the walls that face
+// the camera are clear glass, the others tiled.
+Environment make_environment(const Scene& s, const VolumeGeom& vol, const Camera& cam);
 
 struct Image {
   int width = 0, height = 0;

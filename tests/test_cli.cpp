@@ -2,6 +2,7 @@
 // a short run that succeeds.
 #include <cstdio>
 #include <cstdlib>
+#include <cmath>
 #include <fstream>
 #include <sstream>
 #include <string>
@@ -9,6 +10,7 @@
 
 #include "catch.h"
 #include "helpers.h"
+#include "../src/render.h"
 
 namespace {
 
@@ -131,4 +133,89 @@ TEST_CASE("sphray run --export and sphray inspect: bad paths and bad files exit 
   CHECK(has(r.output, "frames 2"));
   CHECK(has(r.output, "000001  t = 0.02 s"));
   CHECK(has(r.output, "density ["));
+}
+
+TEST_CASE("sphray run --frames-dir and sphray render write PNGs of the liquid; render --from an export matches",
+          "[cli][render]") {
+  const std::string scene = sphray::test::source_path("scenes/dam_break.json");
+  const std::string small = " --backend cpu --set sph.spacing=0.04 --set field.builder=naive --size 96x54 ";
+  std::system("rm -rf /tmp/sphray_frames /tmp/sphray_render_*.png /tmp/sphray_render.h5 /tmp/sphray_render.xmf");
+  Result r = run_cli("run " + scene + small + "--quiet --set run.end_time=0.04 --set run.output_interval=0.01 "
+                     "--frames-dir /tmp/sphray_frames --frames-every 2 --export /tmp/sphray_render.h5");
+  INFO(r.output);
+  REQUIRE(r.code == 0);
+  CHECK(has(r.output, "3 PNGs (96x54, 4 interfaces) to /tmp/sphray_frames"));
+  for (const char* f : {"frame_000000.png", "frame_000002.png", "frame_000004.png"}) {
+    const sphray::Image img = sphray::read_png(std::string("/tmp/sphray_frames/") + f);
+    CHECK(img.width == 96);
+    CHECK(img.height == 54);
+  }
+  CHECK_FALSE(std::ifstream("/tmp/sphray_frames/frame_000001.png").good());
+
+  // the liquid is in the picture: the same tank without fluid renders differently
+  r = run_cli("render " + scene + small + "--set fluid=[] --time 0 --out /tmp/sphray_render_empty.png");
+  REQUIRE(r.code == 0);
+  const sphray::Image empty = sphray::read_png("/tmp/sphray_render_empty.png");
+  const sphray::Image t0 = sphray::read_png("/tmp/sphray_frames/frame_000000.png");
+  size_t differ = 0;
+  for (size_t p = 0; p < t0.rgba.size(); ++p)
+    for (int ch = 0; ch < 3; ++ch)
+      if (std::abs(int((t0.rgba[p] >> (8 * ch)) & 0xff) - int((empty.rgba[p] >> (8 * ch)) & 0xff)) > 20) {
+        ++differ;
+        break;
+      }
+  CHECK(differ > t0.rgba.size() / 50);  // the column covers more than 2% of the image
+
+  // the exported particles render as the run rendered them (field rebuilt from the file's positions)
+  r = run_cli("render --from /tmp/sphray_render.h5 --frame 4 --out /tmp/sphray_render_from.png" + small);
+  INFO(r.output);
+  REQUIRE(r.code == 0);
+  const sphray::Image from = sphray::read_png("/tmp/sphray_render_from.png");
+  const sphray::Image live = sphray::read_png("/tmp/sphray_frames/frame_000004.png");
+  CHECK(sphray::psnr(from, live) > 40.0);
+  r = run_cli("render --from /tmp/sphray_render.h5 --out /tmp/sphray_render_dir" + small);
+  CHECK(r.code == 0);
+  CHECK(has(r.output, "rendered 5 frames"));
+}
+
+TEST_CASE("sphray render and --frames-dir report bad input with exit code 2", "[cli][render]") {
+  const std::string scene = sphray::test::source_path("scenes/stress/one_cell.json");
+  Result r = run_cli("run " + scene + " --backend cpu --frames-dir /tmp/sphray_f --size 100by50");
+  CHECK(r.code == 2);
+  CHECK(has(r.output, "--size '100by50'"));
+  r = run_cli("run " + scene + " --backend cpu --size 100x50");
+  CHECK(r.code == 2);
+  CHECK(has(r.output, "need --frames-dir"));
+  r = run_cli("run " + scene + " --backend cpu --frames-dir /tmp/sphray_f --size 8x8");
+  CHECK(r.code == 2);
+  CHECK(has(r.output, "render.width"));
+  r = run_cli("run " + scene + " --backend cpu --frames-dir /proc/sphray_frames");
+  CHECK(r.code == 2);
+  CHECK(has(r.output, "--frames-dir: cannot"));
+  CHECK_FALSE(has(r.output, "summary (cpu)"));
+  r = run_cli("render " + scene + " --backend cpu --out /nonexistent/dir/x.png");
+  CHECK(r.code == 2);
+  CHECK(has(r.output, "--out: cannot write '/nonexistent/dir/x.png'"));
+  r = run_cli("render --backend cpu --out /tmp/x.png");
+  CHECK(r.code == 2);
+  CHECK(has(r.output, "either a scene file or --from"));
+  r = run_cli("render --from /nonexistent.h5 --backend cpu --out /tmp/x.png");
+  CHECK(r.code == 2);
+  CHECK(has(r.output, "missing or unreadable"));
+  r = run_cli("render " + scene + " --backend cpu --out /tmp/x.png --set render.interfaces=12");
+  CHECK(r.code == 2);
+  CHECK(has(r.output, "render.interfaces"));
+
+  r = run_cli("run " + scene + " --backend cpu --quiet --set run.end_time=0.01 --set run.output_interval=0.01 "
+              "--export /tmp/sphray_render2.h5");
+  REQUIRE(r.code == 0);
+  r = run_cli("render --from /tmp/sphray_render2.h5 --backend cpu --frame 5 --out /tmp/x.png");
+  CHECK(r.code == 2);
+  CHECK(has(r.output, "holds frames 0 .. 1"));
+  r = run_cli("render --from /tmp/sphray_render2.h5 --backend cpu --out /tmp/x.png");
+  CHECK(r.code == 2);
+  CHECK(has(r.output, "give --frame K, or a directory"));
+  r = run_cli("bench frame --backend cpu --sizes 8k --builder magic");
+  CHECK(r.code == 2);
+  CHECK(has(r.output, "magic"));
 }

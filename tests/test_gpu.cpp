@@ -86,7 +86,7 @@ TEST_CASE("cuda raycast agrees with the cpu raycast", "[gpu]") {
   fc->build(cpu->view(), FieldKind::Naive);
   fg->build(gpu->view(), FieldKind::Naive);
   const Camera cam = make_camera(s, s.render);
-  const Environment env = make_environment(s, fs.geom);
+  const Environment env = make_environment(s, fs.geom, cam);
   auto rc = make_cpu_renderer(), rg = make_cuda_renderer();
   for (int interfaces : {1, 4, 8}) {
     RenderSettings rs = s.render;

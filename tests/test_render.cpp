@@ -254,7 +254,7 @@ TEST_CASE("the weights of one ray sum to 1 without absorption and never above 1"
   auto builder = make_cpu_field_builder(fs);
   builder->build(ps.view(), FieldKind::Naive);
   const std::vector<float> field = builder->download();
-  const Environment env = make_environment(s, fs.geom);
+  const Environment env = make_environment(s, fs.geom, make_camera(s, s.render));
   const Vec3f box{float(fs.geom.nx), float(fs.geom.ny), float(fs.geom.nz)};
   for (double absorption : {0.0, 0.05}) {
     for (int interfaces : {1, 4, 8}) {
@@ -333,7 +333,7 @@ TEST_CASE("empty-space skipping is conservative and leaves the image unchanged",
 
     RenderSettings rs = sr.render;
     const Camera cam = make_camera(sr, rs);
-    const Environment env = make_environment(sr, fs.geom);
+    const Environment env = make_environment(sr, fs.geom, cam);
     auto renderer = make_cpu_renderer();
     rs.skip_empty = false;
     renderer->render(builder->data(), fs, &pv, cam, env, rs);

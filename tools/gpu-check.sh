@@ -3,7 +3,7 @@
 # build on all cores, run the cpu and gpu tests, the benchmarks and the CUDA
 # validation runs, leaving JSON and the test log under $OUT (at most 8 files
 # come back from the device tool; build logs stay in $B). Steps can be chosen:
-#   tools/gpu-check.sh [build] [test] [sanitize] [main] [bench] [field] [ncu-field] [export] [validate]
+#   tools/gpu-check.sh [build] [test] [sanitize] [main] [bench] [field] [ncu-field] [export] [frame] [render] [validate]
 #   (default: build test main bench validate; FIELD_SIZES picks the sizes of `field`)
 set -uo pipefail
 OUT=${OUT:-$PWD/gpu-out}
@@ -11,6 +11,13 @@ mkdir -p "$OUT"
 steps=${*:-build test main bench validate}
 has() { [[ " $steps " == *" $1 "* ]]; }
 B=build-gpu
+
+# Debian packages the GPU machine lacks (stb), carried in .devdeps (shared/device/README.md)
+if ls .devdeps/*.deb > /dev/null 2>&1; then
+  for f in .devdeps/*.deb; do dpkg -x "$f" /opt/deps; done
+  export CPATH=/opt/deps/usr/include${CPATH:+:$CPATH} CMAKE_PREFIX_PATH=/opt/deps/usr${CMAKE_PREFIX_PATH:+:$CMAKE_PREFIX_PATH}
+  export LIBRARY_PATH=/opt/deps/usr/lib/x86_64-linux-gnu LD_LIBRARY_PATH=/opt/deps/usr/lib/x86_64-linux-gnu${LD_LIBRARY_PATH:+:$LD_LIBRARY_PATH}
+fi
 
 if has build; then
   echo "== build"
@@ -61,6 +68,16 @@ if has export; then
     echo "-- with --export (run $k)"; $B/sphray run $S --export /tmp/sphray_export_bench.h5 | grep -E "simulated|wall time|export "
     rm -f /tmp/sphray_export_bench.h5 /tmp/sphray_export_bench.xmf
   done
+fi
+if has frame; then
+  echo "== bench frame (${FRAME_SIZES:-125k,1M}): substeps + field + render, 1920x1080, 4 interfaces"
+  $B/sphray bench frame --backend cuda --sizes "${FRAME_SIZES:-125k,1M}" ${FRAME_ARGS:-} --png-dir "$OUT" \
+    --json "$OUT/bench_frame${FRAME_TAG:-}.json" 2>&1
+fi
+if has render; then
+  echo "== bench render: PSNR against a fine reference vs render time (${RENDER_SIZE:-1M})"
+  $B/sphray bench render --backend cuda --size "${RENDER_SIZE:-1M}" --width 1920 --height 1080 ${RENDER_ARGS:-} \
+    --png-dir "$OUT" --json "$OUT/bench_render.json" 2>&1
 fi
 if has validate; then
   echo "== validation (cuda)"

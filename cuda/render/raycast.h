@@ -106,6 +106,7 @@ struct Environment {
   Vec3f tank_lo, tank_hi;  // the tank's inner box
   float tile;              // floor and wall tile edge [voxels]
   Vec3f sun;               // unit direction toward the sun
+  int glass;               // walls drawn as clear glass: bit f for face f (0..3 = -x +x -y +y)
 
   SPHRAY_HD SPHRAY_FORCEINLINE Rgb sky(Vec3f d) const {
     const float up = d.z < 0.0f ? 0.0f : d.z;
@@ -131,29 +132,73 @@ struct Environment {
     return (int(iu) + int(iv)) & 1 ? a : b;
   }
 
-  SPHRAY_HD Rgb operator()(Vec3f p, Vec3f d) const {
-    float t0, t1;
-    if (ray_box(p, d, tank_lo, tank_hi, t0, t1)) {
-      // The glass toward the viewer is not drawn: the ray leaves the tank
-      // through a far face (floor, wall or the open top).
-      const Vec3f q = p + d * t1;
-      const float eps = 1e-3f * tile;
-      const float light = 0.55f + 0.45f * (d.z < 0.0f ? -d.z : 0.0f);  // a little darker at grazing angles
-      if (q.z >= tank_hi.z - eps) return sky(d);
-      if (q.z <= tank_lo.z + eps) return tiles(q.x, q.y, Rgb{0.95f, 0.95f, 0.92f}, Rgb{0.25f, 0.45f, 0.75f}) * light;
-      const Rgb wa{0.85f, 0.82f, 0.75f}, wb{0.65f, 0.62f, 0.55f};
-      if (q.x <= tank_lo.x + eps || q.x >= tank_hi.x - eps) return tiles(q.y, q.z, wa, wb) * 0.8f;
-      return tiles(q.x, q.z, wa, wb) * 0.8f;
+  // Face of the tank box through which the ray p + t d (p inside) leaves,
+  // 0..5 = -x +x -y +y -z +z, and its distance.
+  SPHRAY_HD SPHRAY_FORCEINLINE int exit_face(Vec3f p, Vec3f d, float& t) const {
+    const float dd[3] = {d.x, d.y, d.z}, pp[3] = {p.x, p.y, p.z};
+    const float lo[3] = {tank_lo.x, tank_lo.y, tank_lo.z}, hi[3] = {tank_hi.x, tank_hi.y, tank_hi.z};
+    int face = 5;
+    t = 1e30f;
+    for (int k = 0; k < 3; ++k) {
+      if (dd[k] == 0.0f) continue;
+      const float tk = ((dd[k] > 0.0f ? hi[k] : lo[k]) - pp[k]) / dd[k];
+      if (tk < t) { t = tk; face = 2 * k + (dd[k] > 0.0f ? 1 : 0); }
     }
-    if (p.z < tank_lo.z) return tiles(p.x, p.y, Rgb{0.42f, 0.4f, 0.38f}, Rgb{0.3f, 0.29f, 0.28f});  // under the floor
-    if (d.z < 0.0f) {  // the ground around the tank
+    if (t < 0.0f) t = 0.0f;
+    return face;
+  }
+  // The floor and the walls that are not glass stop rays (the open top does not).
+  SPHRAY_HD SPHRAY_FORCEINLINE bool opaque(int face) const { return face == 4 || (face < 4 && !((glass >> face) & 1)); }
+  SPHRAY_HD SPHRAY_FORCEINLINE bool in_tank(Vec3f p) const {
+    const float e = 1e-3f * tile;
+    return p.x >= tank_lo.x - e && p.y >= tank_lo.y - e && p.z >= tank_lo.z - e && p.x <= tank_hi.x + e &&
+           p.y <= tank_hi.y + e && p.z <= tank_hi.z + e;
+  }
+  // Distance from p (in the tank) to the opaque face the ray would stop at
+  // (which one in `face`); 1e30 when it leaves through glass or the top.
+  SPHRAY_HD SPHRAY_FORCEINLINE float wall_distance(Vec3f p, Vec3f d, int& face) const {
+    if (!in_tank(p)) return 1e30f;
+    float t;
+    face = exit_face(p, d, t);
+    return opaque(face) ? t : 1e30f;
+  }
+
+  SPHRAY_HD Rgb outside(Vec3f p, Vec3f d) const {
+    const Rgb ga{0.42f, 0.4f, 0.38f}, gb{0.3f, 0.29f, 0.28f};
+    if (p.z < tank_lo.z) return tiles(p.x, p.y, ga, gb);  // under the floor (the volume's margin)
+    if (d.z < 0.0f) {  // the ground around the tank, fading into the haze
       const float t = (tank_lo.z - p.z) / d.z;
       const Vec3f q = p + d * t;
       const float fade = 1.0f / (1.0f + 0.002f * t / tile);
-      const Rgb g = tiles(q.x, q.y, Rgb{0.42f, 0.4f, 0.38f}, Rgb{0.3f, 0.29f, 0.28f}) * fade;
-      return g + sky(Vec3f{d.x, d.y, -d.z}) * (0.5f * (1.0f - fade));
+      return tiles(q.x, q.y, ga, gb) * fade + sky(Vec3f{d.x, d.y, -d.z}) * (0.5f * (1.0f - fade));
     }
     return sky(d);
+  }
+
+  SPHRAY_HD Rgb operator()(Vec3f p, Vec3f d) const {
+    float t0, t1;
+    if (!ray_box(p, d, tank_lo, tank_hi, t0, t1)) return outside(p, d);
+    // Through the tank: the glass faces (toward the viewer) are not drawn;
+    // the ray stops on the floor or an opaque wall, or leaves through the
+    // glass or the open top.
+    Vec3f q = p + d * (t0 > 0.0f ? t0 : 0.0f);
+    if (t0 > 0.0f) {  // entering from outside: through the top or glass only, else that face is seen
+      float tt;
+      const int enter = exit_face(q - d * (2e-3f * tile), -d, tt);  // the face the ray came in through
+      if (enter == 4 || (enter < 4 && opaque(enter))) return outside(p, d);  // the tank's outer side: like the ground
+    }
+    float t;
+    const int face = exit_face(q, d, t);
+    const Vec3f e = q + d * t;
+    return opaque(face) ? surface(face, e, d) : outside(e, d);
+  }
+
+  // The tiles of an opaque face at e, seen along d.
+  SPHRAY_HD Rgb surface(int face, Vec3f e, Vec3f d) const {
+    const float light = 0.55f + 0.45f * (d.z < 0.0f ? -d.z : 0.0f);  // a little darker at grazing angles
+    if (face == 4) return tiles(e.x, e.y, Rgb{0.95f, 0.95f, 0.92f}, Rgb{0.25f, 0.45f, 0.75f}) * light;
+    const Rgb wa{0.85f, 0.82f, 0.75f}, wb{0.65f, 0.62f, 0.55f};
+    return (face < 2 ? tiles(e.y, e.z, wa, wb) : tiles(e.x, e.z, wa, wb)) * 0.8f;
   }
 };
 
@@ -326,15 +371,23 @@ struct Tracer {
       interface_at(p, box_face_normal(p), d, inside, w, colour, watch);
       ++k;
     }
-    for (; k < ts.interfaces; ++k) {
+    bool stopped = false;  // on the floor or an opaque wall (wall_face)
+    int wall_face = 4;
+    for (; k < ts.interfaces && !stopped; ++k) {
       float b0, b1;
       ray_box(p, d, Vec3f{0, 0, 0}, box_hi, b0, b1);
-      const float t_max = b1 > 0.0f ? b1 : 0.0f;
+      const float t_box = b1 > 0.0f ? b1 : 0.0f, t_wall = env.wall_distance(p, d, wall_face);
+      const float t_max = t_wall < t_box ? t_wall : t_box;
       const float th = find_crossing(p, d, t_max, inside);
       const float len = th >= 0.0f ? th : t_max;
       watch.segment(p, p + d * len, inside);
       if (inside) absorb(w, len);
       if (th < 0.0f) {
+        if (t_wall <= t_box) {  // the tank stops the ray: the environment at the wall
+          p = p + d * t_wall;
+          stopped = true;
+          break;
+        }
         if (!inside) break;  // left the volume: the environment
         // still inside at the box: leave through the tank's glass
         p = p + d * t_max;
@@ -350,6 +403,7 @@ struct Tracer {
     // A ray that met no interface looks at the environment from its own
     // origin (the volume box reaches below the floor, where the ground would
     // otherwise be seen from underneath).
+    if (stopped) return colour + w * env.surface(wall_face, p, d);
     return colour + w * env(k == 0 ? o : p, d);
   }
 
@@ -407,7 +461,25 @@ SPHRAY_HD SPHRAY_FORCEINLINE uint32_t encode_rgba8(Rgb c) {
   return q(c.r) | (q(c.g) << 8) | (q(c.b) << 16) | (255u << 24);
 }
 
-// One thread per pixel: camera ray (world) to voxel units, trace, encode.
+// One thread per pixel, in 8 x 8 tiles (neighbouring threads trace
+// neighbouring rays: coherent branches and field reads): camera ray (world)
+// to voxel units, trace, encode.
+struct PixelTiles {
+  static constexpr int kTile = 8;
+  int width, height;
+  SPHRAY_HD SPHRAY_FORCEINLINE int tiles_x() const { return (width + kTile - 1) / kTile; }
+  SPHRAY_HD SPHRAY_FORCEINLINE uint32_t items() const {
+    return uint32_t(tiles_x()) * uint32_t((height + kTile - 1) / kTile) * uint32_t(kTile * kTile);
+  }
+  // Pixel of item idx; false outside the image (the last row and column of tiles).
+  SPHRAY_HD SPHRAY_FORCEINLINE bool pixel(uint32_t idx, int& x, int& y) const {
+    const uint32_t tile = idx / uint32_t(kTile * kTile), in = idx % uint32_t(kTile * kTile);
+    x = int(tile % uint32_t(tiles_x())) * kTile + int(in % kTile);
+    y = int(tile / uint32_t(tiles_x())) * kTile + int(in / kTile);
+    return x < width && y < height;
+  }
+};
+
 template <class Field>
 struct RaycastPixels {
   Camera cam;
@@ -417,10 +489,11 @@ struct RaycastPixels {
   uint32_t* rgba;  // width x height, row 0 at the top
 
   SPHRAY_HD void operator()(uint32_t idx) const {
-    const int x = int(idx % uint32_t(cam.width)), y = int(idx / uint32_t(cam.width));
+    int x, y;
+    if (!PixelTiles{cam.width, cam.height}.pixel(idx, x, y)) return;
     const Vec3f d = cam.direction(float(x) + 0.5f, float(y) + 0.5f);
     const Vec3f o = (cam.eye - origin) * inv_voxel;
-    rgba[idx] = encode_rgba8(tracer.trace(o, d));
+    rgba[size_t(y) * size_t(cam.width) + size_t(x)] = encode_rgba8(tracer.trace(o, d));
   }
 };
 

@@ -43,7 +43,7 @@ class RendererImpl final : public Renderer {
     Tracer<TrilinearField> tracer{TrilinearField{field, vol.nx, vol.ny, vol.nz}, occ,
                                   Vec3f{float(vol.nx), float(vol.ny), float(vol.nz)}, env,
                                   make_trace_settings(rs, fs)};
-    parallel_for(n_pix, RaycastPixels<TrilinearField>{cam, tracer, vol.origin, 1.0f / vol.voxel,
+    parallel_for(PixelTiles{width_, height_}.items(), RaycastPixels<TrilinearField>{cam, tracer, vol.origin, 1.0f / vol.voxel,
                                                       target_ ? target_ : raw(image_)});
     clock_.mark(1);
     clock_.finish(1);
