@@ -19,6 +19,7 @@
 #include "../src/metrics.h"
 #include "../src/pipeline.h"
 #include "../src/render.h"
+#include "../src/viewer.h"
 #include "../src/bench_frame.h"
 #include "../src/scene.h"
 #include "../src/setup.h"
@@ -218,10 +219,10 @@ bool is_png_path(const std::string& p) {
 }
 
 // A file we are about to write after a long computation: fail now if we cannot.
-void check_writable(const std::string& path) {
+void check_writable(const std::string& path, const char* flag = "--out") {
   const bool existed = std::filesystem::exists(path);
   std::FILE* f = std::fopen(path.c_str(), "ab");
-  if (!f) throw std::runtime_error("--out: cannot write '" + path + "'");
+  if (!f) throw std::runtime_error(std::string(flag) + ": cannot write '" + path + "'");
   std::fclose(f);
   if (!existed) std::remove(path.c_str());
 }
@@ -360,6 +361,18 @@ int main(int argc, char** argv) {
   render->add_option("--frames-every", render_frame_args.every, "a directory --out: every K-th output frame")
       ->check(CLI::Range(1, 1000000));
 
+  auto* view = app.add_subcommand("view", "the real-time dam break in a window (GLFW + OpenGL, Dear ImGui panel)");
+  ViewOptions view_opt;
+  FrameArgs view_frame_args;
+  view->add_option("scene", view_opt.scene, "scene JSON file (default: a built-in small dam break)");
+  view->add_option("--backend", view_opt.backend, "auto | cpu | cuda");
+  view->add_option("--set", view_opt.sets, "override a scene value, e.g. --set render.interfaces=8");
+  view->add_option("--size", view_frame_args.size, "raycast image (and window) size WIDTHxHEIGHT");
+  view->add_option("--substeps", view_opt.substeps, "SPH steps per frame (changeable in the panel)")
+      ->check(CLI::Range(1, 20));
+  view->add_option("--frames", view_opt.frames, "run this many frames, then exit")->check(CLI::Range(1, 1000000));
+  view->add_option("--screenshot", view_opt.screenshot, "with --frames: write the window's last frame as PNG");
+
   auto* inspect = app.add_subcommand("inspect", "summary of an HDF5 frames file: frames, times, counts, value ranges");
   std::string inspect_path;
   inspect->add_option("file", inspect_path, "a file written by sphray run --export")->required();
@@ -434,6 +447,13 @@ int main(int argc, char** argv) {
   try {
     if (run->parsed())
       return cmd_run(scene_path, backend, sets, metrics_csv, summary_json, quiet, export_args, frame_args);
+    if (view->parsed()) {
+      if (!view_opt.screenshot.empty() && view_opt.frames == 0)
+        throw std::runtime_error("--screenshot needs --frames N");
+      if (!view_opt.screenshot.empty()) check_writable(view_opt.screenshot, "--screenshot");
+      add_frame_overrides(view_frame_args, view_opt.sets);
+      return run_viewer(view_opt, std::cout);
+    }
     if (render->parsed()) {
       if (render_args.scene.empty() == render_args.from.empty())
         throw std::runtime_error("render: give either a scene file or --from FILE.h5");

@@ -24,11 +24,29 @@ need libhdf5-dev "test -f /usr/include/hdf5/serial/hdf5.h || test -f /usr/includ
 need libstb-dev "for p in /usr \${CMAKE_PREFIX_PATH//:/ }; do test -f \$p/include/stb/stb_image_write.h && exit 0; done; exit 1"
 # matplotlib only draws the validation plots (tools/validate.py report).
 need python3-matplotlib "python3 -c 'import matplotlib'"
+# The viewer (sphray view) and its test under Xvfb: wanted, not required. A
+# machine without them (or without a network, like the GPU machine) builds
+# everything else; the viewer's test then says it was not run.
+wanted=()
+want() { eval "$2" >/dev/null 2>&1 || wanted+=("$1"); }
+want pkg-config "command -v pkg-config"
+want libglfw3-dev "test -f /usr/include/GLFW/glfw3.h"
+want libglew-dev "test -f /usr/include/GL/glew.h"
+want libimgui-dev "test -f /usr/include/imgui/imgui.h"
+want xvfb "command -v xvfb-run"
+want xauth "command -v xauth"
+SUDO=""; [ "$(id -u)" -eq 0 ] || SUDO=sudo
+if [ ${#missing[@]} -gt 0 ] || [ ${#wanted[@]} -gt 0 ]; then
+  $SUDO apt-get update -qq || true
+fi
 if [ ${#missing[@]} -gt 0 ]; then
   echo "sphray setup: installing ${missing[*]}"
-  SUDO=""; [ "$(id -u)" -eq 0 ] || SUDO=sudo
-  $SUDO apt-get update -qq
   DEBIAN_FRONTEND=noninteractive $SUDO apt-get install -y -qq "${missing[@]}" >/dev/null
+fi
+if [ ${#wanted[@]} -gt 0 ]; then
+  echo "sphray setup: installing for the viewer: ${wanted[*]}"
+  DEBIAN_FRONTEND=noninteractive $SUDO apt-get install -y -qq "${wanted[@]}" >/dev/null ||
+    echo "sphray setup: could not install ${wanted[*]}: building without the viewer"
 fi
 
 BUILD=${SPHRAY_BUILD_DIR:-build}

@@ -1,0 +1,315 @@
+#include "viewer.h"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <memory>
+#include <ostream>
+#include <stdexcept>
+#include <string>
+
+#include <GL/glew.h>
+#include <GLFW/glfw3.h>
+#include <imgui.h>
+#include <backends/imgui_impl_glfw.h>
+#include <backends/imgui_impl_opengl3.h>
+
+#include "pipeline.h"
+#include "render.h"
+#include "scene.h"
+#include "sphray_shaders.h"
+#if defined(SPHRAY_HAVE_CUDA)
+#include "viewer_interop.h"
+#endif
+
+namespace sphray {
+
+bool viewer_built() { return true; }
+
+const char* small_view_scene() {
+  return R"({"name": "small_dam_break",
+  "description": "The dam break at 4 cm spacing (1,120 particles): interactive on the CPU backend.",
+  "tank": {"min": [0, 0, 0], "max": [1.6, 0.67, 0.6]},
+  "fluid": [{"min": [0, 0, 0], "max": [0.4, 0.67, 0.3]}],
+  "sph": {"spacing": 0.04},
+  "render": {"width": 640, "height": 360},
+  "run": {"end_time": 3.0, "output_interval": 0.02}})";
+}
+
+namespace {
+
+GLuint compile(GLenum type, const char* src) {
+  const GLuint s = glCreateShader(type);
+  glShaderSource(s, 1, &src, nullptr);
+  glCompileShader(s);
+  GLint ok = 0;
+  glGetShaderiv(s, GL_COMPILE_STATUS, &ok);
+  if (!ok) {
+    char log[2048];
+    glGetShaderInfoLog(s, sizeof log, nullptr, log);
+    throw std::runtime_error(std::string("viewer: shader does not compile: ") + log);
+  }
+  return s;
+}
+
+GLuint display_program() {
+  const GLuint p = glCreateProgram();
+  const GLuint v = compile(GL_VERTEX_SHADER, shaders::display_vert), f = compile(GL_FRAGMENT_SHADER, shaders::display_frag);
+  glAttachShader(p, v);
+  glAttachShader(p, f);
+  glLinkProgram(p);
+  glDeleteShader(v);
+  glDeleteShader(f);
+  GLint ok = 0;
+  glGetProgramiv(p, GL_LINK_STATUS, &ok);
+  if (!ok) throw std::runtime_error("viewer: shader program does not link");
+  return p;
+}
+
+// Mouse orbit around a target: yaw and pitch in radians, distance in metres.
+struct Orbit {
+  Vec3d target;
+  double yaw = 0, pitch = 0, dist = 1;
+  static Orbit from(Vec3d eye, Vec3d target) {
+    Orbit o;
+    o.target = target;
+    const Vec3d d = eye - target;
+    o.dist = length(d);
+    o.yaw = std::atan2(d.y, d.x);
+    o.pitch = std::asin(std::clamp(d.z / o.dist, -1.0, 1.0));
+    return o;
+  }
+  Vec3d eye() const {
+    return target + Vec3d{std::cos(pitch) * std::cos(yaw), std::cos(pitch) * std::sin(yaw), std::sin(pitch)} * dist;
+  }
+};
+
+struct Window {
+  GLFWwindow* w = nullptr;
+  ~Window() {
+    if (w) glfwDestroyWindow(w);
+    glfwTerminate();
+  }
+};
+
+struct Controls {
+  bool paused = false, step_once = false, reset = false;
+  Orbit orbit;
+  double last_x = 0, last_y = 0;
+  bool dragging = false;
+};
+
+void key_callback(GLFWwindow* w, int key, int, int action, int) {
+  if (action != GLFW_PRESS || ImGui::GetIO().WantCaptureKeyboard) return;
+  auto* c = static_cast<Controls*>(glfwGetWindowUserPointer(w));
+  if (key == GLFW_KEY_SPACE) c->paused = !c->paused;
+  if (key == GLFW_KEY_N) { c->paused = true; c->step_once = true; }
+  if (key == GLFW_KEY_R) c->reset = true;
+  if (key == GLFW_KEY_ESCAPE) glfwSetWindowShouldClose(w, 1);
+}
+
+void scroll_callback(GLFWwindow* w, double, double dy) {
+  if (ImGui::GetIO().WantCaptureMouse) return;
+  auto* c = static_cast<Controls*>(glfwGetWindowUserPointer(w));
+  c->orbit.dist *= std::pow(0.9, dy);
+}
+
+void mouse_move(GLFWwindow* w, Controls& c) {
+  double x, y;
+  glfwGetCursorPos(w, &x, &y);
+  const bool down = glfwGetMouseButton(w, GLFW_MOUSE_BUTTON_LEFT) == GLFW_PRESS && !ImGui::GetIO().WantCaptureMouse;
+  if (down && c.dragging) {
+    c.orbit.yaw -= 0.005 * (x - c.last_x);
+    c.orbit.pitch = std::clamp(c.orbit.pitch + 0.005 * (y - c.last_y), -1.5, 1.5);
+  }
+  c.dragging = down;
+  c.last_x = x;
+  c.last_y = y;
+}
+
+}  // namespace
+
+int run_viewer(const ViewOptions& opt, std::ostream& log) {
+  const auto t_start = std::chrono::steady_clock::now();
+  const Scene scene = opt.scene.empty() ? parse_scene(small_view_scene(), "(built-in small dam break)", opt.sets)
+                                        : load_scene(opt.scene, opt.sets);
+  const Backend b = choose_backend(opt.backend, log);
+  const int W = scene.render.width, H = scene.render.height;
+
+  if (!glfwInit()) throw std::runtime_error("viewer: cannot initialise GLFW (is there a display? try xvfb-run)");
+  Window win;
+  glfwWindowHint(GLFW_CONTEXT_VERSION_MAJOR, 3);
+  glfwWindowHint(GLFW_CONTEXT_VERSION_MINOR, 3);
+  glfwWindowHint(GLFW_OPENGL_PROFILE, GLFW_OPENGL_CORE_PROFILE);
+  win.w = glfwCreateWindow(W, H + 0, ("sphray view: " + scene.name).c_str(), nullptr, nullptr);
+  if (!win.w) throw std::runtime_error("viewer: cannot open an OpenGL 3.3 window (no display, or no GL 3.3)");
+  glfwMakeContextCurrent(win.w);
+  glfwSwapInterval(opt.frames > 0 ? 0 : 1);
+  glewExperimental = GL_TRUE;
+  if (glewInit() != GLEW_OK) throw std::runtime_error("viewer: GLEW cannot load the OpenGL functions");
+  log << "viewer: OpenGL " << glGetString(GL_VERSION) << " (" << glGetString(GL_RENDERER) << ")\n";
+
+  Controls ctl;
+  glfwSetWindowUserPointer(win.w, &ctl);
+  glfwSetKeyCallback(win.w, key_callback);  // before ImGui's: it chains to the callbacks it finds
+  glfwSetScrollCallback(win.w, scroll_callback);
+  IMGUI_CHECKVERSION();
+  ImGui::CreateContext();
+  ImGui::GetIO().IniFilename = nullptr;
+  ImGui_ImplGlfw_InitForOpenGL(win.w, true);
+  ImGui_ImplOpenGL3_Init("#version 330");
+
+  // The display: one texture the size of the raycast image, drawn over the window.
+  const GLuint program = display_program();
+  GLuint vao = 0, tex = 0, pbo = 0;
+  glGenVertexArrays(1, &vao);
+  glGenTextures(1, &tex);
+  glBindTexture(GL_TEXTURE_2D, tex);
+  glTexImage2D(GL_TEXTURE_2D, 0, GL_RGBA8, W, H, 0, GL_RGBA, GL_UNSIGNED_BYTE, nullptr);
+  glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MIN_FILTER, GL_LINEAR);
+  glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MAG_FILTER, GL_LINEAR);
+#if defined(SPHRAY_HAVE_CUDA)
+  std::unique_ptr<GlPixelBufferCuda> interop;
+  if (b == Backend::Cuda) {
+    glGenBuffers(1, &pbo);
+    glBindBuffer(GL_PIXEL_UNPACK_BUFFER, pbo);
+    glBufferData(GL_PIXEL_UNPACK_BUFFER, GLsizeiptr(W) * H * 4, nullptr, GL_STREAM_DRAW);
+    glBindBuffer(GL_PIXEL_UNPACK_BUFFER, 0);
+    interop = std::make_unique<GlPixelBufferCuda>(pbo);
+  }
+#endif
+
+  // The pipeline: every stage is needed here.
+  FieldKind kind = parse_field_kind(scene.field.builder);
+  const StageNeeds needs{PresenceMode::Off, true};
+  std::unique_ptr<Solver> solver = make_solver(scene, b, needs);
+  std::unique_ptr<FieldBuilder> field = make_field(scene, b, needs);
+  std::unique_ptr<Renderer> renderer = make_renderer(b);
+  RenderSettings rs = scene.render;
+  {
+    Vec3d eye = rs.eye, target = rs.target;
+    if (length(eye - target) == 0) auto_view(scene, rs, eye, target);
+    ctl.orbit = Orbit::from(eye, target);
+  }
+  int substeps = opt.substeps, builder_index = kind == FieldKind::Naive ? 0 : kind == FieldKind::Presence ? 1 : 2;
+  double sim_ms = 0, field_ms = 0, render_ms = 0, fps = 0;
+  std::string status;
+  int frame = 0;
+  auto last = std::chrono::steady_clock::now();
+
+  while (!glfwWindowShouldClose(win.w)) {
+    glfwPollEvents();
+    mouse_move(win.w, ctl);
+    if (ctl.reset) {
+      solver = make_solver(scene, b, needs);
+      ctl.reset = false;
+      status.clear();
+    }
+    // simulate
+    if ((!ctl.paused || ctl.step_once) && solver->time() < scene.run.end_time) {
+      sim_ms = 0;
+      try {
+        for (int k = 0; k < substeps; ++k) {
+          solver->set_presence(kind == FieldKind::Presence && k == substeps - 1 ? PresenceMode::EveryStep
+                                                                              : PresenceMode::Off);
+          solver->step(scene.run.end_time);
+          sim_ms += solver->last_stage_times().total();
+        }
+      } catch (const SimulationError& e) {
+        status = std::string("stopped: ") + e.what();
+        ctl.paused = true;
+      }
+      ctl.step_once = false;
+    }
+    // field and raycast
+    const ParticleView pv = solver->view();
+    field->build(pv, kind);
+    field_ms = field->last_ms();
+    const Camera cam = look_at(ctl.orbit.eye(), ctl.orbit.target, rs.fov, W, H);
+    const Environment env = make_environment(scene, field->setup().geom, cam);
+    glBindTexture(GL_TEXTURE_2D, tex);
+#if defined(SPHRAY_HAVE_CUDA)
+    if (interop) {  // the CUDA raycaster writes into the GL buffer; GL copies it into the texture on the device
+      renderer->set_target(interop->map());
+      renderer->render(field->data(), field->setup(), &pv, cam, env, rs);
+      interop->unmap();
+      glBindBuffer(GL_PIXEL_UNPACK_BUFFER, pbo);
+      glTexSubImage2D(GL_TEXTURE_2D, 0, 0, 0, W, H, GL_RGBA, GL_UNSIGNED_BYTE, nullptr);
+      glBindBuffer(GL_PIXEL_UNPACK_BUFFER, 0);
+    }
+#endif
+    if (b == Backend::Cpu) {
+      renderer->render(field->data(), field->setup(), &pv, cam, env, rs);
+      glTexSubImage2D(GL_TEXTURE_2D, 0, 0, 0, W, H, GL_RGBA, GL_UNSIGNED_BYTE, renderer->pixels());
+    }
+    render_ms = renderer->last_ms();
+
+    int fw, fh;
+    glfwGetFramebufferSize(win.w, &fw, &fh);
+    glViewport(0, 0, fw, fh);
+    glClear(GL_COLOR_BUFFER_BIT);
+    glUseProgram(program);
+    glBindVertexArray(vao);
+    glDrawArrays(GL_TRIANGLES, 0, 3);
+
+    // the panel
+    ImGui_ImplOpenGL3_NewFrame();
+    ImGui_ImplGlfw_NewFrame();
+    ImGui::NewFrame();
+    ImGui::SetNextWindowPos(ImVec2(8, 8), ImGuiCond_Once);
+    ImGui::Begin("sphray", nullptr, ImGuiWindowFlags_AlwaysAutoResize);
+    ImGui::Text("%s backend, %zu particles, t = %.3f s", backend_name(b), solver->num_fluid(), solver->time());
+    ImGui::SliderInt("substeps / frame", &substeps, 1, 20);
+    const char* builders[] = {"naive", "presence", "gather"};
+    if (ImGui::Combo("field builder", &builder_index, builders, 3)) kind = parse_field_kind(builders[builder_index]);
+    ImGui::SliderInt("interfaces", &rs.interfaces, 1, 8);
+    ImGui::Text("sim %.2f ms  field %.2f ms  render %.2f ms", sim_ms, field_ms, render_ms);
+    ImGui::Text("%.1f fps (%dx%d)", fps, W, H);
+    ImGui::Text("drag: orbit  wheel: zoom  space: pause  N: step  R: reset");
+    if (ctl.paused) ImGui::Text("paused");
+    if (!status.empty()) ImGui::TextWrapped("%s", status.c_str());
+    ImGui::End();
+    ImGui::Render();
+    ImGui_ImplOpenGL3_RenderDrawData(ImGui::GetDrawData());
+
+    ++frame;
+    if (frame == 1)
+      log << "viewer: first frame after "
+          << std::chrono::duration<double>(std::chrono::steady_clock::now() - t_start).count() << " s\n";
+    if (opt.frames > 0 && frame >= opt.frames) {
+      if (!opt.screenshot.empty()) {
+        Image img;
+        img.width = fw;
+        img.height = fh;
+        img.rgba.resize(size_t(fw) * size_t(fh));
+        std::vector<uint32_t> rows(img.rgba.size());
+        glPixelStorei(GL_PACK_ALIGNMENT, 4);
+        glReadBuffer(GL_BACK);
+        glReadPixels(0, 0, fw, fh, GL_RGBA, GL_UNSIGNED_BYTE, rows.data());
+        for (int y = 0; y < fh; ++y)  // GL's row 0 is the bottom
+          std::copy_n(rows.data() + size_t(fh - 1 - y) * fw, fw, img.rgba.data() + size_t(y) * fw);
+        write_png(opt.screenshot, img);
+        log << "viewer: wrote " << opt.screenshot << " after " << frame << " frames\n";
+      }
+      break;
+    }
+    glfwSwapBuffers(win.w);
+    const auto now = std::chrono::steady_clock::now();
+    const double dt = std::chrono::duration<double>(now - last).count();
+    last = now;
+    fps = fps == 0 ? 1.0 / dt : 0.9 * fps + 0.1 / dt;
+  }
+#if defined(SPHRAY_HAVE_CUDA)
+  interop.reset();
+#endif
+  ImGui_ImplOpenGL3_Shutdown();
+  ImGui_ImplGlfw_Shutdown();
+  ImGui::DestroyContext();
+  glDeleteBuffers(1, &pbo);
+  glDeleteTextures(1, &tex);
+  glDeleteVertexArrays(1, &vao);
+  glDeleteProgram(program);
+  return 0;
+}
+
+}  // namespace sphray

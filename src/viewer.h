@@ -1,0 +1,32 @@
+// `sphray view`: the real-time dam break in a window (GLFW + GLEW + Dear
+// ImGui). Each frame: SPH substeps, the density field, the raycast; the image
+// reaches the screen through CUDA-OpenGL interop on CUDA (no copy through the
+// host) and by texture upload on the CPU. docs/rendering.md, "The viewer".
+#pragma once
+
+#include <iosfwd>
+#include <string>
+#include <vector>
+
+namespace sphray {
+
+struct ViewOptions {
+  std::string scene;  // empty: the built-in small dam break
+  std::vector<std::string> sets;
+  std::string backend = "auto";
+  int frames = 0;          // > 0: run this many frames, then exit
+  std::string screenshot;  // with frames: the window's last frame as PNG
+  int substeps = 2;
+};
+
+// Whether this sphray was built with the viewer (GLFW, GLEW, Dear ImGui found).
+bool viewer_built();
+// Runs the window until closed (or `frames` frames). Throws on a bad scene or
+// when no display can be opened.
+int run_viewer(const ViewOptions& opt, std::ostream& log);
+
+// The built-in scene of `sphray view` without a scene file: a small dam break
+// that the CPU backend runs at interactive rates.
+const char* small_view_scene();
+
+}  // namespace sphray
