@@ -71,13 +71,13 @@ if has export; then
 fi
 if has frame; then
   echo "== bench frame (${FRAME_SIZES:-125k,1M}): substeps + field + render, 1920x1080, 4 interfaces"
-  $B/sphray bench frame --backend cuda --sizes "${FRAME_SIZES:-125k,1M}" ${FRAME_ARGS:-} --png-dir "$OUT" \
+  $B/sphray bench frame --backend cuda --sizes "${FRAME_SIZES:-125k,1M}" ${FRAME_ARGS:-} --png-dir "${PNG_DIR:-$OUT}" \
     --json "$OUT/bench_frame${FRAME_TAG:-}.json" 2>&1
 fi
 if has render; then
   echo "== bench render: PSNR against a fine reference vs render time (${RENDER_SIZE:-1M})"
   $B/sphray bench render --backend cuda --size "${RENDER_SIZE:-1M}" --width 1920 --height 1080 ${RENDER_ARGS:-} \
-    --png-dir "$OUT" --json "$OUT/bench_render.json" 2>&1
+    --png-dir "${PNG_DIR:-$OUT}" --json "$OUT/bench_render.json" 2>&1
 fi
 if has validate; then
   echo "== validation (cuda)"
