@@ -21,7 +21,12 @@ need catch2 "test -f /usr/include/catch2/catch.hpp || test -f /usr/include/catch
 need libthrust-dev "test -d /usr/local/cuda/include/cccl/thrust || test -f /usr/include/thrust/version.h"
 need libhdf5-dev "test -f /usr/include/hdf5/serial/hdf5.h || test -f /usr/include/hdf5.h"
 # stb (PNG): also found under a prefix in CMAKE_PREFIX_PATH (the GPU machine carries it, shared/device/README.md)
-need libstb-dev "for p in /usr \${CMAKE_PREFIX_PATH//:/ }; do test -f \$p/include/stb/stb_image_write.h && exit 0; done; exit 1"
+has_stb() {
+  local p
+  for p in /usr $(echo "${CMAKE_PREFIX_PATH:-}" | tr ':' ' '); do test -f "$p/include/stb/stb_image_write.h" && return 0; done
+  return 1
+}
+need libstb-dev has_stb
 # matplotlib only draws the validation plots (tools/validate.py report).
 need python3-matplotlib "python3 -c 'import matplotlib'"
 # The viewer (sphray view) and its test under Xvfb: wanted, not required. A
