@@ -35,20 +35,28 @@ std::string bench_field_scene(size_t particles, int volume) {
   return os.str();
 }
 
+int default_bench_volume(size_t particles) { return particles <= 200000 ? 64 : 256; }
+
+void simulate_collapse(const Scene& s, Solver& solver, double collapse, std::ostream& log, const std::string& what) {
+  const double a = s.fluid.at(0).box.max.x - s.fluid.at(0).box.min.x;
+  const double t_end = collapse * std::sqrt(a / (2.0 * length(s.gravity)));
+  log << "  " << solver.num_fluid() << " particles" << (what.empty() ? "" : ", " + what) << ": simulating the collapse to t = " << std::setprecision(3) << t_end
+      << " s\n";
+  log.flush();
+  solver.set_presence(PresenceMode::AtUntil);  // the step that reaches the frame computes presence
+  while (solver.time() < t_end - 1e-12) solver.step(t_end);
+}
+
 std::vector<BenchFieldRow> bench_field(Backend b, const BenchFieldOptions& opt, std::ostream& log) {
   std::vector<BenchFieldRow> rows;
   for (size_t target : opt.sizes) {
-    const int volume = opt.volume > 0 ? opt.volume : target <= 200000 ? 64 : 256;
+    const int volume = opt.volume > 0 ? opt.volume : default_bench_volume(target);
     const Scene s = parse_scene(bench_field_scene(target, volume), "bench_field", opt.overrides);
     const FieldSetup setup = make_field_setup(s);
     auto solver = make_solver(s, b, {});
-    const double a = s.fluid.at(0).box.max.x - s.fluid.at(0).box.min.x;
-    const double t_end = opt.collapse * std::sqrt(a / (2.0 * length(s.gravity)));
-    log << "  " << solver->num_fluid() << " particles, " << setup.geom.nx << "x" << setup.geom.ny << "x"
-        << setup.geom.nz << " voxels: simulating the collapse to t = " << std::setprecision(3) << t_end << " s\n";
-    log.flush();
-    solver->set_presence(PresenceMode::AtUntil);  // the step that reaches the frame computes presence
-    while (solver->time() < t_end - 1e-12) solver->step(t_end);
+    simulate_collapse(s, *solver, opt.collapse, log,
+                      std::to_string(setup.geom.nx) + "x" + std::to_string(setup.geom.ny) + "x" +
+                          std::to_string(setup.geom.nz) + " voxels");
     const ParticleView pv = solver->view();
 
     auto builder = make_field_builder(b, setup);

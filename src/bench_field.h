@@ -13,6 +13,7 @@
 
 #include "field.h"
 #include "metrics.h"
+#include "scene.h"
 #include "solver.h"
 
 namespace sphray {
@@ -38,6 +39,11 @@ struct BenchFieldRow {
 
 // The generated scene of one size (JSON text), for the record and for tests.
 std::string bench_field_scene(size_t particles, int volume);
+// The volume edge used when none is asked for: 64 up to 200k particles, else 256.
+int default_bench_volume(size_t particles);
+// Simulates the generated scene's column to T = t sqrt(2g/a) = collapse, the
+// step that reaches it computing presence; logs what it does (`what`: more about the run, e.g. the volume).
+void simulate_collapse(const Scene& s, Solver& solver, double collapse, std::ostream& log, const std::string& what = "");
 
 std::vector<BenchFieldRow> bench_field(Backend b, const BenchFieldOptions& opt, std::ostream& log);
 nlohmann::json to_json(const std::vector<BenchFieldRow>& rows, Backend b, const BenchFieldOptions& opt);

@@ -19,20 +19,10 @@ namespace {
 
 // The bench field scene of one size, with the render settings applied.
 Scene frame_scene(size_t target, int width, int height, int interfaces, std::vector<std::string> overrides) {
-  const int volume = target <= 200000 ? 64 : 256;
+  const int volume = default_bench_volume(target);
   overrides.insert(overrides.begin(), {"render.width=" + std::to_string(width), "render.height=" + std::to_string(height),
                                        "render.interfaces=" + std::to_string(interfaces)});
   return parse_scene(bench_field_scene(target, volume), "bench_frame", overrides);
-}
-
-void simulate_collapse(const Scene& s, Solver& solver, double collapse, std::ostream& log) {
-  const double a = s.fluid.at(0).box.max.x - s.fluid.at(0).box.min.x;
-  const double t_end = collapse * std::sqrt(a / (2.0 * length(s.gravity)));
-  log << "  " << solver.num_fluid() << " particles: simulating the collapse to t = " << std::setprecision(3) << t_end
-      << " s\n";
-  log.flush();
-  solver.set_presence(PresenceMode::AtUntil);
-  while (solver.time() < t_end - 1e-12) solver.step(t_end);
 }
 
 std::string png_path(const std::string& dir, const std::string& name) {
@@ -57,14 +47,7 @@ std::vector<BenchFrameRow> bench_frame(Backend b, const BenchFrameOptions& opt, 
     std::vector<double> sim, fld, ren, tot, wall;
     for (int f = 0; f < opt.warmup + opt.frames; ++f) {
       const auto t0 = std::chrono::steady_clock::now();
-      double sim_ms = 0;
-      for (int k = 0; k < opt.substeps; ++k) {
-        // presence only on the frame's last substep, as a run computes it
-        solver->set_presence(kind == FieldKind::Presence && k == opt.substeps - 1 ? PresenceMode::EveryStep
-                                                                                : PresenceMode::Off);
-        solver->step(1e30);
-        sim_ms += solver->last_stage_times().total();
-      }
+      const double sim_ms = advance_frame(*solver, opt.substeps, kind == FieldKind::Presence, 1e30);
       const ParticleView pv = solver->view();
       field->build(pv, kind);
       renderer->render(field->data(), field->setup(), &pv, cam, env, s.render);

@@ -59,6 +59,16 @@ std::string format_seconds(double s) {
 
 }  // namespace
 
+double advance_frame(Solver& solver, int substeps, bool presence, double until) {
+  double ms = 0;
+  for (int k = 0; k < substeps && solver.time() < until; ++k) {
+    solver.set_presence(presence && k == substeps - 1 ? PresenceMode::EveryStep : PresenceMode::Off);
+    solver.step(until);
+    ms += solver.last_stage_times().total();
+  }
+  return ms;
+}
+
 RunSummary run_scene(const Scene& s, Solver& solver, const RunOptions& opt, std::ostream& log) {
   using clock = std::chrono::steady_clock;
   RunSummary r;

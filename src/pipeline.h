@@ -55,6 +55,11 @@ struct RunSummary {
   int field_dims[3] = {0, 0, 0};
 };
 
+// One displayed frame of simulation: `substeps` steps (never past `until`),
+// presence computed on the last one only when asked for (the field builder
+// reads it once per frame). Returns the steps' device milliseconds.
+double advance_frame(Solver& solver, int substeps, bool presence, double until);
+
 RunSummary run_scene(const Scene& s, Solver& solver, const RunOptions& opt, std::ostream& log);
 void print_summary(const RunSummary& r, std::ostream& log);
 

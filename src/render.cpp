@@ -3,6 +3,7 @@
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
+#include <cstdlib>
 #include <cstring>
 #include <limits>
 #include <stdexcept>
@@ -37,7 +38,10 @@ Camera look_at(Vec3d eye, Vec3d target, double fov_deg, int width, int height) {
   return c;
 }
 
-void auto_view(const Scene& s, const RenderSettings& r, Vec3d& eye, Vec3d& target) {
+void camera_points(const Scene& s, const RenderSettings& r, Vec3d& eye, Vec3d& target) {
+  eye = r.eye;
+  target = r.target;
+  if (length(eye - target) > 0) return;
   // Three-quarter view from the front (-y), a little to the right and above,
   // far enough that the whole tank fits the field of view.
   const Vec3d lo = s.tank.min, hi = s.tank.max, size = hi - lo;
@@ -49,8 +53,8 @@ void auto_view(const Scene& s, const RenderSettings& r, Vec3d& eye, Vec3d& targe
 }
 
 Camera make_camera(const Scene& s, const RenderSettings& r) {
-  Vec3d eye = r.eye, target = r.target;
-  if (length(eye - target) == 0) auto_view(s, r, eye, target);
+  Vec3d eye, target;
+  camera_points(s, r, eye, target);
   return look_at(eye, target, r.fov, r.width, r.height);
 }
 
@@ -130,13 +134,32 @@ Image read_png(const std::string& path) {
   return img;
 }
 
-double psnr(const Image& a, const Image& b) {
+namespace {
+void check_same_size(const Image& a, const Image& b, const char* what) {
   if (a.width != b.width || a.height != b.height || a.rgba.size() != b.rgba.size() || a.rgba.empty())
-    throw std::invalid_argument("psnr: images differ in size");
+    throw std::invalid_argument(std::string(what) + ": images differ in size");
+}
+int channel(uint32_t px, int c) { return int((px >> (8 * c)) & 0xff); }
+}  // namespace
+
+size_t pixels_differing(const Image& a, const Image& b, int levels) {
+  check_same_size(a, b, "pixels_differing");
+  size_t n = 0;
+  for (size_t i = 0; i < a.rgba.size(); ++i)
+    for (int c = 0; c < 3; ++c)
+      if (std::abs(channel(a.rgba[i], c) - channel(b.rgba[i], c)) > levels) {
+        ++n;
+        break;
+      }
+  return n;
+}
+
+double psnr(const Image& a, const Image& b) {
+  check_same_size(a, b, "psnr");
   double se = 0;
   for (size_t i = 0; i < a.rgba.size(); ++i)
     for (int c = 0; c < 3; ++c) {
-      const double d = double((a.rgba[i] >> (8 * c)) & 0xff) - double((b.rgba[i] >> (8 * c)) & 0xff);
+      const double d = double(channel(a.rgba[i], c) - channel(b.rgba[i], c));
       se += d * d;
     }
   const double mse = se / (3.0 * double(a.rgba.size()));

@@ -20,8 +20,9 @@ struct Scene;
 
 // A pinhole camera at eye looking at target, z up; vertical field of view in degrees.
 Camera look_at(Vec3d eye, Vec3d target, double fov_deg, int width, int height);
-// The automatic view of a scene's tank (render.eye/target unset).
-void auto_view(const Scene& s, const RenderSettings& r, Vec3d& eye, Vec3d& target);
+// The camera's eye and target: render.eye/target, or (unset) the automatic
+// three-quarter view of the scene's tank.
+void camera_points(const Scene& s, const RenderSettings& r, Vec3d& eye, Vec3d& target);
 // The scene's camera (render.eye/target/fov, or the automatic view) at the render's size.
 Camera make_camera(const Scene& s, const RenderSettings& r);
 // The tank, floor and sky in the voxel units of `vol`; the walls that face
@@ -83,6 +84,8 @@ class FrameRenderer {
 // PNG through stb_image_write; throws std::runtime_error naming the path.
 void write_png(const std::string& path, const Image& img);
 Image read_png(const std::string& path);
+// Pixels where some channel of R, G, B differs by more than `levels`.
+size_t pixels_differing(const Image& a, const Image& b, int levels);
 // Peak signal-to-noise ratio over R, G, B (8-bit), in dB; +inf for equal images.
 double psnr(const Image& a, const Image& b);
 

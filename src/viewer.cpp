@@ -187,8 +187,8 @@ int run_viewer(const ViewOptions& opt, std::ostream& log) {
   std::unique_ptr<Renderer> renderer = make_renderer(b);
   RenderSettings rs = scene.render;
   {
-    Vec3d eye = rs.eye, target = rs.target;
-    if (length(eye - target) == 0) auto_view(scene, rs, eye, target);
+    Vec3d eye, target;
+    camera_points(scene, rs, eye, target);
     ctl.orbit = Orbit::from(eye, target);
   }
   int substeps = opt.substeps, builder_index = kind == FieldKind::Naive ? 0 : kind == FieldKind::Presence ? 1 : 2;
@@ -207,14 +207,8 @@ int run_viewer(const ViewOptions& opt, std::ostream& log) {
     }
     // simulate
     if ((!ctl.paused || ctl.step_once) && solver->time() < scene.run.end_time) {
-      sim_ms = 0;
       try {
-        for (int k = 0; k < substeps; ++k) {
-          solver->set_presence(kind == FieldKind::Presence && k == substeps - 1 ? PresenceMode::EveryStep
-                                                                              : PresenceMode::Off);
-          solver->step(scene.run.end_time);
-          sim_ms += solver->last_stage_times().total();
-        }
+        sim_ms = advance_frame(*solver, substeps, kind == FieldKind::Presence, scene.run.end_time);
       } catch (const SimulationError& e) {
         status = std::string("stopped: ") + e.what();
         ctl.paused = true;

@@ -158,14 +158,7 @@ TEST_CASE("sphray run --frames-dir and sphray render write PNGs of the liquid; r
   REQUIRE(r.code == 0);
   const sphray::Image empty = sphray::read_png("/tmp/sphray_render_empty.png");
   const sphray::Image t0 = sphray::read_png("/tmp/sphray_frames/frame_000000.png");
-  size_t differ = 0;
-  for (size_t p = 0; p < t0.rgba.size(); ++p)
-    for (int ch = 0; ch < 3; ++ch)
-      if (std::abs(int((t0.rgba[p] >> (8 * ch)) & 0xff) - int((empty.rgba[p] >> (8 * ch)) & 0xff)) > 20) {
-        ++differ;
-        break;
-      }
-  CHECK(differ > t0.rgba.size() / 50);  // the column covers more than 2% of the image
+  CHECK(sphray::pixels_differing(t0, empty, 20) > t0.rgba.size() / 50);  // the column covers more than 2% of the image
 
   // the exported particles render as the run rendered them (field rebuilt from the file's positions)
   r = run_cli("render --from /tmp/sphray_render.h5 --frame 4 --out /tmp/sphray_render_from.png" + small);
@@ -247,13 +240,7 @@ TEST_CASE("sphray view opens a real window under Xvfb and shows the liquid", "[v
   REQUIRE(a.height == 450);
   REQUIRE(b.rgba.size() == a.rgba.size());
   // the window shows the raycast liquid: it differs from the same window over an empty tank
-  size_t differ = 0;
-  for (size_t p = 0; p < a.rgba.size(); ++p)
-    for (int ch = 0; ch < 3; ++ch)
-      if (std::abs(int((a.rgba[p] >> (8 * ch)) & 0xff) - int((b.rgba[p] >> (8 * ch)) & 0xff)) > 20) {
-        ++differ;
-        break;
-      }
+  const size_t differ = sphray::pixels_differing(a, b, 20);
   INFO(differ << " of " << a.rgba.size() << " pixels differ");
   CHECK(differ > a.rgba.size() / 50);
   // and it is not blank: many distinct colours

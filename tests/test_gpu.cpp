@@ -95,13 +95,7 @@ TEST_CASE("cuda raycast agrees with the cpu raycast", "[gpu]") {
     rc->render(fc->data(), fs, &vc, cam, env, rs);
     rg->render(fg->data(), fs, &vg, cam, env, rs);
     const Image a = rc->download(), b = rg->download();
-    size_t differ = 0;
-    for (size_t p = 0; p < a.rgba.size(); ++p)
-      for (int ch = 0; ch < 3; ++ch)
-        if (std::abs(int((a.rgba[p] >> (8 * ch)) & 0xff) - int((b.rgba[p] >> (8 * ch)) & 0xff)) > 3) {
-          ++differ;
-          break;
-        }
+    const size_t differ = pixels_differing(a, b, 3);
     INFO(interfaces << " interfaces: PSNR " << psnr(a, b) << " dB, " << differ << " pixels differ by more than 3 levels");
     CHECK(psnr(a, b) > 40.0);
     CHECK(differ < a.rgba.size() / 200);

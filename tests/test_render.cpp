@@ -341,13 +341,7 @@ TEST_CASE("empty-space skipping is conservative and leaves the image unchanged",
     rs.skip_empty = true;
     renderer->render(builder->data(), fs, &pv, cam, env, rs);
     const Image skipped = renderer->download();
-    size_t differ = 0;
-    for (size_t p = 0; p < plain.rgba.size(); ++p) {
-      for (int ch = 0; ch < 3; ++ch) {
-        const int a = int((plain.rgba[p] >> (8 * ch)) & 0xff), b = int((skipped.rgba[p] >> (8 * ch)) & 0xff);
-        if (std::abs(a - b) > 2) { ++differ; break; }
-      }
-    }
+    const size_t differ = pixels_differing(plain, skipped, 2);
     INFO("PSNR " << psnr(plain, skipped) << " dB, " << differ << " pixels differ by more than 2 levels");
     CHECK(psnr(plain, skipped) > 45.0);
     CHECK(differ < plain.rgba.size() / 500);
@@ -358,7 +352,7 @@ TEST_CASE("empty-space skipping is conservative and leaves the image unchanged",
   }
 }
 
-TEST_CASE("PNG round trip and PSNR against a known difference", "[render]") {
+TEST_CASE("PNG round trip; PSNR and differing pixels against a known difference", "[render]") {
   Image a;
   a.width = 37;
   a.height = 21;
@@ -375,6 +369,9 @@ TEST_CASE("PNG round trip and PSNR against a known difference", "[render]") {
   Image c = a;  // red off by exactly one level everywhere (never wrapping)
   for (auto& p : c.rgba) p = (p & 0xffffff00u) | (((p & 0xff) == 255 ? 254 : (p & 0xff) + 1));
   CHECK(psnr(a, c) == Approx(10 * std::log10(255.0 * 255.0 * 3.0)).margin(1e-9));
+  CHECK(pixels_differing(a, c, 0) == a.rgba.size());
+  CHECK(pixels_differing(a, c, 1) == 0);
+  CHECK(pixels_differing(a, b, 0) == 0);
   std::remove(path.c_str());
   CHECK(error_of([&] { read_png(path); }).find("cannot read PNG") != std::string::npos);
   CHECK(error_of([&] { write_png("/nonexistent-dir/x.png", a); }).find("/nonexistent-dir/x.png") != std::string::npos);

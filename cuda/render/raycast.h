@@ -309,8 +309,8 @@ struct Tracer {
     const float iso = ts.iso;
     float t = 0.0f;
     float g = field(o) - iso;
-    // A ray that starts on the wrong side of its own state (it just crossed)
-    // is nudged forward: the state is what the last interface decided.
+    // `inside` is what the last interface decided, not the sign of g here: a
+    // ray that starts on the surface looks for the next crossing out of its state.
     while (t < t_max) {
       if (!inside && occupancy.empty_at(o + d * t)) {
         t += occupancy.cell_exit(o + d * t, d) + 1e-3f;
