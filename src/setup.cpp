@@ -87,7 +87,21 @@ SphParams make_params(const Scene& s) {
   p.spacing = float(dx);
   p.tank = {to_f(s.tank.min), to_f(s.tank.max)};
   p.open_top = s.open_top;
+  p.presence_scale = float(0.5 / presence_lobe_on_lattice(SmoothingKernel<double>::make(s.sph.kernel, h), dx));
   return p;
+}
+
+double presence_lobe_on_lattice(const SmoothingKernel<double>& k, double dx) {
+  // sum over the half space i < 0 of a cubic lattice of dx^3 (-dW/dr / r) |i dx|
+  const int m = int(std::ceil(k.support() / dx));
+  double sum = 0;
+  for (int z = -m; z <= m; ++z)
+    for (int y = -m; y <= m; ++y)
+      for (int x = -m; x < 0; ++x) {
+        const double r = dx * std::sqrt(double(x * x + y * y + z * z));
+        if (r < k.support()) sum += dx * dx * dx * -k.dW_over_r(r) * (-x * dx);
+      }
+  return sum;
 }
 
 SceneSize measure_scene(const Scene& s) {
@@ -121,7 +135,7 @@ SceneSize measure_scene(const Scene& s) {
   g.ny = int(std::min(ny, 2e9));
   g.nz = int(std::min(nz, 2e9));
   // Solver buffers (see SolverImpl) plus sort scratch and the host-side copy.
-  z.bytes = z.fluid * 200 + z.boundary * 64 + z.cells * 8;
+  z.bytes = z.fluid * 200 + z.boundary * 64 + z.cells * (4 + 8 * GridGeom::kSubX);  // coarse + 2 slab tables
   return z;
 }
 
@@ -129,9 +143,9 @@ void check_fits(const Scene& s, Backend backend, bool field) {
   const SceneSize z = measure_scene(s);
   const double gib = 1024.0 * 1024.0 * 1024.0;
   std::ostringstream os;
-  if (z.cells >= 0xffffffffull || z.fluid >= 0x7fffffffull || z.boundary >= 0x7fffffffull) {
+  if (z.cells * GridGeom::kSubX >= 0xffffffffull || z.fluid >= 0x7fffffffull || z.boundary >= 0x7fffffffull) {
     os << s.file << ": sph.spacing = " << s.sph.spacing << " gives " << z.fluid << " fluid particles, " << z.boundary
-       << " wall particles and " << z.cells << " grid cells: more than sphray can index (2^31 particles, 2^32 cells). "
+       << " wall particles and " << z.cells << " grid cells: more than sphray can index (2^31 particles, 2^30 cells). "
        << "Raise sph.spacing or shrink the tank.";
     throw SceneError(os.str());
   }

@@ -117,11 +117,12 @@ std::string cuda_device_name();  // empty when none
 size_t cuda_free_memory();       // bytes, 0 when none
 
 // Neighbour grid alone, for tests and for later stages that need one over
-// arbitrary points: sorted order, keys and offsets.
+// arbitrary points: sorted order, coarse keys, coarse and slab offsets.
 struct GridBuild {
   std::vector<uint32_t> order;  // order[k] = input index of the k-th sorted point
   std::vector<uint32_t> keys;   // sorted keys
-  std::vector<uint32_t> offsets;
+  std::vector<uint32_t> offsets;       // coarse cells, num_cells() + 1
+  std::vector<uint32_t> fine_offsets;  // x slabs (grid.h), num_fine_cells() + 1: for for_each_candidate
 };
 GridBuild build_grid(Backend b, const GridGeom& g, const std::vector<Vec3f>& points);
 

@@ -17,12 +17,18 @@ namespace {
 void check_against_brute_force(Backend b, const GridGeom& g, const std::vector<Vec3f>& pts, float radius) {
   const GridBuild gb = build_grid(b, g, pts);
   REQUIRE(gb.offsets.size() == size_t(g.num_cells()) + 1);
+  REQUIRE(gb.fine_offsets.size() == size_t(g.num_fine_cells()) + 1);
+  // The coarse table is the slab table at every kSubX-th slab.
+  for (uint32_t c = 0; c <= g.num_cells(); ++c) REQUIRE(gb.offsets[c] == gb.fine_offsets[size_t(c) * GridGeom::kSubX]);
   const uint32_t inside = gb.offsets.back();
   // Sorted points and keys agree, and every cell's range holds its own key.
   std::vector<Vec3f> sorted(pts.size());
   for (size_t k = 0; k < pts.size(); ++k) sorted[k] = pts[gb.order[k]];
   for (uint32_t c = 0; c < g.num_cells(); ++c)
     for (uint32_t k = gb.offsets[c]; k < gb.offsets[c + 1]; ++k) REQUIRE(gb.keys[k] == c);
+  // Within a cell, points are ordered by their x slab, and every slab range holds its own slab.
+  for (uint32_t k = 0; k < g.num_fine_cells(); ++k)
+    for (uint32_t i = gb.fine_offsets[k]; i < gb.fine_offsets[k + 1]; ++i) REQUIRE(g.fine_key_of(sorted[i]) == k);
   size_t expected_inside = 0;
   for (const auto& p : pts) expected_inside += g.key_of(p) < g.num_cells();
   REQUIRE(inside == expected_inside);
@@ -30,7 +36,7 @@ void check_against_brute_force(Backend b, const GridGeom& g, const std::vector<V
   const float r2 = radius * radius;
   for (uint32_t i = 0; i < inside; ++i) {
     std::set<uint32_t> via_grid, brute;
-    for_each_candidate(g, gb.offsets.data(), sorted[i], [&](uint32_t j) {
+    for_each_candidate(g, gb.fine_offsets.data(), sorted[i], [&](uint32_t j) {
       if (length2(sorted[i] - sorted[j]) < r2) via_grid.insert(gb.order[j]);
     });
     for (uint32_t j = 0; j < inside; ++j)
@@ -59,6 +65,54 @@ TEST_CASE("grid neighbours match brute force on a jittered lattice", "[grid][cpu
     for (int y = 0; y < 12; ++y)
       for (int x = 0; x < 12; ++x) pts.push_back({0.01f + 0.02f * x + j(rng), 0.01f + 0.02f * y + j(rng), 0.01f + 0.02f * z + j(rng)});
   check_against_brute_force(Backend::Cpu, unit_grid(5, 0.052f), pts, 0.052f);
+}
+
+TEST_CASE("grid finds pairs just inside the support across diagonal rows", "[grid][cpu]") {
+  // Partners at 0.9999 of the support in random directions: most pairs lie in
+  // a side or corner row, where the query cuts the row to the sphere.
+  std::mt19937 rng(5);
+  std::uniform_real_distribution<float> u(0.15f, 0.85f), a(-1.0f, 1.0f);
+  const float s = 0.1f;
+  std::vector<Vec3f> pts;
+  while (pts.size() < 1200) {
+    Vec3f d{a(rng), a(rng), a(rng)};
+    const float l = std::sqrt(length2(d));
+    if (l < 0.1f || l > 1.0f) continue;
+    const Vec3f c{u(rng), u(rng), u(rng)};
+    pts.push_back(c);
+    pts.push_back(c + (0.9999f * s / l) * d);
+  }
+  check_against_brute_force(Backend::Cpu, unit_grid(10, s), pts, s);
+}
+
+TEST_CASE("grid queries read about half the candidates of the 27 cells", "[grid][cpu]") {
+  // Uniform points: the culled query must test well under the 27 cells' worth
+  // (expected about 15 cell volumes: grid.h), and still find every neighbour.
+  std::mt19937 rng(9);
+  std::uniform_real_distribution<float> u(0.0f, 1.0f);
+  std::vector<Vec3f> pts(20000);
+  for (auto& p : pts) p = {u(rng), u(rng), u(rng)};
+  const GridGeom g = unit_grid(10, 0.1f);
+  const GridBuild gb = build_grid(Backend::Cpu, g, pts);
+  double culled = 0, full = 0;
+  size_t queries = 0;
+  for (uint32_t i = 0; i < gb.offsets.back(); ++i) {
+    const Vec3f p = pts[gb.order[i]];
+    const int cx = g.coord(p.x, 0.0f), cy = g.coord(p.y, 0.0f), cz = g.coord(p.z, 0.0f);
+    if (cx < 1 || cy < 1 || cz < 1 || cx > 8 || cy > 8 || cz > 8) continue;  // interior cells only
+    ++queries;
+    for_each_candidate(g, gb.fine_offsets.data(), p, [&](uint32_t) { culled += 1; });
+    for (int z = cz - 1; z <= cz + 1; ++z)
+      for (int y = cy - 1; y <= cy + 1; ++y) {
+        const uint32_t row = uint32_t((z * g.ny + y) * g.nx);
+        full += gb.offsets[row + uint32_t(cx) + 2] - gb.offsets[row + uint32_t(cx) - 1];
+      }
+  }
+  REQUIRE(queries > 5000);
+  const double ratio = culled / full;
+  INFO("candidates per query: " << culled / queries << " culled, " << full / queries << " in 27 cells");
+  CHECK(ratio < 0.6);
+  CHECK(ratio > 4.18 / 27.0);  // never fewer than the sphere holds
 }
 
 TEST_CASE("grid handles points exactly on cell faces and empty cells", "[grid][cpu]") {

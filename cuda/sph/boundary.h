@@ -14,14 +14,26 @@
 
 namespace sphray {
 
+// Density that the Tait equation gives for a pressure (its inverse).
+SPHRAY_HD SPHRAY_FORCEINLINE float tait_density(const SphParams& p, float pressure) {
+  return p.rest_density * std::pow(1.0f + pressure / p.tait_b, 1.0f / 7.0f);
+}
+
+// What the forces stage reads of a wall particle: p_w / rho_w^2 and rho_w,
+// computed once per wall particle and step rather than per fluid neighbour.
+struct alignas(8) WallState {
+  float p_over_rho2;
+  float rho;
+};
+
 struct WallPressure {
   SphParams prm;
   GridGeom grid;
-  const uint32_t* fluid_offsets;
+  const uint32_t* fluid_offsets;  // slab table (grid.h)
   const Float4* pos_rho;   // sorted fluid
   const Float4* vel;       // sorted fluid; w = p / rho^2
   const Float4* boundary;  // sorted boundary: x, y, z, volume
-  float* wall_pressure;    // out, per boundary particle [Pa]
+  WallState* wall;         // out, per boundary particle
 
   SPHRAY_HD void operator()(uint32_t b) const {
     const Vec3f xb = xyz(boundary[b]);
@@ -35,13 +47,10 @@ struct WallPressure {
       sum_rho_r += (pf.w * w) * r;
     });
     const float p = sum_w > 0.0f ? (sum_pw + dot(prm.gravity, sum_rho_r)) / sum_w : 0.0f;
-    wall_pressure[b] = p > 0.0f ? p : 0.0f;
+    const float p_w = p > 0.0f ? p : 0.0f;
+    const float rho_w = tait_density(prm, p_w);
+    wall[b] = {p_w / (rho_w * rho_w), rho_w};
   }
 };
-
-// Density that the Tait equation gives for a pressure (its inverse).
-SPHRAY_HD SPHRAY_FORCEINLINE float tait_density(const SphParams& p, float pressure) {
-  return p.rest_density * std::pow(1.0f + pressure / p.tait_b, 1.0f / 7.0f);
-}
 
 }  // namespace sphray

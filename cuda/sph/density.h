@@ -7,18 +7,16 @@
 // Kawaguchi (shared/papers, sec. 4.2.3).
 //
 // Presence, as defined here: for each signed axis direction d,
-//   P_d = min(1, 2 * sum_{j in half-space d} V_j (-dW/dr / r) (r_ij . d)^2)
-// i.e. the liquid in that half space weighted by -W'(r) r cos^2. Over all
-// space that weight integrates to exactly 1 (by parts: the integral of
-// -W'(r) r^3 4 pi dr is 3 x that of W r^2 4 pi dr), so over a half space to
-// 1/2: a particle deep in the liquid reads ~1 in all six directions, a
-// free-surface particle 0 toward the air (~1 into the liquid, in between
-// sideways) and an isolated one 0; the particle itself weighs nothing (r = 0).
-// The weight reuses V_j (-dW/dr / r), which the diffusion term computes
-// anyway, so presence costs three multiplies and six FMAs per neighbour.
-// (Yasuda et al.'s own weight is an ad hoc k / (x / y^2); any smooth lobe with
-// these three properties serves the field builder.) Only liquid counts:
-// walls are not liquid.
+//   P_d = min(1, (1 / K) * sum_{j in half-space d} V_j (-dW/dr) |cos(r_ij, d)|)
+// with K the same sum for a particle inside a full cubic lattice of the
+// scene's spacing (setup.cpp, presence_lobe_on_lattice): a particle deep in the
+// liquid reads ~1 in all six directions, a free-surface particle 0 toward the
+// air (~1 into the liquid, in between sideways) and an isolated one 0; the
+// particle itself weighs nothing (r = 0). Per neighbour that is
+// V_j (-dW/dr / r) |r_a|, and V_j (-dW/dr / r) is the weight the diffusion term
+// computes anyway, so presence costs two FMAs per axis and neighbour (Yasuda
+// et al.'s own weight is an ad hoc k / (x / y^2); any smooth lobe with these
+// three properties serves the field builder). Only liquid counts: walls are not liquid.
 #pragma once
 
 #include <cstdint>
@@ -31,7 +29,7 @@ template <bool WithPresence>
 struct DensityRate {
   SphParams prm;
   GridGeom grid;
-  const uint32_t* fluid_offsets;
+  const uint32_t* fluid_offsets;  // slab tables (grid.h)
   const Float4* pos_rho;  // sorted fluid: x, y, z, density
   const Float4* vel;      // sorted fluid: vx, vy, vz, -
   const uint32_t* boundary_offsets;
@@ -49,24 +47,22 @@ struct DensityRate {
     // Linearised Tait: hydrostatic rho_j - rho_i = rho0 g.(x_j - x_i) / c0^2.
     const float hydro = prm.rest_density / (prm.speed_of_sound * prm.speed_of_sound);
     float rate = 0.0f;
-    // Presence lobes in registers (+x, -x, +y, -y, +z, -z): named scalars, not
-    // an indexed array, so the GPU keeps them out of local memory.
-    // Per axis, t = sum s r_a^2 and u = sum s r_a |r_a| give both half-space
-    // lobes: +a = (t - u) / 2 (neighbours with r_a < 0 lie toward +a), -a = (t + u) / 2.
-    // Two FMAs per axis instead of selects, all in registers.
-    float tx = 0, ty = 0, tz = 0, ux = 0, uy = 0, uz = 0;
+    // Presence lobes in registers (named scalars, not an indexed array, so the
+    // GPU keeps them out of local memory). Per axis, s = sum w r_a and
+    // u = sum w |r_a| give both half-space lobes: +a = (u - s) / 2 (neighbours
+    // with r_a < 0 lie toward +a), -a = (u + s) / 2. Two FMAs per axis.
+    float sx = 0, sy = 0, sz = 0, ux = 0, uy = 0, uz = 0;
 
     for_each_neighbour(grid, fluid_offsets, pos_rho, xi, support2, i, [&](uint32_t j, Float4 pj, Vec3f r, float r2) {
       const float dwr = prm.kernel.dW_over_r(r2 * inv_sqrt(r2));
-      const float vol_j = prm.particle_mass / pj.w;
+      const float vol_j = fast_div(prm.particle_mass, pj.w);
       const float weight = -dwr * vol_j;  // V_j (-dW/dr / r) >= 0
       rate += prm.particle_mass * dot(vi - xyz(load(vel + j)), r) * dwr;
       rate += diffusion * ((pj.w - pi.w) + hydro * dot(prm.gravity, r)) * weight;
       if (WithPresence) {
-        const float sx = weight * r.x, sy = weight * r.y, sz = weight * r.z;
-        tx += sx * r.x; ux += sx * std::fabs(r.x);
-        ty += sy * r.y; uy += sy * std::fabs(r.y);
-        tz += sz * r.z; uz += sz * std::fabs(r.z);
+        sx += weight * r.x; ux += weight * std::fabs(r.x);
+        sy += weight * r.y; uy += weight * std::fabs(r.y);
+        sz += weight * r.z; uz += weight * std::fabs(r.z);
       }
     });
 
@@ -78,13 +74,13 @@ struct DensityRate {
 
     drho_dt[i] = rate;
     if (WithPresence) {
-      const float c = 0.5f * 2.0f;  // (t -+ u) / 2, times the half-space normalisation 2
-      presence[0 * n + i] = std::fmin(1.0f, std::fmax(0.0f, c * (tx - ux)));
-      presence[1 * n + i] = std::fmin(1.0f, std::fmax(0.0f, c * (tx + ux)));
-      presence[2 * n + i] = std::fmin(1.0f, std::fmax(0.0f, c * (ty - uy)));
-      presence[3 * n + i] = std::fmin(1.0f, std::fmax(0.0f, c * (ty + uy)));
-      presence[4 * n + i] = std::fmin(1.0f, std::fmax(0.0f, c * (tz - uz)));
-      presence[5 * n + i] = std::fmin(1.0f, std::fmax(0.0f, c * (tz + uz)));
+      const float c = prm.presence_scale;  // (u -+ s) / 2, over the lattice lobe K
+      presence[0 * n + i] = std::fmin(1.0f, std::fmax(0.0f, c * (ux - sx)));
+      presence[1 * n + i] = std::fmin(1.0f, std::fmax(0.0f, c * (ux + sx)));
+      presence[2 * n + i] = std::fmin(1.0f, std::fmax(0.0f, c * (uy - sy)));
+      presence[3 * n + i] = std::fmin(1.0f, std::fmax(0.0f, c * (uy + sy)));
+      presence[4 * n + i] = std::fmin(1.0f, std::fmax(0.0f, c * (uz - sz)));
+      presence[5 * n + i] = std::fmin(1.0f, std::fmax(0.0f, c * (uz + sz)));
     }
   }
 };

@@ -18,12 +18,12 @@ namespace sphray {
 struct Acceleration {
   SphParams prm;
   GridGeom grid;
-  const uint32_t* fluid_offsets;
+  const uint32_t* fluid_offsets;  // slab tables (grid.h)
   const Float4* pos_rho;
   const Float4* vel;
   const uint32_t* boundary_offsets;
   const Float4* boundary;
-  const float* wall_pressure;   // boundary.h
+  const WallState* wall;        // boundary.h
   const float* boundary_alpha;  // artificial viscosity against each wall particle; 0 = free slip
   Float4* accel;                // out: ax, ay, az, -
 
@@ -44,20 +44,20 @@ struct Acceleration {
       const Float4 vj = load(vel + j);
       float term = p_over_rho2_i + vj.w;
       const float vr = dot(vi - xyz(vj), r);
-      if (vr < 0.0f) {
-        const float mu = h * vr / (r2 + eta2);
-        term += -prm.viscosity_alpha * prm.speed_of_sound * mu / (0.5f * (pi.w + pj.w));
+      if (vr < 0.0f) {  // mu / rho_mean with mu = h vr / (r^2 + eta^2), in one division
+        term -= prm.viscosity_alpha * prm.speed_of_sound * fast_div(h * vr, (r2 + eta2) * (0.5f * (pi.w + pj.w)));
       }
       a -= (prm.particle_mass * term * dwr) * r;
     });
 
     const float p_wall_i = p_over_rho2_i > 0.0f ? p_over_rho2_i : 0.0f;
     for_each_neighbour(grid, boundary_offsets, boundary, xi, support2, kNoSkip, [&](uint32_t b, Float4 pb, Vec3f r, float r2) {
-      const float p_w = wall_pressure[b];
-      const float rho_w = tait_density(prm, p_w);
-      float term = p_wall_i + p_w / (rho_w * rho_w);
+      const WallState w = wall[b];
+      const float rho_w = w.rho;
+      float term = p_wall_i + w.p_over_rho2;
       const float vr = dot(vi, r);
-      if (vr < 0.0f) term += -boundary_alpha[b] * prm.speed_of_sound * (h * vr / (r2 + eta2)) / (0.5f * (pi.w + rho_w));
+      if (vr < 0.0f)
+        term -= boundary_alpha[b] * prm.speed_of_sound * fast_div(h * vr, (r2 + eta2) * (0.5f * (pi.w + rho_w)));
       a -= (rho_w * pb.w * term * prm.kernel.dW_over_r(r2 * inv_sqrt(r2))) * r;
     });
 

@@ -15,18 +15,23 @@ struct SmoothingKernel {
   KernelType type;
   T h;      // smoothing length [m]; support radius is 2h
   T sigma;  // normalisation [1/m^3]
+  // Precomputed so that the neighbour loops multiply instead of divide (an
+  // IEEE division is a multi-instruction sequence on the GPU).
+  T inv_h;     // 1 / h
+  T grad_coef; // sigma / h^2 (times -5 for Wendland C2)
 
   static SmoothingKernel make(KernelType type, T h) {
     const T pi = T(3.14159265358979323846);
     T sigma = type == KernelType::WendlandC2 ? T(21) / (T(16) * pi * h * h * h) : T(1) / (pi * h * h * h);
-    return {type, h, sigma};
+    const T grad = sigma / (h * h) * (type == KernelType::WendlandC2 ? T(-5) : T(1));
+    return {type, h, sigma, T(1) / h, grad};
   }
 
   SPHRAY_HD SPHRAY_FORCEINLINE T support() const { return T(2) * h; }
 
   SPHRAY_HD SPHRAY_FORCEINLINE T W(T r) const {
-    const T q = r / h;
-    if (q >= T(2)) return T(0);
+    if (r >= support()) return T(0);  // on r, not q: r * inv_h can round below 2 at the support
+    const T q = r * inv_h;
     if (type == KernelType::WendlandC2) {
       const T a = T(1) - T(0.5) * q;
       const T a2 = a * a;
@@ -40,15 +45,15 @@ struct SmoothingKernel {
   // dW/dr divided by r, so that grad_i W_ij = (x_i - x_j) * dW_over_r(r).
   // Finite at r -> 0 for both kernels, so coincident particles are harmless.
   SPHRAY_HD SPHRAY_FORCEINLINE T dW_over_r(T r) const {
-    const T q = r / h;
-    if (q >= T(2)) return T(0);
+    if (r >= support()) return T(0);  // on r, not q: r * inv_h can round below 2 at the support
+    const T q = r * inv_h;
     if (type == KernelType::WendlandC2) {
       const T a = T(1) - T(0.5) * q;
-      return sigma * T(-5) * a * a * a / (h * h);
+      return grad_coef * a * a * a;  // -5 sigma a^3 / h^2
     }
-    if (q < T(1)) return sigma * (T(-3) + T(2.25) * q) / (h * h);
+    if (q < T(1)) return grad_coef * (T(-3) + T(2.25) * q);
     const T b = T(2) - q;
-    return q > T(0) ? sigma * T(-0.75) * b * b / (h * h * q) : T(0);
+    return q > T(0) ? grad_coef * T(-0.75) * b * b / q : T(0);
   }
 };
 

@@ -9,7 +9,7 @@
 
 namespace sphray {
 
-// Calls f(j, p_j, r, r2) for every particle j of `pts` (sorted by `g`, cell
+// Calls f(j, p_j, r, r2) for every particle j of `pts` (sorted by `g`, slab
 // table `offsets`) with |r|^2 = r2 < support2, where r = x - x_j, except j == skip
 // (pass the particle's own index, or UINT32_MAX for another set).
 template <class F>

@@ -44,6 +44,7 @@ struct SphParams {
   float spacing;            // initial particle spacing dx [m]
   Aabb tank;                // fluid side of the tank walls [m]
   bool open_top;            // no lid: particles may leave through the top and are removed
+  float presence_scale;     // 1 / (2 K), K = one presence lobe of a particle inside a full lattice (density.h)
 };
 
 // Tait equation of state, gamma = 7 (Monaghan 1994; Batchelor 1967).
@@ -58,6 +59,16 @@ SPHRAY_HD SPHRAY_FORCEINLINE float tait_pressure(const SphParams& p, float rho) 
 // the velocity it loads anyway instead of evaluating Tait per neighbour.
 SPHRAY_HD SPHRAY_FORCEINLINE float pressure_term(const SphParams& p, float rho) {
   return tait_pressure(p, rho) / (rho * rho);
+}
+
+// a / b where a few ulps do not matter (particle volumes, viscosity): the GPU's
+// approximate division (reciprocal + multiply, 2 ulp) instead of the IEEE sequence.
+SPHRAY_HD SPHRAY_FORCEINLINE float fast_div(float a, float b) {
+#if defined(__CUDA_ARCH__)
+  return __fdividef(a, b);
+#else
+  return a / b;
+#endif
 }
 
 // 1/sqrt(x): one special-function instruction on the GPU.

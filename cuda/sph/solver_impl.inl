@@ -37,28 +37,43 @@ struct KeyOf {
   GridGeom grid;
   const P* pts;
   uint32_t* keys;
-  SPHRAY_HD void operator()(uint32_t i) const { keys[i] = grid.key_of(position_of(pts[i])); }
+  SPHRAY_HD void operator()(uint32_t i) const { keys[i] = grid.fine_key_of(position_of(pts[i])); }
 };
 
-// Sorts `n` keys with their order (stable, so both backends agree on the order
-// within a cell) and fills offsets[c] = first sorted index with key >= c, for
-// c in [0, num_cells]: one vectorised binary search per cell, parallel over cells.
+// Coarse cell table from the slab table (grid.h): offsets[c] = fine[c * kSubX].
+struct CoarseOffsets {
+  const uint32_t* fine;
+  uint32_t* coarse;
+  SPHRAY_HD void operator()(uint32_t c) const { coarse[c] = fine[c * uint32_t(GridGeom::kSubX)]; }
+};
+
+// Sorts `n` fine keys with their order (stable, so both backends agree on the
+// order within a slab) and fills fine[k] = first sorted index with key >= k, for
+// k in [0, num_fine_cells]: one vectorised binary search per slab, parallel over
+// slabs. Then the coarse table, when one is asked for.
 inline void sort_and_offsets(const GridGeom& g, uint32_t n, Vector<uint32_t>& keys, Vector<uint32_t>& order,
-                             Vector<uint32_t>& offsets) {
+                             Vector<uint32_t>& fine, Vector<uint32_t>* coarse) {
   thrust::sequence(policy(), order.begin(), order.begin() + n);
   thrust::stable_sort_by_key(policy(), keys.begin(), keys.begin() + n, order.begin());
   thrust::lower_bound(policy(), keys.begin(), keys.begin() + n, thrust::counting_iterator<uint32_t>(0),
-                      thrust::counting_iterator<uint32_t>(g.num_cells() + 1), offsets.begin());
+                      thrust::counting_iterator<uint32_t>(g.num_fine_cells() + 1), fine.begin());
+  if (coarse) parallel_for(g.num_cells() + 1, CoarseOffsets{raw(fine), raw(*coarse)});
 }
+
+// Sorted keys back to coarse cell keys (for GridBuild).
+struct CoarseKey {
+  SPHRAY_HD uint32_t operator()(uint32_t k) const { return k / uint32_t(GridGeom::kSubX); }
+};
 
 inline GridBuild build_grid_impl(const GridGeom& g, const std::vector<Vec3f>& points) {
   const uint32_t n = uint32_t(points.size());
   Vector<Vec3f> pts;
   upload(pts, points);
-  Vector<uint32_t> keys(n), order(n), offsets(size_t(g.num_cells()) + 1);
+  Vector<uint32_t> keys(n), order(n), offsets(size_t(g.num_cells()) + 1), fine(size_t(g.num_fine_cells()) + 1);
   parallel_for(n, KeyOf<Vec3f>{g, raw(pts), raw(keys)});
-  sort_and_offsets(g, n, keys, order, offsets);
-  return {download(order, n), download(keys, n), download(offsets, offsets.size())};
+  sort_and_offsets(g, n, keys, order, fine, &offsets);
+  thrust::transform(policy(), keys.begin(), keys.begin() + n, keys.begin(), CoarseKey());
+  return {download(order, n), download(keys, n), download(offsets, offsets.size()), download(fine, fine.size())};
 }
 
 class SolverImpl final : public Solver {
@@ -66,7 +81,7 @@ class SolverImpl final : public Solver {
   explicit SolverImpl(const SolverInput& in)
       : prm_(in.params), grid_(in.grid), cfl_(in.cfl), min_dt_(in.min_dt), max_dt_(in.max_dt),
         n_(uint32_t(in.fluid_pos_rho.size())) {
-    const size_t n = n_, cells = size_t(grid_.num_cells()) + 1;
+    const size_t n = n_, cells = size_t(grid_.num_cells()) + 1, slabs = size_t(grid_.num_fine_cells()) + 1;
     upload(pos_, in.fluid_pos_rho);
     upload(vel_, in.fluid_vel);
     std::vector<uint32_t> ids(n);
@@ -75,7 +90,7 @@ class SolverImpl final : public Solver {
     pos_tmp_.resize(n); vel_tmp_.resize(n); id_tmp_.resize(n);
     accel_.resize(n); drho_.resize(n);
     status_.assign(n, uint8_t(kStatusOk)); status_tmp_.resize(n);
-    keys_.resize(n); order_.resize(n); offsets_.resize(cells);
+    keys_.resize(n); order_.resize(n); offsets_.resize(cells); fine_offsets_.resize(slabs);
     parallel_for(n_, PressureTermOf{prm_, raw(pos_), raw(vel_)});
     set_presence(in.presence);
 
@@ -88,10 +103,10 @@ class SolverImpl final : public Solver {
     Vector<uint32_t> bkeys(nb), border(nb);
     boundary_.resize(nb);
     boundary_alpha_.resize(nb);
-    wall_pressure_.resize(nb);
-    boundary_offsets_.resize(cells);
+    wall_.resize(nb);
+    boundary_offsets_.resize(slabs);
     parallel_for(nb, KeyOf<Float4>{grid_, raw(boundary_in), raw(bkeys)});
-    sort_and_offsets(grid_, nb, bkeys, border, boundary_offsets_);
+    sort_and_offsets(grid_, nb, bkeys, border, boundary_offsets_, nullptr);
     thrust::gather(policy(), border.begin(), border.end(), boundary_in.begin(), boundary_.begin());
     thrust::gather(policy(), border.begin(), border.end(), alpha_in.begin(), boundary_alpha_.begin());
     build_grid();
@@ -123,17 +138,17 @@ class SolverImpl final : public Solver {
   size_t device_bytes() const override {
     auto b = [](const auto& v) { return v.size() * sizeof(typename std::decay_t<decltype(v)>::value_type); };
     return b(pos_) + b(vel_) + b(pos_tmp_) + b(vel_tmp_) + b(accel_) + b(drho_) + b(presence_) + b(presence_tmp_) + b(id_) +
-           b(id_tmp_) + b(status_) + b(status_tmp_) + b(keys_) + b(order_) + b(offsets_) + b(boundary_) +
-           b(boundary_alpha_) + b(wall_pressure_) + b(boundary_offsets_);
+           b(id_tmp_) + b(status_) + b(status_tmp_) + b(keys_) + b(order_) + b(offsets_) + b(fine_offsets_) + b(boundary_) +
+           b(boundary_alpha_) + b(wall_) + b(boundary_offsets_);
   }
 
   // Stage order (integrate.h says why): forces, kick, density (+presence), drift, grid.
   void step(double until) override {
     clock_.mark(1);
     parallel_for(uint32_t(boundary_.size()),
-                 WallPressure{prm_, grid_, raw(offsets_), raw(pos_), raw(vel_), raw(boundary_), raw(wall_pressure_)});
-    parallel_for(n_, Acceleration{prm_, grid_, raw(offsets_), raw(pos_), raw(vel_), raw(boundary_offsets_),
-                                  raw(boundary_), raw(wall_pressure_), raw(boundary_alpha_), raw(accel_)});
+                 WallPressure{prm_, grid_, raw(fine_offsets_), raw(pos_), raw(vel_), raw(boundary_), raw(wall_)});
+    parallel_for(n_, Acceleration{prm_, grid_, raw(fine_offsets_), raw(pos_), raw(vel_), raw(boundary_offsets_),
+                                  raw(boundary_), raw(wall_), raw(boundary_alpha_), raw(accel_)});
     clock_.mark(2);
     const StepStats s = thrust::transform_reduce(
         policy(), thrust::counting_iterator<uint32_t>(0), thrust::counting_iterator<uint32_t>(n_),
@@ -206,13 +221,13 @@ class SolverImpl final : public Solver {
  private:
   template <bool P>
   DensityRate<P> density_stage() {
-    return DensityRate<P>{prm_, grid_, raw(offsets_), raw(pos_), raw(vel_), raw(boundary_offsets_), raw(boundary_),
+    return DensityRate<P>{prm_, grid_, raw(fine_offsets_), raw(pos_), raw(vel_), raw(boundary_offsets_), raw(boundary_),
                           raw(drho_), P ? raw(presence_) : nullptr, n_};
   }
 
   void build_grid() {
     parallel_for(n_, KeyOf<Float4>{grid_, raw(pos_), raw(keys_)});
-    sort_and_offsets(grid_, n_, keys_, order_, offsets_);
+    sort_and_offsets(grid_, n_, keys_, order_, fine_offsets_, &offsets_);
     gather_swap(n_, order_, pos_, pos_tmp_);
     gather_swap(n_, order_, vel_, vel_tmp_);
     gather_swap(n_, order_, id_, id_tmp_);
@@ -284,7 +299,10 @@ class SolverImpl final : public Solver {
   StageClock clock_;
 
   Vector<Float4> pos_, vel_, pos_tmp_, vel_tmp_, accel_, boundary_;
-  Vector<float> drho_, presence_, presence_tmp_, boundary_alpha_, wall_pressure_;
-  Vector<uint32_t> id_, id_tmp_, keys_, order_, offsets_, boundary_offsets_;
+  Vector<float> drho_, presence_, presence_tmp_, boundary_alpha_;
+  Vector<WallState> wall_;
+  // offsets_: coarse cell table (view(), the field builder, the raycaster);
+  // fine_offsets_ and boundary_offsets_: slab tables of the neighbour loops (grid.h).
+  Vector<uint32_t> id_, id_tmp_, keys_, order_, offsets_, fine_offsets_, boundary_offsets_;
   Vector<uint8_t> status_, status_tmp_;
 };
