@@ -175,8 +175,18 @@ int run_viewer(const ViewOptions& opt, std::ostream& log) {
     glBindBuffer(GL_PIXEL_UNPACK_BUFFER, pbo);
     glBufferData(GL_PIXEL_UNPACK_BUFFER, GLsizeiptr(W) * H * 4, nullptr, GL_STREAM_DRAW);
     glBindBuffer(GL_PIXEL_UNPACK_BUFFER, 0);
-    interop = std::make_unique<GlPixelBufferCuda>(pbo);
+    try {
+      interop = std::make_unique<GlPixelBufferCuda>(pbo);
+      log << "viewer: CUDA raycast straight into a GL pixel buffer (CUDA-OpenGL interop)\n";
+    } catch (const std::exception& e) {
+      // e.g. a GL that is not on the CUDA device (Mesa under Xvfb): still show the image, through the host
+      log << "viewer: " << e.what() << "; the image goes through the host instead\n";
+      glDeleteBuffers(1, &pbo);
+      pbo = 0;
+    }
   }
+#else
+  const bool interop = false;  // built without CUDA: the CPU path below
 #endif
 
   // The pipeline: every stage is needed here.
@@ -232,9 +242,14 @@ int run_viewer(const ViewOptions& opt, std::ostream& log) {
       glBindBuffer(GL_PIXEL_UNPACK_BUFFER, 0);
     }
 #endif
-    if (b == Backend::Cpu) {
+    if (!interop) {  // CPU: texture upload; CUDA without interop: the image through the host
       renderer->render(field->data(), field->setup(), &pv, cam, env, rs);
-      glTexSubImage2D(GL_TEXTURE_2D, 0, 0, 0, W, H, GL_RGBA, GL_UNSIGNED_BYTE, renderer->pixels());
+      if (b == Backend::Cpu) {
+        glTexSubImage2D(GL_TEXTURE_2D, 0, 0, 0, W, H, GL_RGBA, GL_UNSIGNED_BYTE, renderer->pixels());
+      } else {
+        const Image img = renderer->download();
+        glTexSubImage2D(GL_TEXTURE_2D, 0, 0, 0, W, H, GL_RGBA, GL_UNSIGNED_BYTE, img.rgba.data());
+      }
     }
     render_ms = renderer->last_ms();
 
@@ -285,6 +300,8 @@ int run_viewer(const ViewOptions& opt, std::ostream& log) {
         write_png(opt.screenshot, img);
         log << "viewer: wrote " << opt.screenshot << " after " << frame << " frames\n";
       }
+      log << "viewer: " << frame << " frames, " << fps << " fps at the end (sim " << sim_ms << " ms, field " << field_ms
+          << " ms, render " << render_ms << " ms in the last frame)\n";
       break;
     }
     glfwSwapBuffers(win.w);

@@ -3,7 +3,7 @@
 # build on all cores, run the cpu and gpu tests, the benchmarks and the CUDA
 # validation runs, leaving JSON and the test log under $OUT (at most 8 files
 # come back from the device tool; build logs stay in $B). Steps can be chosen:
-#   tools/gpu-check.sh [build] [test] [sanitize] [main] [bench] [field] [ncu-field] [export] [frame] [render] [validate]
+#   tools/gpu-check.sh [build] [test] [sanitize] [main] [bench] [field] [ncu-field] [export] [frame] [render] [validate] [viewer]
 #   (default: build test main bench validate; FIELD_SIZES picks the sizes of `field`)
 set -uo pipefail
 OUT=${OUT:-$PWD/gpu-out}
@@ -83,4 +83,50 @@ if has validate; then
   echo "== validation (cuda)"
   python3 tools/validate.py run --sphray $B/sphray --backend cuda --device "$(head -1 "$OUT/gpu.txt" 2>/dev/null | cut -d, -f1)" \
     --resolutions "${RESOLUTIONS:-10,20,40}" --timeout "${VALIDATE_TIMEOUT:-240}" --out "$OUT/validation_cuda.json"
+fi
+if has viewer; then
+  # The viewer in a real X window on the GPU: Xvfb + Mesa for the X server's GLX,
+  # the NVIDIA GLX client (__GLX_VENDOR_LIBRARY_NAME=nvidia) so that the GL
+  # context lives on the CUDA device and CUDA-OpenGL interop can work
+  # (/work/.library/device/README.md). Carried: .gl (the GL loaders, unpacked
+  # into / as that README says) and .viewerdeps (Debian's xvfb, Mesa, GLFW,
+  # GLEW, Dear ImGui and their dependencies: apt-get download, see
+  # docs/rendering.md), unpacked into /opt/gl; a separate build with the viewer.
+  echo "== viewer under Xvfb (CUDA backend)"
+  if ! ls .viewerdeps/*.deb > /dev/null 2>&1; then echo "no .viewerdeps carried: skipped"; else (
+    G=/opt/gl
+    for f in .gl/*.deb; do dpkg -x "$f" /; done; ldconfig
+    for f in .gl/*.deb .devdeps/*.deb .viewerdeps/*.deb; do dpkg -x "$f" $G; done
+    # Xvfb's compiled-in paths: xkbcomp, the XKB data, Mesa's DRI drivers
+    [ -e /usr/bin/xkbcomp ] || ln -s $G/usr/bin/xkbcomp /usr/bin/xkbcomp
+    [ -e /usr/share/X11/xkb ] || { mkdir -p /usr/share/X11; ln -s $G/usr/share/X11/xkb /usr/share/X11/xkb; }
+    [ -e /usr/lib/x86_64-linux-gnu/dri ] || ln -s $G/usr/lib/x86_64-linux-gnu/dri /usr/lib/x86_64-linux-gnu/dri
+    export PKG_CONFIG_PATH=$G/usr/lib/x86_64-linux-gnu/pkgconfig:$G/usr/share/pkgconfig PKG_CONFIG_SYSROOT_DIR=$G
+    export CMAKE_PREFIX_PATH=$G/usr CPATH=$G/usr/include:$G/usr/include/stb LIBRARY_PATH=$G/usr/lib/x86_64-linux-gnu
+    nv=$(ls -d /usr/local/nvidia/lib64 /usr/local/nvidia/lib 2>/dev/null | tr '\n' ':')
+    export LD_LIBRARY_PATH=$G/usr/lib/x86_64-linux-gnu:$nv${LD_LIBRARY_PATH:-}
+    export PATH=$G/usr/bin:$PATH  # pkgconf, Xvfb, xvfb-run, xauth
+    ldconfig -p | grep -E 'libGLX_nvidia' | head -2
+    echo "pkg-config: $(command -v pkg-config) $(pkg-config --modversion glfw3 glew imgui gl 2>&1 | tr '\n' ' ')"
+    cmake -S . -B build-view -G Ninja -DCMAKE_BUILD_TYPE=Release -DCMAKE_CUDA_ARCHITECTURES=90 -DSPHRAY_VIEWER=ON \
+      > build-view-configure.log 2>&1 || { tail -30 build-view-configure.log; exit 1; }
+    grep 'sphray:' build-view-configure.log
+    ninja -C build-view sphray > build-view.log 2>&1 || { grep -E 'error' -A3 build-view.log | head -40; exit 1; }
+    export __GLX_VENDOR_LIBRARY_NAME=nvidia
+    Xvfb :7 -screen 0 1920x1200x24 > "$OUT/xvfb.log" 2>&1 &
+    xpid=$!
+    sleep 3
+    for size in ${VIEW_SIZES:-1280x720 1920x1080}; do
+      echo "-- sphray view --backend cuda --size $size (the built-in scene, then scenes/dam_break.json)"
+      DISPLAY=:7 timeout 120 build-view/sphray view --backend cuda --frames 120 --size $size \
+        --screenshot "$OUT/view_cuda_$size.png" 2>&1 | tail -6
+      DISPLAY=:7 timeout 120 build-view/sphray view scenes/dam_break.json --backend cuda --frames 120 --size $size 2>&1 | tail -3
+    done
+    for dx in 0.0086 0.00432; do
+      echo "-- sphray view scenes/dam_break.json --backend cuda --size 1920x1080 --substeps 5 --set sph.spacing=$dx"
+      DISPLAY=:7 timeout 120 build-view/sphray view scenes/dam_break.json --backend cuda --frames 90 --size 1920x1080 \
+        --substeps 5 --set sph.spacing=$dx --screenshot "$OUT/view_cuda_dam_$dx.png" 2>&1 | tail -3
+    done
+    kill $xpid; tail -5 "$OUT/xvfb.log"
+  ) fi
 fi
