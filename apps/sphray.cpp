@@ -136,6 +136,12 @@ int cmd_run(const std::string& scene_path, const std::string& backend_name_arg, 
     opt.field_at = [&](int frame) {
       return (rendering && frame % frames_every == 0) || (export_field && frame % ex.every == 0);
     };
+  const bool export_presence = exporting && export_fields.count("presence") > 0;
+  if (needs.presence == PresenceMode::AtUntil)  // presence only on the frames that use it
+    opt.presence_at = [&](int frame) {
+      const bool field_now = !opt.field_at || opt.field_at(frame);
+      return (opt.field_kind == FieldKind::Presence && field_now) || (export_presence && frame % ex.every == 0);
+    };
   opt.on_output = [&](const Solver& s, int frame) {
     if (frames && frame % frames_every == 0) frames->write_frame(s.view(), *field, frame);
     if (csv.is_open()) {

@@ -96,6 +96,7 @@ RunSummary run_scene(const Scene& s, Solver& solver, const RunOptions& opt, std:
 
   while (solver.time() < end - 1e-12) {
     const double next_output = std::min(end, (frame + 1) * every);
+    if (opt.presence_at) solver.set_presence(opt.presence_at(frame + 1) ? PresenceMode::AtUntil : PresenceMode::Off);
     while (solver.time() < next_output - 1e-12) {
       solver.step(next_output);
       const StageTimes& st = solver.last_stage_times();

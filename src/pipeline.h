@@ -37,6 +37,10 @@ struct RunOptions {
   FieldKind field_kind = FieldKind::Presence;
   // Which output frames need the field (null: all of them).
   std::function<bool(int frame)> field_at;
+  // Which output frames need presence (null: whatever mode the solver has).
+  // Set, the steps toward frame k compute presence (on the one that reaches
+  // it, PresenceMode::AtUntil) only when presence_at(k); otherwise none.
+  std::function<bool(int frame)> presence_at;
   // Called at t = 0 and after every output interval, and at the end.
   std::function<void(const Solver&, int frame)> on_output;
 };

@@ -7,6 +7,7 @@
 #include <algorithm>
 #include <cmath>
 #include <random>
+#include <sstream>
 #include <vector>
 
 #include "catch.h"
@@ -221,6 +222,28 @@ TEST_CASE("presence at the frame only: the step that reaches `until` computes wh
   // presence is in the same order as its positions.
   const ParticleView v = at->view();
   for (size_t k = 0; k < a.pos.size(); k += 97) CHECK(b.presence[k][0] == v.presence[0 * v.n + k]);
+}
+
+TEST_CASE("run_scene computes presence only toward the frames that use it", "[field]") {
+  // A field every 3rd output frame: presence on the step reaching frames 3, 6,
+  // 9 and on no other, and the field built from it there.
+  const Scene s = small_scene({"sph.spacing=0.0125", "run.end_time=0.05", "run.output_interval=0.005"});
+  auto solver = make_cpu_solver(make_solver_input(s, PresenceMode::AtUntil));
+  auto field = make_field(s, Backend::Cpu, needs_of(s));
+  RunOptions opt;
+  opt.progress = false;
+  opt.field = field.get();
+  opt.field_at = [](int f) { return f % 3 == 0; };
+  opt.presence_at = opt.field_at;
+  std::vector<int> with;
+  opt.on_output = [&](const Solver& sv, int f) {
+    if (sv.has_presence()) with.push_back(f);
+  };
+  std::ostringstream log;
+  const RunSummary r = run_scene(s, *solver, opt, log);
+  CHECK(with == std::vector<int>{3, 6, 9});
+  CHECK(r.field_builds == 4);             // frames 0, 3, 6, 9
+  CHECK(r.field_without_presence == 1);   // frame 0: t = 0, nothing computed yet
 }
 
 TEST_CASE("a scene pays only for the stages it needs: no field, no presence", "[field]") {
