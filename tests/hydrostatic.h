@@ -38,12 +38,14 @@ struct Hydrostatic {
 // than one support from the side walls); WCSPH pressure carries acoustic
 // noise, so both average 10 snapshots over the last 0.2 s.
 // c0 > 0 sets sph.speed_of_sound (default: 10 sqrt(g H), docs/method.md).
-inline Hydrostatic run_hydrostatic(Backend b, double dx, double c0 = 0) {
+// The run settles for `settle` seconds (kinetic energy sampled 8 times), then
+// averages 10 snapshots over 0.2 s.
+inline Hydrostatic run_hydrostatic(Backend b, double dx, double c0 = 0, double settle = 0.8) {
   std::ostringstream text;
   text << R"({"tank": {"min": [0,0,0], "max": [0.12,0.12,0.3]},
     "fluid": [{"min": [0,0,0], "max": [0.12,0.12,0.2]}],
     "sph": {"spacing": )" << dx << (c0 > 0 ? ", \"speed_of_sound\": " + std::to_string(c0) : std::string())
-       << R"(, "viscosity_alpha": 0.5}, "run": {"end_time": 1.2}})";
+       << R"(, "viscosity_alpha": 0.5}, "run": {"end_time": )" << settle + 0.4 << "}}";
   const Scene s = parse_scene(text.str(), "hydrostatic.json");
   const SphParams prm = make_params(s);
   const SolverInput in = make_solver_input(s, PresenceMode::Off);
@@ -51,12 +53,12 @@ inline Hydrostatic run_hydrostatic(Backend b, double dx, double c0 = 0) {
   Hydrostatic r;
   r.particles = solver->num_fluid();
   for (int k = 1; k <= 8; ++k) {
-    run_until(*solver, 0.1 * k);
+    run_until(*solver, settle / 8 * k);
     r.energy.push_back(kinetic_energy(solver->download(), prm.particle_mass));
   }
   std::vector<HostParticles> snapshots;
   for (int k = 1; k <= 10; ++k) {
-    run_until(*solver, 0.8 + 0.02 * k);
+    run_until(*solver, settle + 0.02 * k);
     snapshots.push_back(solver->download());
   }
   r.energy.push_back(kinetic_energy(snapshots.back(), prm.particle_mass));
