@@ -33,7 +33,8 @@ if has test; then
 fi
 if has sanitize; then
   echo "== compute-sanitizer on the gpu tests"
-  compute-sanitizer --tool memcheck $B/tests/sphray_tests "[gpu]" 2>&1 | tail -8 | tee "$OUT/sanitizer.log"
+  # the hydrostatic study (about 60 s of simulation) would take hours under memcheck; its kernels are the dam break's
+  compute-sanitizer --tool memcheck $B/tests/sphray_tests "[gpu]~*hydrostatic*" 2>&1 | tail -8 | tee "$OUT/sanitizer.log"
 fi
 if has main; then
   echo "== the README's main job (dam break) on this machine"
