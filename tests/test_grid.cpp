@@ -47,13 +47,18 @@ void check_against_brute_force(Backend b, const GridGeom& g, const std::vector<V
 
 GridGeom unit_grid(int n, float cell) { return {{0, 0, 0}, cell, n, n, n}; }
 
+std::vector<Vec3f> random_points(size_t n, float lo, float hi, unsigned seed) {
+  std::mt19937 rng(seed);
+  std::uniform_real_distribution<float> u(lo, hi);
+  std::vector<Vec3f> pts(n);
+  for (auto& p : pts) p = {u(rng), u(rng), u(rng)};
+  return pts;
+}
+
 }  // namespace
 
 TEST_CASE("grid neighbours match brute force on random points", "[grid][cpu]") {
-  std::mt19937 rng(7);
-  std::uniform_real_distribution<float> u(0.0f, 1.0f);
-  std::vector<Vec3f> pts(1500);
-  for (auto& p : pts) p = {u(rng), u(rng), u(rng)};
+  const std::vector<Vec3f> pts = random_points(1500, 0.0f, 1.0f, 7);
   check_against_brute_force(Backend::Cpu, unit_grid(10, 0.1f), pts, 0.1f);
 }
 
@@ -88,10 +93,7 @@ TEST_CASE("grid finds pairs just inside the support across diagonal rows", "[gri
 TEST_CASE("grid queries read about half the candidates of the 27 cells", "[grid][cpu]") {
   // Uniform points: the culled query must test well under the 27 cells' worth
   // (expected about 15 cell volumes: grid.h), and still find every neighbour.
-  std::mt19937 rng(9);
-  std::uniform_real_distribution<float> u(0.0f, 1.0f);
-  std::vector<Vec3f> pts(20000);
-  for (auto& p : pts) p = {u(rng), u(rng), u(rng)};
+  const std::vector<Vec3f> pts = random_points(20000, 0.0f, 1.0f, 9);
   const GridGeom g = unit_grid(10, 0.1f);
   const GridBuild gb = build_grid(Backend::Cpu, g, pts);
   double culled = 0, full = 0;
@@ -124,10 +126,7 @@ TEST_CASE("grid handles points exactly on cell faces and empty cells", "[grid][c
 }
 
 TEST_CASE("grid handles every point in one cell", "[grid][cpu]") {
-  std::mt19937 rng(3);
-  std::uniform_real_distribution<float> u(0.51f, 0.59f);
-  std::vector<Vec3f> pts(300);
-  for (auto& p : pts) p = {u(rng), u(rng), u(rng)};
+  const std::vector<Vec3f> pts = random_points(300, 0.51f, 0.59f, 3);
   const GridGeom g = unit_grid(10, 0.1f);
   const GridBuild gb = build_grid(Backend::Cpu, g, pts);
   const uint32_t c = g.key_of(pts[0]);
