@@ -11,6 +11,8 @@
 #include <iomanip>
 #include <iostream>
 #include <sstream>
+#include <tuple>
+#include <utility>
 
 #include "../src/bench.h"
 #include "../src/bench_field.h"
@@ -59,19 +61,25 @@ struct FrameArgs {
 };
 
 // --size WxH and --frames-every as scene overrides (so the run's scene records them).
+// "WIDTHxHEIGHT" -> {w, h}; the range is checked by whoever uses it.
+std::pair<int, int> parse_wxh(const std::string& text, const char* option) {
+  const size_t x = text.find('x');
+  int w = 0, h = 0;
+  size_t uw = 0, uh = 0;
+  try {
+    w = std::stoi(text.substr(0, x), &uw);
+    h = std::stoi(text.substr(x + 1), &uh);
+  } catch (...) {
+    uw = 0;
+  }
+  if (x == std::string::npos || uw != x || uh != text.size() - x - 1)
+    throw std::runtime_error(std::string(option) + " '" + text + "': must be WIDTHxHEIGHT, e.g. 1280x720");
+  return {w, h};
+}
+
 void add_frame_overrides(const FrameArgs& fa, std::vector<std::string>& sets) {
   if (!fa.size.empty()) {
-    const size_t x = fa.size.find('x');
-    int w = 0, h = 0;
-    size_t uw = 0, uh = 0;
-    try {
-      w = std::stoi(fa.size.substr(0, x), &uw);
-      h = std::stoi(fa.size.substr(x + 1), &uh);
-    } catch (...) {
-      uw = 0;
-    }
-    if (x == std::string::npos || uw != x || uh != fa.size.size() - x - 1)
-      throw std::runtime_error("--size '" + fa.size + "': must be WIDTHxHEIGHT, e.g. 1280x720");
+    const auto [w, h] = parse_wxh(fa.size, "--size");
     sets.push_back("render.width=" + std::to_string(w));
     sets.push_back("render.height=" + std::to_string(h));
   }
@@ -378,6 +386,8 @@ int main(int argc, char** argv) {
       ->check(CLI::Range(1, 20));
   view->add_option("--frames", view_opt.frames, "run this many frames, then exit")->check(CLI::Range(1, 1000000));
   view->add_option("--screenshot", view_opt.screenshot, "with --frames: write the window's last frame as PNG");
+  std::string view_resize;
+  view->add_option("--resize", view_resize, "after the first frame, resize the window to WIDTHxHEIGHT (the image follows)");
 
   auto* inspect = app.add_subcommand("inspect", "summary of an HDF5 frames file: frames, times, counts, value ranges");
   std::string inspect_path;
@@ -458,6 +468,11 @@ int main(int argc, char** argv) {
         throw std::runtime_error("--screenshot needs --frames N");
       if (!view_opt.screenshot.empty()) check_writable(view_opt.screenshot, "--screenshot");
       add_frame_overrides(view_frame_args, view_opt.sets);
+      if (!view_resize.empty()) {
+        std::tie(view_opt.resize_w, view_opt.resize_h) = parse_wxh(view_resize, "--resize");
+        if (view_opt.resize_w < 16 || view_opt.resize_h < 16 || view_opt.resize_w > 8192 || view_opt.resize_h > 8192)
+          throw std::runtime_error("--resize '" + view_resize + "': each side must be 16 to 8192 pixels");
+      }
       return run_viewer(view_opt, std::cout);
     }
     if (render->parsed()) {

@@ -134,7 +134,7 @@ int run_viewer(const ViewOptions& opt, std::ostream& log) {
   const Scene scene = opt.scene.empty() ? parse_scene(small_view_scene(), "(built-in small dam break)", opt.sets)
                                         : load_scene(opt.scene, opt.sets);
   const Backend b = choose_backend(opt.backend, log);
-  const int W = scene.render.width, H = scene.render.height;
+  int W = scene.render.width, H = scene.render.height;  // the raycast image: the window's framebuffer
 
   if (!glfwInit()) throw std::runtime_error("viewer: cannot initialise GLFW (is there a display? try xvfb-run)");
   Window win;
@@ -159,34 +159,46 @@ int run_viewer(const ViewOptions& opt, std::ostream& log) {
   ImGui_ImplGlfw_InitForOpenGL(win.w, true);
   ImGui_ImplOpenGL3_Init("#version 330");
 
-  // The display: one texture the size of the raycast image, drawn over the window.
+  // The display: one texture the size of the raycast image, drawn over the
+  // window; on CUDA a GL pixel buffer the raycaster writes into. Both follow
+  // the framebuffer's size, so the image is never stretched.
   const GLuint program = display_program();
   GLuint vao = 0, tex = 0, pbo = 0;
   glGenVertexArrays(1, &vao);
   glGenTextures(1, &tex);
   glBindTexture(GL_TEXTURE_2D, tex);
-  glTexImage2D(GL_TEXTURE_2D, 0, GL_RGBA8, W, H, 0, GL_RGBA, GL_UNSIGNED_BYTE, nullptr);
   glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MIN_FILTER, GL_LINEAR);
   glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MAG_FILTER, GL_LINEAR);
 #if defined(SPHRAY_HAVE_CUDA)
   std::unique_ptr<GlPixelBufferCuda> interop;
-  if (b == Backend::Cuda) {
-    glGenBuffers(1, &pbo);
+  bool try_interop = b == Backend::Cuda;
+#else
+  const bool interop = false;  // built without CUDA: the CPU path below
+#endif
+  auto allocate = [&](int w, int h) {
+    glBindTexture(GL_TEXTURE_2D, tex);
+    glTexImage2D(GL_TEXTURE_2D, 0, GL_RGBA8, w, h, 0, GL_RGBA, GL_UNSIGNED_BYTE, nullptr);
+#if defined(SPHRAY_HAVE_CUDA)
+    if (!try_interop) return;
+    interop.reset();  // unregistered before its buffer is resized
+    if (!pbo) glGenBuffers(1, &pbo);
     glBindBuffer(GL_PIXEL_UNPACK_BUFFER, pbo);
-    glBufferData(GL_PIXEL_UNPACK_BUFFER, GLsizeiptr(W) * H * 4, nullptr, GL_STREAM_DRAW);
+    glBufferData(GL_PIXEL_UNPACK_BUFFER, GLsizeiptr(w) * h * 4, nullptr, GL_STREAM_DRAW);
     glBindBuffer(GL_PIXEL_UNPACK_BUFFER, 0);
     try {
       interop = std::make_unique<GlPixelBufferCuda>(pbo);
-      log << "viewer: CUDA raycast straight into a GL pixel buffer (CUDA-OpenGL interop)\n";
     } catch (const std::exception& e) {
       // e.g. a GL that is not on the CUDA device (Mesa under Xvfb): still show the image, through the host
       log << "viewer: " << e.what() << "; the image goes through the host instead\n";
       glDeleteBuffers(1, &pbo);
       pbo = 0;
+      try_interop = false;
     }
-  }
-#else
-  const bool interop = false;  // built without CUDA: the CPU path below
+#endif
+  };
+  allocate(W, H);
+#if defined(SPHRAY_HAVE_CUDA)
+  if (interop) log << "viewer: CUDA raycast straight into a GL pixel buffer (CUDA-OpenGL interop)\n";
 #endif
 
   // The pipeline: every stage is needed here.
@@ -209,6 +221,14 @@ int run_viewer(const ViewOptions& opt, std::ostream& log) {
 
   while (!glfwWindowShouldClose(win.w)) {
     glfwPollEvents();
+    if (opt.resize_w > 0 && frame == 1) glfwSetWindowSize(win.w, opt.resize_w, opt.resize_h);
+    int fw = 0, fh = 0;
+    glfwGetFramebufferSize(win.w, &fw, &fh);
+    if (fw > 0 && fh > 0 && (fw != W || fh != H)) {  // resized (a minimised window keeps the last size)
+      W = fw;
+      H = fh;
+      allocate(W, H);
+    }
     mouse_move(win.w, ctl);
     if (ctl.reset) {
       solver = make_solver(scene, b, needs);
@@ -253,8 +273,6 @@ int run_viewer(const ViewOptions& opt, std::ostream& log) {
     }
     render_ms = renderer->last_ms();
 
-    int fw, fh;
-    glfwGetFramebufferSize(win.w, &fw, &fh);
     glViewport(0, 0, fw, fh);
     glClear(GL_COLOR_BUFFER_BIT);
     glUseProgram(program);
@@ -266,6 +284,7 @@ int run_viewer(const ViewOptions& opt, std::ostream& log) {
     ImGui_ImplGlfw_NewFrame();
     ImGui::NewFrame();
     ImGui::SetNextWindowPos(ImVec2(8, 8), ImGuiCond_Once);
+    ImGui::SetNextWindowCollapsed(W < 900, ImGuiCond_Once);  // a small window starts with the panel folded
     ImGui::Begin("sphray", nullptr, ImGuiWindowFlags_AlwaysAutoResize);
     ImGui::Text("%s backend, %zu particles, t = %.3f s", backend_name(b), solver->num_fluid(), solver->time());
     ImGui::SliderInt("substeps / frame", &substeps, 1, 20);

@@ -17,6 +17,7 @@ struct ViewOptions {
   int frames = 0;          // > 0: run this many frames, then exit
   std::string screenshot;  // with frames: the window's last frame as PNG
   int substeps = 2;
+  int resize_w = 0, resize_h = 0;  // > 0: resize the window to this after the first frame (tests)
 };
 
 // Whether this sphray was built with the viewer (GLFW, GLEW, Dear ImGui found).

@@ -247,7 +247,29 @@ TEST_CASE("sphray view opens a real window under Xvfb and shows the liquid", "[v
   std::set<uint32_t> colours(a.rgba.begin(), a.rgba.end());
   CHECK(colours.size() > 200);
 
+  // Resized after the first frame, the image follows the window (no stretched
+  // fixed-size image): the screenshot has the new size and shows the scene.
+  std::remove("/tmp/sphray_view_resized.png");
+  REQUIRE(std::system((xvfb + SPHRAY_EXE + " view --backend cpu --frames 8 --size 800x450 --resize 480x400 "
+                              "--screenshot /tmp/sphray_view_resized.png > /dev/null 2>&1").c_str()) == 0);
+  const sphray::Image c = sphray::read_png("/tmp/sphray_view_resized.png");
+  CHECK(c.width == 480);
+  CHECK(c.height == 400);
+  std::set<uint32_t> colours_c(c.rgba.begin(), c.rgba.end());
+  CHECK(colours_c.size() > 200);
+  // and it is the image a window opened at that size shows (a stretched 800x450 image would not be)
+  REQUIRE(std::system((xvfb + SPHRAY_EXE + " view --backend cpu --frames 8 --size 480x400 "
+                              "--screenshot /tmp/sphray_view_direct.png > /dev/null 2>&1").c_str()) == 0);
+  const sphray::Image d = sphray::read_png("/tmp/sphray_view_direct.png");
+  REQUIRE(d.rgba.size() == c.rgba.size());
+  const size_t resized_differ = sphray::pixels_differing(c, d, 20);
+  INFO(resized_differ << " of " << c.rgba.size() << " pixels differ between the resized and the direct window");
+  CHECK(resized_differ < c.rgba.size() / 100);
+
   Result bad = run_cli("view --backend cpu --screenshot /tmp/x.png");
   CHECK(bad.code == 2);
   CHECK(has(bad.output, "--screenshot needs --frames N"));
+  Result bad_resize = run_cli("view --backend cpu --frames 2 --resize 12x12");
+  CHECK(bad_resize.code == 2);
+  CHECK(has(bad_resize.output, "--resize '12x12': each side must be 16 to 8192 pixels"));
 }

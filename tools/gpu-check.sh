@@ -123,6 +123,9 @@ if has viewer; then
         --screenshot "$OUT/view_cuda_$size.png" 2>&1 | tail -6
       DISPLAY=:7 timeout 120 build-view/sphray view scenes/dam_break.json --backend cuda --frames 120 --size $size 2>&1 | tail -3
     done
+    echo "-- sphray view --backend cuda --size 1280x720 --resize 1600x900 (the pixel buffer re-registered at the new size)"
+    DISPLAY=:7 timeout 120 build-view/sphray view --backend cuda --frames 30 --size 1280x720 --resize 1600x900 \
+      --screenshot "$OUT/view_cuda_resized.png" 2>&1 | tail -3
     for dx in 0.0086 0.00432; do
       echo "-- sphray view scenes/dam_break.json --backend cuda --size 1920x1080 --substeps 5 --set sph.spacing=$dx"
       DISPLAY=:7 timeout 120 build-view/sphray view scenes/dam_break.json --backend cuda --frames 90 --size 1920x1080 \
