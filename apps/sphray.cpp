@@ -161,6 +161,7 @@ int cmd_run(const std::string& scene_path, const std::string& backend_name_arg, 
     if (writer && frame % ex.every == 0) writer->submit(capture_frame(s, prm, export_fields, field.get()));
   };
   const RunSummary r = run_scene(scene, *solver, opt, std::cout);
+  if (frames) frames->finish();  // the last PNGs are still being written
   print_summary(r, std::cout);
   if (frames)
     std::cout << "  frames         " << frames->frames_written() << " PNGs (" << scene.render.width << "x"
@@ -281,6 +282,7 @@ int render_scene(const RenderArgs& ra, const std::string& backend_arg, std::vect
   std::cout << "rendering scene " << scene.name << " (" << solver->num_fluid() << " particles) to "
             << (single ? "t = " + std::to_string(scene.run.end_time) + " s" : "every output frame") << "\n";
   const RunSummary r = run_scene(scene, *solver, opt, std::cout);
+  frames.finish();  // the last PNGs are still being written
   print_summary(r, std::cout);
   std::cout << "  frames         " << frames.frames_written() << " PNG" << (frames.frames_written() == 1 ? "" : "s")
             << " to " << ra.out << ", " << frames.mean_render_ms() << " ms per render\n";
@@ -325,6 +327,7 @@ int render_file(const RenderArgs& ra, const std::string& backend_arg, const std:
     std::cout << "  frame " << k << " (t = " << f.time << " s, " << f.count() << " particles): field "
               << field->last_ms() << " ms\n";
   }
+  frames.finish();
   std::cout << "rendered " << frames.frames_written() << " frame" << (frames.frames_written() == 1 ? "" : "s")
             << " of " << ra.from << " to " << ra.out << ", " << frames.mean_render_ms() << " ms per render\n";
   return 0;

@@ -161,7 +161,8 @@ FrameWriter::FrameWriter(const std::string& path, const FileHeader& header, int 
     H5Fclose(file_);
     throw;
   }
-  thread_ = std::thread([this] { loop(); });
+  // the HDF5 error stack setting is per thread
+  queue_ = std::make_unique<BackgroundQueue>([] { H5Eset_auto2(H5E_DEFAULT, nullptr, nullptr); });
 }
 
 FrameWriter::~FrameWriter() {
@@ -177,65 +178,20 @@ void FrameWriter::submit(Frame&& f) {
 }
 
 void FrameWriter::submit(std::function<Frame()> f) {
-  std::unique_lock<std::mutex> lock(m_);
-  const auto t0 = std::chrono::steady_clock::now();
-  cv_.wait(lock, [&] { return !pending_ || !error_.empty(); });
-  waited_ += std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-  if (!error_.empty()) throw FrameFileError(error_);
-  pending_ = std::move(f);
-  cv_.notify_all();
+  if (!queue_->submit([this, make = std::move(f)] { write(make()); })) throw FrameFileError(queue_->error());
 }
 
 void FrameWriter::finish() {
-  {
-    std::unique_lock<std::mutex> lock(m_);
-    if (!thread_.joinable()) {
-      if (!error_.empty()) throw FrameFileError(error_);
-      return;
-    }
-    stop_ = true;
-    cv_.notify_all();
+  if (!queue_ || file_ < 0) {
+    if (queue_ && queue_->failed()) throw FrameFileError(queue_->error());
+    return;
   }
-  thread_.join();
+  const bool ok = queue_->finish();
   // After a failed write the file is left as the last good flush left it:
   // closing would flush the failed frame's partial metadata over it.
-  if (file_ >= 0 && error_.empty()) H5Fclose(file_);
+  if (ok) H5Fclose(file_);
   file_ = -1;
-  if (!error_.empty()) throw FrameFileError(error_);
-}
-
-size_t FrameWriter::frames_written() const {
-  std::lock_guard<std::mutex> lock(m_);
-  return written_;
-}
-
-void FrameWriter::loop() {
-  H5Eset_auto2(H5E_DEFAULT, nullptr, nullptr);  // the error stack setting is per thread
-  for (;;) {
-    std::function<Frame()> make;
-    {
-      std::unique_lock<std::mutex> lock(m_);
-      cv_.wait(lock, [&] { return bool(pending_) || stop_; });
-      if (!pending_) return;  // stopped and drained
-      make = std::move(pending_);
-      pending_ = nullptr;
-      cv_.notify_all();  // the run may queue the next frame while this one is written
-    }
-    std::string err;
-    try {
-      write(make());
-    } catch (const std::exception& e) {
-      err = e.what();
-    }
-    std::lock_guard<std::mutex> lock(m_);
-    if (!err.empty()) {
-      error_ = err;
-      cv_.notify_all();
-      return;  // nothing more is written; what was flushed stays readable
-    }
-    ++written_;
-    cv_.notify_all();
-  }
+  if (!ok) throw FrameFileError(queue_->error());
 }
 
 void FrameWriter::write(const Frame& f) {

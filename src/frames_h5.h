@@ -6,16 +6,15 @@
 // tests and later re-rendering.
 #pragma once
 
-#include <condition_variable>
 #include <cstdint>
 #include <memory>
 #include <functional>
-#include <mutex>
 #include <optional>
 #include <stdexcept>
 #include <string>
-#include <thread>
 #include <vector>
+
+#include "background.h"
 
 #include "../cuda/field/volume.h"
 
@@ -70,26 +69,18 @@ class FrameWriter {
   void submit(std::function<Frame()> make);
   // Waits for the queue to drain and closes the file; throws on a write error.
   void finish();
-  size_t frames_written() const;
-  double seconds_waited() const { return waited_; }  // time submit() blocked the run
+  size_t frames_written() const { return queue_ ? queue_->done() : 0; }
+  double seconds_waited() const { return queue_ ? queue_->seconds_waited() : 0.0; }  // time submit() blocked the run
 
  private:
-  void loop();
   void write(const Frame& f);
   void write_xdmf();
 
   std::string path_;
   int gzip_;
   int64_t file_ = -1;
-  std::vector<std::pair<double, size_t>> xdmf_;  // time, particle count of each written frame
-  size_t written_ = 0;
-  double waited_ = 0;
-  std::function<Frame()> pending_;
-  bool stop_ = false;
-  std::string error_;
-  mutable std::mutex m_;
-  std::condition_variable cv_;
-  std::thread thread_;
+  std::vector<std::pair<double, size_t>> xdmf_;  // time, particle count of each written frame (writer thread)
+  std::unique_ptr<BackgroundQueue> queue_;       // last: started once the header is written
 };
 
 struct FrameInfo {

@@ -99,19 +99,36 @@ FrameRenderer::FrameRenderer(const Scene& s, Backend b, const FieldSetup& fs, co
   if (!f) throw std::runtime_error("--frames-dir: cannot write into '" + dir_ + "'");
   std::fclose(f);
   std::remove(probe.c_str());
+  png_ = std::make_unique<BackgroundQueue>();
+}
+
+FrameRenderer::~FrameRenderer() {
+  if (png_) png_->finish();  // errors are reported by an explicit finish()
+}
+
+void FrameRenderer::finish() {
+  if (png_ && !png_->finish()) throw std::runtime_error("--frames-dir: " + png_->error());
 }
 
 void FrameRenderer::render_to(const ParticleView& pv, const FieldBuilder& field, const std::string& png_path) {
   renderer_->render(field.data(), field.setup(), &pv, cam_, env_, rs_);
   render_ms_ += renderer_->last_ms();
+  ++renders_;
   write_png(png_path, renderer_->download());
   ++written_;
 }
 
 void FrameRenderer::write_frame(const ParticleView& pv, const FieldBuilder& field, int frame) {
+  if (!png_) throw std::logic_error("FrameRenderer::write_frame needs a directory");
   char name[32];
   std::snprintf(name, sizeof name, "frame_%06d.png", frame);
-  render_to(pv, field, (std::filesystem::path(dir_) / name).string());
+  renderer_->render(field.data(), field.setup(), &pv, cam_, env_, rs_);
+  render_ms_ += renderer_->last_ms();
+  ++renders_;
+  // The image leaves the renderer now (the next render reuses its buffer); stb encodes it on the writer thread.
+  auto img = std::make_shared<Image>(renderer_->download());
+  const std::string path = (std::filesystem::path(dir_) / name).string();
+  if (!png_->submit([img, path] { write_png(path, *img); })) throw std::runtime_error("--frames-dir: " + png_->error());
 }
 
 void write_png(const std::string& path, const Image& img) {

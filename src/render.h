@@ -11,6 +11,7 @@
 
 #include "../cuda/render/raycast.h"
 #include "field.h"
+#include "background.h"
 #include "render_settings.h"
 #include "solver.h"
 
@@ -65,10 +66,16 @@ class FrameRenderer {
   // `dir` (may be empty when only render_to is used) is created; a directory
   // that cannot be written is an error here, before any simulation.
   FrameRenderer(const Scene& s, Backend b, const FieldSetup& fs, const std::string& dir);
-  void write_frame(const ParticleView& pv, const FieldBuilder& field, int frame);  // dir/frame_NNNNNN.png
-  void render_to(const ParticleView& pv, const FieldBuilder& field, const std::string& png_path);
-  int frames_written() const { return written_; }
-  double mean_render_ms() const { return written_ ? render_ms_ / written_ : 0.0; }
+  ~FrameRenderer();  // writes what is queued; a failure is reported by finish()
+  // Renders dir/frame_NNNNNN.png; the PNG is encoded and written on a
+  // background thread (BackgroundQueue), so the run does not wait for it.
+  // Throws std::runtime_error if an earlier write failed.
+  void write_frame(const ParticleView& pv, const FieldBuilder& field, int frame);
+  void render_to(const ParticleView& pv, const FieldBuilder& field, const std::string& png_path);  // written at once
+  // Waits for the queued PNGs; throws std::runtime_error naming a failed write.
+  void finish();
+  int frames_written() const { return written_ + int(png_ ? png_->done() : 0); }
+  double mean_render_ms() const { return renders_ ? render_ms_ / renders_ : 0.0; }
   const std::string& dir() const { return dir_; }
 
  private:
@@ -77,8 +84,9 @@ class FrameRenderer {
   Camera cam_;
   Environment env_;
   std::string dir_;
-  int written_ = 0;
+  int written_ = 0, renders_ = 0;
   double render_ms_ = 0;
+  std::unique_ptr<BackgroundQueue> png_;  // with a directory: the PNG writer
 };
 
 // PNG through stb_image_write; throws std::runtime_error naming the path.

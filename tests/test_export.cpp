@@ -7,6 +7,7 @@
 #include <csignal>
 #include <cstdio>
 #include <cstdlib>
+#include <filesystem>
 #include <fstream>
 #include <sstream>
 #include <string>
@@ -19,6 +20,7 @@
 #include "../src/export.h"
 #include "../src/field.h"
 #include "../src/frames_h5.h"
+#include "../src/render.h"
 
 using namespace sphray;
 
@@ -212,4 +214,55 @@ TEST_CASE("a full disk stops the run with a message and keeps the frames written
     for (size_t k = 0; k < r.frames().size(); ++k) CHECK(r.read(k).count() == 8);
   }
   std::system(("umount " + dir).c_str());
+}
+
+TEST_CASE("the background queue runs jobs in order and stops at the first failure", "[export]") {
+  std::vector<int> ran;
+  BackgroundQueue q;
+  for (int k = 0; k < 5; ++k) CHECK(q.submit([&ran, k] { ran.push_back(k); }));
+  CHECK(q.finish());
+  CHECK(ran == std::vector<int>{0, 1, 2, 3, 4});
+  CHECK(q.done() == 5);
+
+  std::vector<int> ran2;
+  BackgroundQueue bad;
+  CHECK(bad.submit([&] { ran2.push_back(0); }));
+  CHECK(bad.submit([] { throw std::runtime_error("disk on fire"); }));
+  // the failure is seen by a later submit (dropped) or by finish
+  bool refused = false;
+  for (int k = 1; k < 50 && !refused; ++k) {
+    refused = !bad.submit([&ran2, k] { ran2.push_back(k); });
+    if (!refused) std::this_thread::sleep_for(std::chrono::milliseconds(1));
+  }
+  CHECK_FALSE(bad.finish());
+  CHECK(bad.failed());
+  CHECK(bad.error() == "disk on fire");
+  CHECK(bad.done() == ran2.size());
+  CHECK(ran2.front() == 0);
+}
+
+TEST_CASE("PNG frames are written in the background; a failed write is reported by name", "[export]") {
+  const Scene s = small_scene();
+  auto solver = make_cpu_solver(make_solver_input(s, PresenceMode::Off));
+  auto field = make_field(s, Backend::Cpu, needs_of(s));
+  const std::string dir = "/tmp/sphray_bg_frames";
+  std::filesystem::remove_all(dir);
+  {
+    FrameRenderer fr(s, Backend::Cpu, field->setup(), dir);
+    field->build(solver->view(), FieldKind::Naive);
+    for (int f = 0; f < 3; ++f) fr.write_frame(solver->view(), *field, f);
+    fr.finish();
+    CHECK(fr.frames_written() == 3);
+    for (int f = 0; f < 3; ++f) CHECK(std::filesystem::exists(dir + "/frame_00000" + std::to_string(f) + ".png"));
+  }
+  FrameRenderer fr(s, Backend::Cpu, field->setup(), dir);
+  std::filesystem::remove_all(dir);  // the directory goes away under the run
+  std::string msg;
+  try {
+    for (int f = 0; f < 20; ++f) fr.write_frame(solver->view(), *field, f);
+    fr.finish();
+  } catch (const std::runtime_error& e) {
+    msg = e.what();
+  }
+  CHECK(msg.find("cannot write PNG '/tmp/sphray_bg_frames/frame_000000.png'") != std::string::npos);
 }
