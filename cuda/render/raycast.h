@@ -147,6 +147,28 @@ struct Environment {
     if (t < 0.0f) t = 0.0f;
     return face;
   }
+  // Where liquid can be: inside the walls and above the floor, at any height
+  // (splashes rise above the rim). Outside, in the volume's margin, the field
+  // only holds the spill-over of particles next to a wall.
+  SPHRAY_HD SPHRAY_FORCEINLINE bool within_walls(Vec3f p) const {
+    const float e = 1e-3f * tile;
+    return p.x >= tank_lo.x - e && p.y >= tank_lo.y - e && p.z >= tank_lo.z - e && p.x <= tank_hi.x + e &&
+           p.y <= tank_hi.y + e;
+  }
+  // Outward normal of the tank face (0..5) that p lies on or nearest to.
+  SPHRAY_HD SPHRAY_FORCEINLINE Vec3f face_normal(int face) const {
+    Vec3f n{0, 0, 0};
+    const float s = (face & 1) ? 1.0f : -1.0f;
+    if (face < 2) n.x = s; else if (face < 4) n.y = s; else n.z = s;
+    return n;
+  }
+  SPHRAY_HD SPHRAY_FORCEINLINE int nearest_face(Vec3f p) const {
+    const float dist[5] = {std::fabs(p.x - tank_lo.x), std::fabs(tank_hi.x - p.x), std::fabs(p.y - tank_lo.y),
+                           std::fabs(tank_hi.y - p.y), std::fabs(p.z - tank_lo.z)};
+    int best = 0;
+    for (int k = 1; k < 5; ++k) best = dist[k] < dist[best] ? k : best;
+    return best;
+  }
   // The floor and the walls that are not glass stop rays (the open top does not).
   SPHRAY_HD SPHRAY_FORCEINLINE bool opaque(int face) const { return face == 4 || (face < 4 && !((glass >> face) & 1)); }
   SPHRAY_HD SPHRAY_FORCEINLINE bool in_tank(Vec3f p) const {
@@ -362,13 +384,34 @@ struct Tracer {
       return env(o, d);
     }
     Vec3f p = t0 > 0.0f ? o + d * t0 : o;  // start on the box (or at o inside it)
+    // The liquid stays within the tank's walls: a ray that starts in the
+    // volume's margin goes on to where it enters them (through glass: an
+    // opaque wall or the floor seen from outside is the environment's).
+    Vec3f entry_n = box_face_normal(p);
+    bool on_face = t0 > 0.0f;  // p lies on a face the ray entered through
+    if (!env.within_walls(p)) {
+      float e0, e1;
+      const Vec3f hi{env.tank_hi.x, env.tank_hi.y, box_hi.z + 1.0f};
+      if (!ray_box(p, d, env.tank_lo, hi, e0, e1) || e1 <= 0.0f) {
+        watch.contribution(w);
+        return env(o, d);
+      }
+      p = p + d * (e0 > 0.0f ? e0 : 0.0f);
+      const int face = env.nearest_face(p);
+      if (face < 4 && env.opaque(face)) {  // an opaque wall from outside: no liquid seen through it
+        watch.contribution(w);
+        return env(o, d);
+      }
+      entry_n = env.face_normal(face);
+      on_face = true;
+    }
     bool inside = field(p) >= ts.iso;
     int k = 0;
-    if (inside && t0 > 0.0f) {
-      // The liquid touches the box face: the ray enters it through a wall of
-      // the tank (glass), an interface with the face's normal.
+    if (inside && on_face) {
+      // The liquid touches the face it enters through (the tank's glass):
+      // an interface with the face's normal, not the field's.
       inside = false;
-      interface_at(p, box_face_normal(p), d, inside, w, colour, watch);
+      interface_at(p, entry_n, d, inside, w, colour, watch);
       ++k;
     }
     bool stopped = false;  // on the floor or an opaque wall (wall_face)
@@ -377,16 +420,32 @@ struct Tracer {
       float b0, b1;
       ray_box(p, d, Vec3f{0, 0, 0}, box_hi, b0, b1);
       const float t_box = b1 > 0.0f ? b1 : 0.0f, t_wall = env.wall_distance(p, d, wall_face);
-      const float t_max = t_wall < t_box ? t_wall : t_box;
+      // leaving through a glass wall: no liquid beyond it
+      float t_glass = 1e30f;
+      int glass_face = 0;
+      if (env.in_tank(p)) {
+        float te;
+        glass_face = env.exit_face(p, d, te);
+        if (glass_face < 4 && !env.opaque(glass_face)) t_glass = te;
+      }
+      float t_max = t_wall < t_box ? t_wall : t_box;
+      t_max = t_glass < t_max ? t_glass : t_max;
       const float th = find_crossing(p, d, t_max, inside);
       const float len = th >= 0.0f ? th : t_max;
       watch.segment(p, p + d * len, inside);
       if (inside) absorb(w, len);
       if (th < 0.0f) {
-        if (t_wall <= t_box) {  // the tank stops the ray: the environment at the wall
+        if (t_wall <= t_box && t_wall <= t_glass) {  // the tank stops the ray: the environment at the wall
           p = p + d * t_wall;
           stopped = true;
           break;
+        }
+        if (t_glass < t_box) {  // at the glass: out of the liquid through it, or already in air
+          p = p + d * t_glass;
+          if (!inside) break;
+          interface_at(p, env.face_normal(glass_face), d, inside, w, colour, watch);
+          if (!inside) break;  // refracted out of the tank: nothing more to meet
+          continue;            // totally reflected back into the liquid
         }
         if (!inside) break;  // left the volume: the environment
         // still inside at the box: leave through the tank's glass
