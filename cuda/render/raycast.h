@@ -65,6 +65,23 @@ SPHRAY_HD SPHRAY_FORCEINLINE float schlick(float n1, float n2, float cos_theta) 
   return r0 + (1.0f - r0) * m2 * m2 * m;
 }
 
+// Faces of an axis-aligned box are numbered 0..5 = -x +x -y +y -z +z.
+SPHRAY_HD SPHRAY_FORCEINLINE Vec3f face_normal(int face) {  // outward
+  Vec3f n{0, 0, 0};
+  const float s = (face & 1) ? 1.0f : -1.0f;
+  if (face < 2) n.x = s; else if (face < 4) n.y = s; else n.z = s;
+  return n;
+}
+
+// The face of [lo, hi] nearest to p (a point on or in the box), among the
+// first `faces` of them (5: all but the top).
+SPHRAY_HD SPHRAY_FORCEINLINE int nearest_face(Vec3f p, Vec3f lo, Vec3f hi, int faces = 6) {
+  const float dist[6] = {p.x - lo.x, hi.x - p.x, p.y - lo.y, hi.y - p.y, p.z - lo.z, hi.z - p.z};
+  int best = 0;
+  for (int k = 1; k < faces; ++k) best = dist[k] < dist[best] ? k : best;
+  return best;
+}
+
 // Ray against the box [lo, hi]: entry and exit distances, false when missed.
 SPHRAY_HD SPHRAY_FORCEINLINE bool ray_box(Vec3f o, Vec3f d, Vec3f lo, Vec3f hi, float& t0, float& t1) {
   float a = -1e30f, b = 1e30f;
@@ -155,35 +172,9 @@ struct Environment {
     return p.x >= tank_lo.x - e && p.y >= tank_lo.y - e && p.z >= tank_lo.z - e && p.x <= tank_hi.x + e &&
            p.y <= tank_hi.y + e;
   }
-  // Outward normal of the tank face (0..5) that p lies on or nearest to.
-  SPHRAY_HD SPHRAY_FORCEINLINE Vec3f face_normal(int face) const {
-    Vec3f n{0, 0, 0};
-    const float s = (face & 1) ? 1.0f : -1.0f;
-    if (face < 2) n.x = s; else if (face < 4) n.y = s; else n.z = s;
-    return n;
-  }
-  SPHRAY_HD SPHRAY_FORCEINLINE int nearest_face(Vec3f p) const {
-    const float dist[5] = {std::fabs(p.x - tank_lo.x), std::fabs(tank_hi.x - p.x), std::fabs(p.y - tank_lo.y),
-                           std::fabs(tank_hi.y - p.y), std::fabs(p.z - tank_lo.z)};
-    int best = 0;
-    for (int k = 1; k < 5; ++k) best = dist[k] < dist[best] ? k : best;
-    return best;
-  }
   // The floor and the walls that are not glass stop rays (the open top does not).
   SPHRAY_HD SPHRAY_FORCEINLINE bool opaque(int face) const { return face == 4 || (face < 4 && !((glass >> face) & 1)); }
-  SPHRAY_HD SPHRAY_FORCEINLINE bool in_tank(Vec3f p) const {
-    const float e = 1e-3f * tile;
-    return p.x >= tank_lo.x - e && p.y >= tank_lo.y - e && p.z >= tank_lo.z - e && p.x <= tank_hi.x + e &&
-           p.y <= tank_hi.y + e && p.z <= tank_hi.z + e;
-  }
-  // Distance from p (in the tank) to the opaque face the ray would stop at
-  // (which one in `face`); 1e30 when it leaves through glass or the top.
-  SPHRAY_HD SPHRAY_FORCEINLINE float wall_distance(Vec3f p, Vec3f d, int& face) const {
-    if (!in_tank(p)) return 1e30f;
-    float t;
-    face = exit_face(p, d, t);
-    return opaque(face) ? t : 1e30f;
-  }
+  SPHRAY_HD SPHRAY_FORCEINLINE bool in_tank(Vec3f p) const { return within_walls(p) && p.z <= tank_hi.z + 1e-3f * tile; }
 
   SPHRAY_HD Rgb outside(Vec3f p, Vec3f d) const {
     const Rgb ga{0.42f, 0.4f, 0.38f}, gb{0.3f, 0.29f, 0.28f};
@@ -397,12 +388,12 @@ struct Tracer {
         return env(o, d);
       }
       p = p + d * (e0 > 0.0f ? e0 : 0.0f);
-      const int face = env.nearest_face(p);
+      const int face = nearest_face(p, env.tank_lo, env.tank_hi, 5);
       if (face < 4 && env.opaque(face)) {  // an opaque wall from outside: no liquid seen through it
         watch.contribution(w);
         return env(o, d);
       }
-      entry_n = env.face_normal(face);
+      entry_n = face_normal(face);
       on_face = true;
     }
     bool inside = field(p) >= ts.iso;
@@ -419,14 +410,16 @@ struct Tracer {
     for (; k < ts.interfaces && !stopped; ++k) {
       float b0, b1;
       ray_box(p, d, Vec3f{0, 0, 0}, box_hi, b0, b1);
-      const float t_box = b1 > 0.0f ? b1 : 0.0f, t_wall = env.wall_distance(p, d, wall_face);
-      // leaving through a glass wall: no liquid beyond it
-      float t_glass = 1e30f;
-      int glass_face = 0;
+      const float t_box = b1 > 0.0f ? b1 : 0.0f;
+      // The tank face the ray would leave through: an opaque one stops it; past
+      // a glass one there is no liquid; the top lets it go on.
+      float t_wall = 1e30f, t_glass = 1e30f;
+      int face = 5;
       if (env.in_tank(p)) {
         float te;
-        glass_face = env.exit_face(p, d, te);
-        if (glass_face < 4 && !env.opaque(glass_face)) t_glass = te;
+        face = env.exit_face(p, d, te);
+        if (env.opaque(face)) t_wall = te;
+        else if (face < 4) t_glass = te;
       }
       float t_max = t_wall < t_box ? t_wall : t_box;
       t_max = t_glass < t_max ? t_glass : t_max;
@@ -437,13 +430,14 @@ struct Tracer {
       if (th < 0.0f) {
         if (t_wall <= t_box && t_wall <= t_glass) {  // the tank stops the ray: the environment at the wall
           p = p + d * t_wall;
+          wall_face = face;
           stopped = true;
           break;
         }
         if (t_glass < t_box) {  // at the glass: out of the liquid through it, or already in air
           p = p + d * t_glass;
           if (!inside) break;
-          interface_at(p, env.face_normal(glass_face), d, inside, w, colour, watch);
+          interface_at(p, face_normal(face), d, inside, w, colour, watch);
           if (!inside) break;  // refracted out of the tank: nothing more to meet
           continue;            // totally reflected back into the liquid
         }
@@ -467,15 +461,7 @@ struct Tracer {
   }
 
  private:
-  SPHRAY_HD Vec3f box_face_normal(Vec3f p) const {
-    const float dist[6] = {p.x, box_hi.x - p.x, p.y, box_hi.y - p.y, p.z, box_hi.z - p.z};
-    int best = 0;
-    for (int k = 1; k < 6; ++k) best = dist[k] < dist[best] ? k : best;
-    Vec3f n{0, 0, 0};
-    const float s = (best & 1) ? 1.0f : -1.0f;
-    if (best < 2) n.x = s; else if (best < 4) n.y = s; else n.z = s;
-    return n;  // outward
-  }
+  SPHRAY_HD Vec3f box_face_normal(Vec3f p) const { return face_normal(nearest_face(p, Vec3f{0, 0, 0}, box_hi)); }
 
   SPHRAY_HD void absorb(Rgb& w, float len) const {
     w.r *= std::exp(-ts.absorption.r * len);
