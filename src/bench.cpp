@@ -62,15 +62,21 @@ std::vector<BenchSimRow> bench_sim(const std::string& scene_path, Backend b, con
   return rows;
 }
 
-nlohmann::json to_json(const std::vector<BenchSimRow>& rows, Backend b, const BenchSimOptions& opt) {
+nlohmann::json bench_json(const std::string& name, Backend b, const std::string& statistic,
+                          const std::vector<std::string>& overrides) {
   nlohmann::json j;
-  j["benchmark"] = "sim";
+  j["benchmark"] = name;
   j["backend"] = backend_name(b);
   j["device"] = b == Backend::Cuda ? cuda_device_name() : std::string("cpu");
+  j["statistic"] = statistic;
+  j["overrides"] = overrides;
+  return j;
+}
+
+nlohmann::json to_json(const std::vector<BenchSimRow>& rows, Backend b, const BenchSimOptions& opt) {
+  nlohmann::json j = bench_json("sim", b, "median ms per step", opt.overrides);
   j["warmup_steps"] = opt.warmup;
   j["measured_steps"] = opt.steps;
-  j["statistic"] = "median ms per step";
-  j["overrides"] = opt.overrides;
   for (const auto& r : rows)
     j["rows"].push_back({{"particles", r.particles}, {"boundary_particles", r.boundary}, {"presence", r.presence},
                          {"grid_ms", r.median_ms.grid}, {"density_ms", r.median_ms.density},

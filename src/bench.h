@@ -38,4 +38,9 @@ void print_table(const std::vector<BenchSimRow>& rows, std::ostream& out);
 
 double median(std::vector<double> v);
 
+// What every benchmark's JSON starts with: its name, the backend and device,
+// the statistic its numbers are, and the scene overrides it ran with.
+nlohmann::json bench_json(const std::string& name, Backend b, const std::string& statistic,
+                          const std::vector<std::string>& overrides);
+
 }  // namespace sphray

@@ -109,15 +109,10 @@ std::vector<BenchFieldRow> bench_field(Backend b, const BenchFieldOptions& opt, 
 }
 
 nlohmann::json to_json(const std::vector<BenchFieldRow>& rows, Backend b, const BenchFieldOptions& opt) {
-  nlohmann::json j;
-  j["benchmark"] = "field";
-  j["backend"] = backend_name(b);
-  j["device"] = b == Backend::Cuda ? cuda_device_name() : std::string("cpu");
+  nlohmann::json j = bench_json("field", b, "median ms per build", opt.overrides);
   j["warmup_builds"] = opt.warmup;
   j["measured_builds"] = opt.frames;
   j["collapse_T"] = opt.collapse;
-  j["statistic"] = "median ms per build";
-  j["overrides"] = opt.overrides;
   j["rows"] = nlohmann::json::array();
   for (const auto& r : rows)
     j["rows"].push_back({{"particles", r.particles},

@@ -78,15 +78,12 @@ std::vector<BenchFrameRow> bench_frame(Backend b, const BenchFrameOptions& opt, 
 }
 
 nlohmann::json to_json(const std::vector<BenchFrameRow>& rows, Backend b, const BenchFrameOptions& opt) {
-  nlohmann::json j;
-  j["benchmark"] = "frame";
-  j["backend"] = backend_name(b);
-  j["device"] = b == Backend::Cuda ? cuda_device_name() : std::string("cpu");
+  nlohmann::json j = bench_json("frame", b,
+                                "median ms per frame (stages: device events; wall: host clock around the frame)",
+                                opt.overrides);
   j["warmup_frames"] = opt.warmup;
   j["measured_frames"] = opt.frames;
   j["collapse_T"] = opt.collapse;
-  j["statistic"] = "median ms per frame (stages: device events; wall: host clock around the frame)";
-  j["overrides"] = opt.overrides;
   j["rows"] = nlohmann::json::array();
   for (const auto& r : rows)
     j["rows"].push_back({{"particles", r.particles}, {"volume", {r.nx, r.ny, r.nz}}, {"width", r.width},
@@ -162,17 +159,12 @@ std::vector<BenchRenderRow> bench_render(Backend b, const BenchRenderOptions& op
 }
 
 nlohmann::json to_json(const std::vector<BenchRenderRow>& rows, Backend b, const BenchRenderOptions& opt) {
-  nlohmann::json j;
-  j["benchmark"] = "render";
-  j["backend"] = backend_name(b);
-  j["device"] = b == Backend::Cuda ? cuda_device_name() : std::string("cpu");
+  nlohmann::json j = bench_json("render", b, "median ms (device events); PSNR over R, G, B in dB", opt.overrides);
   j["particles"] = opt.particles;
   j["image"] = {opt.width, opt.height};
   j["reference"] = {{"builder", "naive"}, {"step_voxels", opt.reference_step}, {"interfaces", 8}};
   j["warmup_renders"] = opt.warmup;
   j["measured_renders"] = opt.frames;
-  j["statistic"] = "median ms (device events); PSNR over R, G, B in dB";
-  j["overrides"] = opt.overrides;
   j["rows"] = nlohmann::json::array();
   for (const auto& r : rows)
     j["rows"].push_back({{"builder", r.builder}, {"step_voxels", r.step}, {"interfaces", r.interfaces},
