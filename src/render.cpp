@@ -116,11 +116,15 @@ void FrameRenderer::finish() {
   if (png_ && !png_->finish()) throw std::runtime_error("--frames-dir: " + png_->error());
 }
 
-void FrameRenderer::render_to(const ParticleView& pv, const FieldBuilder& field, const std::string& png_path) {
+Image FrameRenderer::render(const ParticleView& pv, const FieldBuilder& field) {
   renderer_->render(field.data(), field.setup(), &pv, cam_, env_, rs_);
   render_ms_ += renderer_->last_ms();
   ++renders_;
-  write_png(png_path, renderer_->download());
+  return renderer_->download();
+}
+
+void FrameRenderer::render_to(const ParticleView& pv, const FieldBuilder& field, const std::string& png_path) {
+  write_png(png_path, render(pv, field));
   ++written_;
 }
 
@@ -128,11 +132,8 @@ void FrameRenderer::write_frame(const ParticleView& pv, const FieldBuilder& fiel
   if (!png_) throw std::logic_error("FrameRenderer::write_frame needs a directory");
   char name[32];
   std::snprintf(name, sizeof name, "frame_%06d.png", frame);
-  renderer_->render(field.data(), field.setup(), &pv, cam_, env_, rs_);
-  render_ms_ += renderer_->last_ms();
-  ++renders_;
   // The image leaves the renderer now (the next render reuses its buffer); stb encodes it on the writer thread.
-  auto img = std::make_shared<Image>(renderer_->download());
+  auto img = std::make_shared<Image>(render(pv, field));
   const std::string path = (std::filesystem::path(dir_) / name).string();
   if (!png_->submit([img, path] { write_png(path, *img); })) throw std::runtime_error("--frames-dir: " + png_->error());
 }

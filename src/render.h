@@ -79,6 +79,8 @@ class FrameRenderer {
   const std::string& dir() const { return dir_; }
 
  private:
+  Image render(const ParticleView& pv, const FieldBuilder& field);  // the image, its time counted
+
   std::unique_ptr<Renderer> renderer_;
   RenderSettings rs_;
   Camera cam_;
