@@ -62,9 +62,7 @@ inline Hydrostatic run_hydrostatic(Backend b, double dx, double c0 = 0, double s
     snapshots.push_back(solver->download());
   }
   r.energy.push_back(kinetic_energy(snapshots.back(), prm.particle_mass));
-  for (const auto& x : snapshots.back().pos)
-    r.all_inside = r.all_inside && x.x >= s.tank.min.x && x.y >= s.tank.min.y && x.z >= s.tank.min.z &&
-                   x.x <= s.tank.max.x && x.y <= s.tank.max.y && x.z <= s.tank.max.z;
+  for (const auto& x : snapshots.back().pos) r.all_inside = r.all_inside && inside(x, s);
   r.all_inside = r.all_inside && snapshots.back().pos.size() == r.particles;
   r.clamped = solver->num_clamped();
 

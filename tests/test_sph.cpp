@@ -12,15 +12,6 @@
 
 using namespace sphray;
 
-namespace {
-
-bool inside(const Vec3f& p, const Scene& s) {
-  return p.x >= s.tank.min.x && p.y >= s.tank.min.y && p.z >= s.tank.min.z && p.x <= s.tank.max.x &&
-         p.y <= s.tank.max.y && p.z <= s.tank.max.z;
-}
-
-}  // namespace
-
 TEST_CASE("a tank at rest settles to hydrostatic pressure within 2%", "[sph][cpu]") {
   // dx = 1 cm: 2880 particles (tests/hydrostatic.h). c0 = 28 m/s, twice the
   // automatic 10 sqrt(g H): at the automatic c0 the weakly-compressible error
@@ -90,7 +81,7 @@ TEST_CASE("a dam break conserves particles and keeps them inside the walls", "[s
   test::run_until(*solver, 0.5);
   const HostParticles p = solver->download();
   CHECK(p.pos.size() == n);
-  for (const auto& x : p.pos) REQUIRE(inside(x, s));
+  for (const auto& x : p.pos) REQUIRE(test::inside(x, s));
   CHECK(double(solver->num_clamped()) <= 0.005 * double(n) * double(solver->steps()));
   // The front has moved: the column collapsed.
   CHECK(surge_front(p, 0.0, 0.04) > 0.6);
