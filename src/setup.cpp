@@ -8,6 +8,7 @@
 #include <sstream>
 #include <string>
 
+#include "../cuda/sph/neighbours.h"
 #include "field.h"
 
 namespace sphray {
@@ -134,8 +135,10 @@ SceneSize measure_scene(const Scene& s) {
   g.nx = int(std::min(nx, 2e9));
   g.ny = int(std::min(ny, 2e9));
   g.nz = int(std::min(nz, 2e9));
-  // Solver buffers (see SolverImpl) plus sort scratch and the host-side copy.
-  z.bytes = z.fluid * 200 + z.boundary * 64 + z.cells * (4 + 8 * GridGeom::kSubX);  // coarse + 2 slab tables
+  // Solver buffers (see SolverImpl) plus sort scratch and the host-side copy,
+  // the two pair masks (fluid and walls) and the coarse + 2 slab tables.
+  const size_t mask_bytes = 2 * (sizeof(PairWord) * pair_mask_capacity(support / dx) + sizeof(uint32_t));
+  z.bytes = z.fluid * (200 + mask_bytes) + z.boundary * 64 + z.cells * (4 + 8 * GridGeom::kSubX);
   return z;
 }
 

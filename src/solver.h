@@ -39,6 +39,10 @@ struct SolverInput {
   float min_dt = 1e-9f;   // a step below this is an error
   float max_dt = 1e-2f;
   PresenceMode presence = PresenceMode::Off;  // only when a later stage needs it
+  // Words per particle kept in each pair mask (cuda/sph/neighbours.h); -1:
+  // pair_mask_capacity of the support. Fewer only make the loops test more
+  // candidates on the fly (the tests use 0 and 1 to check that path).
+  int pair_mask_words = -1;
 };
 
 // Host copy of the fluid state, in the solver's current (sorted) order.
@@ -125,5 +129,17 @@ struct GridBuild {
   std::vector<uint32_t> fine_offsets;  // x slabs (grid.h), num_fine_cells() + 1: for for_each_candidate
 };
 GridBuild build_grid(Backend b, const GridGeom& g, const std::vector<Vec3f>& points);
+
+// The pair masks of the points against themselves (cuda/sph/neighbours.h),
+// built on the backend with `capacity` words per point, then walked on the
+// host: for each sorted point (grid.order), the sorted indices its density and
+// force loops would visit, in their order. For tests of the GPU build.
+struct PairMaskBuild {
+  GridBuild grid;
+  std::vector<std::vector<uint32_t>> neighbours;  // per sorted point inside the grid
+  uint32_t overflowed = 0;                        // points whose masks overflowed (the direct loop serves them)
+};
+PairMaskBuild build_pair_masks(Backend b, const GridGeom& g, const std::vector<Vec3f>& points, float radius,
+                               uint32_t capacity);
 
 }  // namespace sphray

@@ -4,6 +4,7 @@
 #include <iostream>
 #include <random>
 
+#include "../cuda/sph/neighbours.h"
 #include "catch.h"
 #include "helpers.h"
 #include "hydrostatic.h"
@@ -23,6 +24,44 @@ TEST_CASE("cuda grid build equals the cpu grid build", "[gpu]") {
   CHECK(c.offsets == d.offsets);
   CHECK(c.fine_offsets == d.fine_offsets);
   CHECK(c.keys == d.keys);
+}
+
+TEST_CASE("cuda pair masks visit the cpu's neighbours in the same order", "[gpu]") {
+  // The GPU builds a warp's masks together from shared memory (neighbours.h);
+  // the CPU builds each query's own. Walked, both must give every query the
+  // same neighbours in the same order: uniform points (a particle count that
+  // leaves a partial last warp), a jittered lattice at h = 2 dx (rows shared by
+  // a warp's lanes), a pile-up in one cell (masks overflow), and with few words
+  // kept (the direct loop takes over).
+  std::mt19937 rng(17);
+  std::uniform_real_distribution<float> u(0.0f, 1.0f), jit(-0.1f, 0.1f);
+  std::vector<Vec3f> uniform(30011), lattice, pile(3000);
+  for (auto& p : uniform) p = {u(rng), u(rng), u(rng)};
+  for (int z = 0; z < 40; ++z)
+    for (int y = 0; y < 40; ++y)
+      for (int x = 0; x < 40; ++x)
+        lattice.push_back({0.0125f * (x + 0.5f + jit(rng)), 0.0125f * (y + 0.5f + jit(rng)), 0.0125f * (z + 0.5f + jit(rng))});
+  for (auto& p : pile) p = {0.54f + 0.03f * u(rng), 0.54f + 0.03f * u(rng), 0.54f + 0.03f * u(rng)};
+  const GridGeom g{{0, 0, 0}, 0.05f, 20, 20, 20};  // support 4 lattice spacings, as h = 2 dx
+  struct Case { const char* name; const std::vector<Vec3f>* pts; uint32_t capacity; };
+  for (const Case& c : {Case{"uniform", &uniform, pair_mask_capacity(4.0)}, Case{"lattice", &lattice, pair_mask_capacity(4.0)},
+                        Case{"lattice, 4 words", &lattice, 4u}, Case{"pile", &pile, pair_mask_capacity(4.0)}}) {
+    INFO(c.name);
+    const PairMaskBuild cpu = build_pair_masks(Backend::Cpu, g, *c.pts, g.cell_size, c.capacity);
+    const PairMaskBuild gpu = build_pair_masks(Backend::Cuda, g, *c.pts, g.cell_size, c.capacity);
+    REQUIRE(cpu.grid.order == gpu.grid.order);
+    REQUIRE(cpu.neighbours.size() == c.pts->size());
+    size_t pairs = 0;
+    for (size_t i = 0; i < cpu.neighbours.size(); ++i) {
+      REQUIRE(cpu.neighbours[i] == gpu.neighbours[i]);
+      pairs += cpu.neighbours[i].size();
+    }
+    INFO("neighbours per point " << double(pairs) / double(c.pts->size()) << ", overflowed cpu " << cpu.overflowed
+                                 << " gpu " << gpu.overflowed);
+    CHECK(pairs > 0);
+    if (c.pts == &pile) CHECK(gpu.overflowed > 0.9 * double(c.pts->size()));
+    if (c.capacity == 4u) CHECK(gpu.overflowed > c.pts->size() / 2);
+  }
 }
 
 TEST_CASE("cuda and cpu dam breaks agree to float tolerance", "[gpu]") {

@@ -1,17 +1,59 @@
 // Neighbour grid against brute force: random points, a lattice, points on cell
-// faces, empty cells, everything in one cell, and points outside the grid.
+// faces, empty cells, everything in one cell, and points outside the grid; the
+// pair masks (neighbours.h) against the direct loop on the same inputs.
 #include <algorithm>
 #include <random>
 #include <set>
 #include <vector>
 
 #include "../cuda/sph/grid.h"
+#include "../cuda/sph/neighbours.h"
 #include "catch.h"
 #include "helpers.h"
 
 using namespace sphray;
 
 namespace {
+
+// The pair masks' walk visits exactly the direct loop's neighbours, in its
+// order, for a query set against itself (skipping the query) and against
+// another set, with every word stored, a few stored (the rest computed on the
+// fly), and none.
+void check_pair_masks(const GridGeom& g, const GridBuild& gb, const std::vector<Vec3f>& sorted, uint32_t inside,
+                      float radius) {
+  const float r2 = radius * radius;
+  std::vector<Float4> pts(inside);
+  for (uint32_t i = 0; i < inside; ++i) pts[i] = {sorted[i].x, sorted[i].y, sorted[i].z, 0.0f};
+  for (uint32_t capacity : {64u, 3u, 0u})
+    for (bool self : {true, false}) {
+      std::vector<PairWord> words(size_t(capacity) * inside + 1, PairWord{0xdeadbeefu, 0u});
+      std::vector<uint32_t> count(inside);
+      const PairMask m{words.data(), count.data(), inside, capacity};
+      const BuildPairMask build{g, gb.fine_offsets.data(), pts.data(), pts.data(), r2, self, m};
+      for (uint32_t i = 0; i < inside; ++i) build(i);
+      CHECK(words.back().base == 0xdeadbeefu);  // nothing written past the capacity
+      for (uint32_t c : count) REQUIRE(c <= capacity + 1);
+      uint32_t overflowed = 0, with_neighbours = 0;
+      for (uint32_t i = 0; i < inside; ++i) {
+        const uint32_t skip = self ? i : kNoSkip;
+        std::vector<uint32_t> walked, direct;
+        auto visit = [&](uint32_t j, Float4, Vec3f, float) { walked.push_back(j); };
+        const bool complete = count[i] <= capacity;
+        overflowed += !complete;
+        if (complete) for_each_pair<false>(g, gb.fine_offsets.data(), pts.data(), sorted[i], r2, skip, m, i, visit);
+        else for_each_pair<true>(g, gb.fine_offsets.data(), pts.data(), sorted[i], r2, skip, m, i, visit);
+        for_each_neighbour(g, gb.fine_offsets.data(), pts.data(), sorted[i], r2, skip,
+                           [&](uint32_t j, Float4, Vec3f, float) { direct.push_back(j); });
+        INFO("capacity " << capacity << ", self " << self << ", query " << i);
+        REQUIRE(walked == direct);
+        REQUIRE(std::count(direct.begin(), direct.end(), i) == (self ? 0 : 1));
+        with_neighbours += !direct.empty();
+      }
+      // Capacity 0: every query with a neighbour overflows; the mask walk of an
+      // overflowed query visits nothing (the direct launch serves it).
+      if (capacity == 0) CHECK(overflowed == with_neighbours);
+    }
+}
 
 // Every pair within `radius`, found through the grid, must equal brute force.
 void check_against_brute_force(Backend b, const GridGeom& g, const std::vector<Vec3f>& pts, float radius) {
@@ -42,6 +84,17 @@ void check_against_brute_force(Backend b, const GridGeom& g, const std::vector<V
     for (uint32_t j = 0; j < inside; ++j)
       if (length2(sorted[i] - sorted[j]) < r2) brute.insert(gb.order[j]);
     REQUIRE(via_grid == brute);
+  }
+  check_pair_masks(g, gb, sorted, inside, radius);
+  // The library's build-and-walk (what the gpu test compares across backends) agrees too.
+  const PairMaskBuild pm = build_pair_masks(b, g, pts, radius, 16);
+  REQUIRE(pm.neighbours.size() == inside);
+  for (uint32_t i = 0; i < inside; ++i) {
+    std::vector<uint32_t> direct;
+    for_each_candidate(g, gb.fine_offsets.data(), sorted[i], [&](uint32_t j) {
+      if (j != i && length2(sorted[i] - sorted[j]) < radius * radius) direct.push_back(j);
+    });
+    REQUIRE(pm.neighbours[i] == direct);
   }
 }
 
@@ -144,4 +197,22 @@ TEST_CASE("grid drops points outside it and keeps the rest", "[grid][cpu]") {
 TEST_CASE("grid of zero points is empty", "[grid][cpu]") {
   const GridBuild gb = build_grid(Backend::Cpu, unit_grid(4, 0.1f), {});
   for (uint32_t o : gb.offsets) CHECK(o == 0);
+}
+
+TEST_CASE("a warp-built mask word keeps only the query's own candidates", "[grid][cpu]") {
+  // The GPU build tests a warp's union of candidates and keeps, per lane, the
+  // bits of BuildPairMask::own_bits: within [begin, end) and not the query itself.
+  std::mt19937 rng(23);
+  std::uniform_int_distribution<uint32_t> u(0, 200);
+  for (int trial = 0; trial < 20000; ++trial) {
+    const uint32_t base = u(rng), begin = u(rng), end = begin + u(rng) % 80;
+    const uint32_t skip = trial % 3 == 0 ? kNoSkip : u(rng);
+    uint32_t expected = 0;
+    for (uint32_t k = 0; k < 32; ++k) {
+      const uint32_t j = base + k;
+      if (j >= begin && j < end && j != skip) expected |= 1u << k;
+    }
+    INFO("base " << base << " begin " << begin << " end " << end << " skip " << skip);
+    REQUIRE(BuildPairMask::own_bits(base, begin, end, skip) == expected);
+  }
 }

@@ -87,8 +87,7 @@ __global__ void for_each_index_kernel(uint32_t n, F f) {
 template <class F>
 void parallel_for(uint32_t n, const F& f) {
   if (n == 0) return;
-  constexpr uint32_t kBlock = 128;
-  for_each_index_kernel<<<(n + kBlock - 1) / kBlock, kBlock>>>(n, f);
+  for_each_index_kernel<<<(n + kThreadsPerBlock - 1) / kThreadsPerBlock, kThreadsPerBlock>>>(n, f);
   SPHRAY_CUDA_CHECK(cudaGetLastError());
 #if !defined(NDEBUG)
   SPHRAY_CUDA_CHECK(cudaDeviceSynchronize());

@@ -10,3 +10,9 @@
 #define SPHRAY_HD
 #define SPHRAY_FORCEINLINE inline
 #endif
+
+namespace sphray {
+// Threads per block of the CUDA backend's parallel_for (cuda/backend/cuda.cuh);
+// per-warp shared-memory tiles (the pair-mask build) are sized by it.
+constexpr unsigned kThreadsPerBlock = 128;
+}  // namespace sphray

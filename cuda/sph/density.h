@@ -25,7 +25,8 @@
 
 namespace sphray {
 
-template <bool WithPresence>
+// Direct: the launch for the particles whose pair masks overflowed (neighbours.h).
+template <bool WithPresence, bool Direct = false>
 struct DensityRate {
   SphParams prm;
   GridGeom grid;
@@ -34,11 +35,13 @@ struct DensityRate {
   const Float4* vel;      // sorted fluid: vx, vy, vz, -
   const uint32_t* boundary_offsets;
   const Float4* boundary;  // sorted boundary: x, y, z, volume
+  PairMask fluid_pairs, boundary_pairs;  // neighbours.h, built with the grid
   float* drho_dt;          // out
   float* presence;         // out, [6][n] direction-major (+x,-x,+y,-y,+z,-z); null without presence
   uint32_t n;
 
   SPHRAY_HD void operator()(uint32_t i) const {
+    if (masks_complete(fluid_pairs, boundary_pairs, i) == Direct) return;  // the other launch's particle
     const Float4 pi = pos_rho[i];
     const Vec3f xi = xyz(pi);
     const Vec3f vi = xyz(vel[i]);
@@ -53,7 +56,7 @@ struct DensityRate {
     // with r_a < 0 lie toward +a), -a = (u + s) / 2. Two FMAs per axis.
     float sx = 0, sy = 0, sz = 0, ux = 0, uy = 0, uz = 0;
 
-    for_each_neighbour(grid, fluid_offsets, pos_rho, xi, support2, i, [&](uint32_t j, Float4 pj, Vec3f r, float r2) {
+    for_each_pair<Direct>(grid, fluid_offsets, pos_rho, xi, support2, i, fluid_pairs, i, [&](uint32_t j, Float4 pj, Vec3f r, float r2) {
       const float dwr = prm.kernel.dW_over_r(r2 * inv_sqrt(r2));
       const float vol_j = fast_div(prm.particle_mass, pj.w);
       const float weight = -dwr * vol_j;  // V_j (-dW/dr / r) >= 0
@@ -68,7 +71,7 @@ struct DensityRate {
 
     // Static walls (boundary particles of volume V_b, at rest): approaching a
     // wall compresses the particle (Adami et al. 2012, eq. 22 with v_w = 0).
-    for_each_neighbour(grid, boundary_offsets, boundary, xi, support2, kNoSkip, [&](uint32_t, Float4 pb, Vec3f r, float r2) {
+    for_each_pair<Direct>(grid, boundary_offsets, boundary, xi, support2, kNoSkip, boundary_pairs, i, [&](uint32_t, Float4 pb, Vec3f r, float r2) {
       rate += pi.w * pb.w * dot(vi, r) * prm.kernel.dW_over_r(std::sqrt(r2));
     });
 

@@ -15,6 +15,8 @@
 
 namespace sphray {
 
+// Direct: the launch for the particles whose pair masks overflowed (neighbours.h).
+template <bool Direct = false>
 struct Acceleration {
   SphParams prm;
   GridGeom grid;
@@ -25,9 +27,11 @@ struct Acceleration {
   const Float4* boundary;
   const WallState* wall;        // boundary.h
   const float* boundary_alpha;  // artificial viscosity against each wall particle; 0 = free slip
+  PairMask fluid_pairs, boundary_pairs;  // neighbours.h, built with the grid
   Float4* accel;                // out: ax, ay, az, -
 
   SPHRAY_HD void operator()(uint32_t i) const {
+    if (masks_complete(fluid_pairs, boundary_pairs, i) == Direct) return;  // the other launch's particle
     const Float4 pi = pos_rho[i];
     const Vec3f xi = xyz(pi);
     const Float4 vel_i = vel[i];
@@ -39,7 +43,7 @@ struct Acceleration {
     const float eta2 = 0.01f * h * h;
     Vec3f a = {0.0f, 0.0f, 0.0f};
 
-    for_each_neighbour(grid, fluid_offsets, pos_rho, xi, support2, i, [&](uint32_t j, Float4 pj, Vec3f r, float r2) {
+    for_each_pair<Direct>(grid, fluid_offsets, pos_rho, xi, support2, i, fluid_pairs, i, [&](uint32_t j, Float4 pj, Vec3f r, float r2) {
       const float dwr = prm.kernel.dW_over_r(r2 * inv_sqrt(r2));
       const Float4 vj = load(vel + j);
       float term = p_over_rho2_i + vj.w;
@@ -51,7 +55,7 @@ struct Acceleration {
     });
 
     const float p_wall_i = p_over_rho2_i > 0.0f ? p_over_rho2_i : 0.0f;
-    for_each_neighbour(grid, boundary_offsets, boundary, xi, support2, kNoSkip, [&](uint32_t b, Float4 pb, Vec3f r, float r2) {
+    for_each_pair<Direct>(grid, boundary_offsets, boundary, xi, support2, kNoSkip, boundary_pairs, i, [&](uint32_t b, Float4 pb, Vec3f r, float r2) {
       const WallState w = wall[b];
       const float rho_w = w.rho;
       float term = p_wall_i + w.p_over_rho2;

@@ -53,46 +53,55 @@ struct GridGeom {
   SPHRAY_HD SPHRAY_FORCEINLINE uint32_t key_of(Vec3f p) const { return fine_key_of(p) / uint32_t(kSubX); }
 };
 
-// Calls f(j) for every particle j of a set sorted by this grid (fluid or
-// boundary; `fine_offsets` is its slab table, num_fine_cells() + 1 entries) that
-// may lie within one cell size (the support radius) of p: a superset of the
-// neighbours, culled row by row to the support sphere (see the top of this
-// file). The caller tests the distance. The culling radius is padded by 1e-3 of
-// a cell so that float rounding of p and of the cell bounds never drops a
-// neighbour whose distance the caller computes as just inside the support.
-template <class F>
-SPHRAY_HD SPHRAY_FORCEINLINE void for_each_candidate(const GridGeom& g, const uint32_t* fine_offsets, Vec3f p, F&& f) {
+// The candidate rows of a query at p: the 9 rows (dz, dy in -1..1, row =
+// (dz + 1) * 3 + (dy + 1)) of the cells around p's cell, each one contiguous
+// range of a set sorted by this grid (fluid or boundary; `fine_offsets` is its
+// slab table, num_fine_cells() + 1 entries), culled to the support sphere (see
+// the top of this file). Returns false for a row outside the grid or wholly
+// beyond the support; otherwise sets [begin, end) (possibly empty). The culling
+// radius is padded by 1e-3 of a cell so that float rounding of p and of the
+// cell bounds never drops a neighbour whose distance the caller computes as
+// just inside the support. Pure function of (g, fine_offsets, p, row), so a
+// query that walks the rows again (the pair masks, neighbours.h) sees the same ranges.
+constexpr int kCandidateRows = 9;
+
+SPHRAY_HD SPHRAY_FORCEINLINE bool candidate_row(const GridGeom& g, const uint32_t* fine_offsets, Vec3f p, int row,
+                                                uint32_t& begin, uint32_t& end) {
   const float s = g.cell_size;
   const float reach2 = (1.001f * s) * (1.001f * s);
-  const int cy = g.coord(p.y, g.origin.y), cz = g.coord(p.z, g.origin.z);
-  // Distance from p to the lower / upper face of its own cell in y and z.
-  const float y_lo = p.y - (g.origin.y + float(cy) * s), y_hi = g.origin.y + float(cy + 1) * s - p.y;
-  const float z_lo = p.z - (g.origin.z + float(cz) * s), z_hi = g.origin.z + float(cz + 1) * s - p.z;
-  const int fx_last = g.nx * GridGeom::kSubX - 1;
+  const int dz = row / 3 - 1, dy = row % 3 - 1;
+  const int cz = g.coord(p.z, g.origin.z), z = cz + dz;
+  const int cy = g.coord(p.y, g.origin.y), y = cy + dy;
+  if (z < 0 || z >= g.nz || y < 0 || y >= g.ny) return false;
+  // Distance from p to the face of its own cell toward the row (0 for the row through p).
+  const float ez = dz < 0 ? p.z - (g.origin.z + float(cz) * s) : dz > 0 ? g.origin.z + float(cz + 1) * s - p.z : 0.0f;
+  const float ey = dy < 0 ? p.y - (g.origin.y + float(cy) * s) : dy > 0 ? g.origin.y + float(cy + 1) * s - p.y : 0.0f;
+  const float left = reach2 - (ez > 0.0f ? ez * ez : 0.0f) - (ey > 0.0f ? ey * ey : 0.0f);
+  if (left <= 0.0f) return false;  // the whole row is beyond the support
+  const float rx = std::sqrt(left);
   const float slabs_per_m = float(GridGeom::kSubX) / s;
-  const uint32_t row_len = uint32_t(g.nx) * uint32_t(GridGeom::kSubX);
-  for (int dz = -1; dz <= 1; ++dz) {
-    const int z = cz + dz;
-    if (z < 0 || z >= g.nz) continue;
-    const float ez = dz < 0 ? z_lo : dz > 0 ? z_hi : 0.0f;
-    const float ez2 = ez > 0.0f ? ez * ez : 0.0f;
-    for (int dy = -1; dy <= 1; ++dy) {
-      const int y = cy + dy;
-      if (y < 0 || y >= g.ny) continue;
-      const float ey = dy < 0 ? y_lo : dy > 0 ? y_hi : 0.0f;
-      const float left = reach2 - ez2 - (ey > 0.0f ? ey * ey : 0.0f);
-      if (left <= 0.0f) continue;  // the whole row is beyond the support
-      const float rx = std::sqrt(left);
-      int x0 = int(std::floor((p.x - rx - g.origin.x) * slabs_per_m));
-      int x1 = int(std::floor((p.x + rx - g.origin.x) * slabs_per_m));
-      x0 = x0 < 0 ? 0 : x0;
-      x1 = x1 > fx_last ? fx_last : x1;
-      if (x0 > x1) continue;
-      const uint32_t row = (uint32_t(z) * uint32_t(g.ny) + uint32_t(y)) * row_len;
-      const uint32_t begin = fine_offsets[row + uint32_t(x0)];
-      const uint32_t end = fine_offsets[row + uint32_t(x1) + 1u];
-      for (uint32_t j = begin; j < end; ++j) f(j);
-    }
+  const int fx_last = g.nx * GridGeom::kSubX - 1;
+  int x0 = int(std::floor((p.x - rx - g.origin.x) * slabs_per_m));
+  int x1 = int(std::floor((p.x + rx - g.origin.x) * slabs_per_m));
+  x0 = x0 < 0 ? 0 : x0;
+  x1 = x1 > fx_last ? fx_last : x1;
+  if (x0 > x1) return false;
+  const uint32_t first = (uint32_t(z) * uint32_t(g.ny) + uint32_t(y)) * uint32_t(g.nx) * uint32_t(GridGeom::kSubX);
+  begin = fine_offsets[first + uint32_t(x0)];
+  end = fine_offsets[first + uint32_t(x1) + 1u];
+  return true;
+}
+
+// Calls f(j) for every particle j of a set sorted by this grid that may lie
+// within one cell size (the support radius) of p: a superset of the
+// neighbours, the candidate rows in order, j ascending within a row. The
+// caller tests the distance.
+template <class F>
+SPHRAY_HD SPHRAY_FORCEINLINE void for_each_candidate(const GridGeom& g, const uint32_t* fine_offsets, Vec3f p, F&& f) {
+  for (int row = 0; row < kCandidateRows; ++row) {
+    uint32_t begin = 0, end = 0;
+    if (!candidate_row(g, fine_offsets, p, row, begin, end)) continue;
+    for (uint32_t j = begin; j < end; ++j) f(j);
   }
 }
 

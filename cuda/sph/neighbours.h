@@ -1,7 +1,19 @@
-// The neighbour loop every stage shares: particles of one grid-sorted set
-// within the support radius of a position.
+// The neighbour loops every stage shares: particles of one grid-sorted set
+// within the support radius of a position, found either directly from the
+// grid's candidate rows, or through a pair mask built once per grid.
+//
+// Why pair masks: on the GPU a warp runs 32 queries in lock step. In the direct
+// loop each lane tests its own next candidate, and about 3 in 10 candidates
+// are neighbours, so in nearly every iteration some lane has a neighbour and
+// the whole warp executes the pair physics: a candidate then costs the test
+// plus the physics, whatever the culling saved. With a mask the candidate
+// tests run once per step in a pass of their own (no physics), and the
+// density and force loops visit only the set bits, one neighbour per lane per
+// iteration, so the pair physics runs with (nearly) all lanes busy.
 #pragma once
 
+#include <algorithm>
+#include <cmath>
 #include <cstdint>
 
 #include "grid.h"
@@ -25,5 +37,190 @@ SPHRAY_HD SPHRAY_FORCEINLINE void for_each_neighbour(const GridGeom& g, const ui
 }
 
 constexpr uint32_t kNoSkip = 0xffffffffu;
+
+// Index of the lowest set bit of a non-zero word.
+SPHRAY_HD SPHRAY_FORCEINLINE uint32_t lowest_bit(uint32_t w) {
+#if defined(__CUDA_ARCH__)
+  return uint32_t(__ffs(int(w)) - 1);
+#else
+  return uint32_t(__builtin_ctz(w));
+#endif
+}
+
+// One word of a query's pair mask: bit k says whether candidate base + k (of a
+// row ending at `end`) is a neighbour: r2 < support2 and not `skip`.
+SPHRAY_HD SPHRAY_FORCEINLINE uint32_t pair_word(const Float4* pts, Vec3f x, float support2, uint32_t skip, uint32_t base,
+                                                uint32_t end) {
+  const uint32_t count = end - base < 32u ? end - base : 32u;
+  uint32_t word = 0;
+  for (uint32_t k = 0; k < count; ++k) {
+    const uint32_t j = base + k;
+    const float r2 = length2(x - xyz(load(pts + j)));
+    word |= uint32_t(r2 < support2 && j != skip) << k;
+  }
+  return word;
+}
+
+// Pair masks of n queries against one particle set: for query i, the
+// non-zero words of its candidate rows (grid.h) in order, a row's candidates
+// taken 32 at a time, each word stored with the index of its first candidate
+// (bit k: candidate base + k is a neighbour). Word w of query i is
+// words[w * n + i] (the queries of a warp read neighbouring words). A query
+// needing more than `capacity` words (a compressed or piled-up state) stores
+// count = capacity + 1 and its loops take the direct path: the mask is never
+// wrong there, only no faster. The loops run in two launches, one for the
+// queries whose masks hold all their words and one, the direct loop, for the
+// others (for_each_pair), so that the common kernel carries no fallback code
+// (it took 13 more registers and spilled under the 40-register cap).
+struct alignas(8) PairWord {
+  uint32_t base;  // sorted index of the word's first candidate
+  uint32_t bits;
+};
+
+struct PairMask {
+  PairWord* words;
+  uint32_t* count;    // words of each query, or capacity + 1
+  uint32_t n;
+  uint32_t capacity;  // words kept per query
+};
+
+// Words per query to keep for a support of `support_over_dx` particle
+// spacings: a query reads about 15 cell volumes of candidates (grid.h; 14.5
+// measured at 2 dx), i.e. 15 (support / dx)^3 at rest density, at most one word
+// per 32 plus one partial word per row, with a quarter to spare for
+// compression. Clamped to [8, 256].
+inline uint32_t pair_mask_capacity(double support_over_dx) {
+  const double candidates = 15.0 * support_over_dx * support_over_dx * support_over_dx;
+  const double words = 1.25 * (candidates / 32.0 + kCandidateRows);
+  return uint32_t(std::min(256.0, std::max(8.0, std::ceil(words))));
+}
+
+// Builds the pair mask of query i (position queries[i]) against `pts`.
+//
+// On the GPU the 32 queries of a warp build their masks together: consecutive
+// sorted particles share most of their candidate rows, so per row the warp
+// loads the union of its lanes' ranges 32 candidates at a time into shared
+// memory (one coalesced load) and every lane tests each of them from there
+// (a broadcast read), keeping those within its own range. Loading each lane's
+// own candidates instead (the CPU path below) makes 32 scattered reads per
+// candidate, and that kernel was bound by the L1 cache (96% busy, 1.3 ms at
+// 1M particles on the H100). A row whose lanes lie in different rows of the
+// grid (the union far longer than any lane's range) is built per lane. Either
+// way a lane's words hold its own neighbours in the order of for_each_neighbour;
+// only where the words start differs.
+struct BuildPairMask {
+  GridGeom grid;
+  const uint32_t* offsets;  // slab table of pts
+  const Float4* pts;
+  const Float4* queries;
+  float support2;
+  bool self;  // queries and pts are the same set: skip j == i
+  PairMask mask;
+
+  // Appends one word (if it has a neighbour) to query i's mask; w counts the
+  // query's words, capacity + 1 at most (the overflow mark).
+  SPHRAY_HD SPHRAY_FORCEINLINE void put(uint32_t i, uint32_t& w, uint32_t base, uint32_t bits) const {
+    if (bits == 0 || w > mask.capacity) return;
+    if (w < mask.capacity) mask.words[size_t(w) * mask.n + i] = {base, bits};
+    ++w;
+  }
+
+  // The bits of the word starting at `base` that are the query's own
+  // candidates: within [begin, end), and not `skip`.
+  SPHRAY_HD SPHRAY_FORCEINLINE static uint32_t own_bits(uint32_t base, uint32_t begin, uint32_t end, uint32_t skip) {
+    const uint32_t kb = begin > base ? begin - base : 0u, ke = end > base ? end - base : 0u;
+    const uint32_t below_end = ke >= 32u ? 0xffffffffu : (1u << ke) - 1u;
+    const uint32_t from_begin = kb >= 32u ? 0u : ~((1u << kb) - 1u);
+    const uint32_t not_skip = skip - base < 32u ? ~(1u << (skip - base)) : 0xffffffffu;
+    return below_end & from_begin & not_skip;
+  }
+
+  SPHRAY_HD void operator()(uint32_t i) const {
+    const Vec3f x = xyz(queries[i]);
+    const uint32_t skip = self ? i : kNoSkip;
+    uint32_t w = 0;
+#if defined(__CUDA_ARCH__)
+    __shared__ Float4 tile[kThreadsPerBlock / 32][32];
+    Float4* t = tile[threadIdx.x / 32];
+    // The kernel's lanes with i < n: the first `active` of the warp.
+    const uint32_t lane = threadIdx.x % 32, lanes = __activemask(), active = uint32_t(__popc(lanes));
+    for (int row = 0; row < kCandidateRows; ++row) {
+      uint32_t begin = 0, end = 0;
+      if (!candidate_row(grid, offsets, x, row, begin, end) || begin >= end) begin = 0xffffffffu, end = 0;
+      const uint32_t lo = __reduce_min_sync(lanes, begin), hi = __reduce_max_sync(lanes, end);
+      const uint32_t longest = __reduce_max_sync(lanes, end > begin ? end - begin : 0u);
+      if (hi <= lo) continue;  // no lane has candidates in this row
+      if (hi - lo > 2 * longest + 64) {  // the lanes read different grid rows: each its own
+        for (uint32_t base = begin; base < end; base += 32u) put(i, w, base, pair_word(pts, x, support2, skip, base, end));
+        continue;
+      }
+      for (uint32_t base = lo; base < hi; base += 32u) {
+        // The tile: the union's next 32 candidates, padded with far-away points.
+        const uint32_t count = hi - base < 32u ? hi - base : 32u;
+        for (uint32_t k = lane; k < 32u; k += active)  // the active lanes are 0..active-1
+          t[k] = k < count ? load(pts + base + k) : Float4{1e18f, 1e18f, 1e18f, 0.0f};
+        __syncwarp(lanes);
+        uint32_t bits = 0;
+#pragma unroll
+        for (uint32_t k = 0; k < 32u; ++k) bits |= uint32_t(length2(x - xyz(t[k])) < support2) << k;
+        __syncwarp(lanes);
+        put(i, w, base, bits & own_bits(base, begin, end, skip));
+      }
+    }
+#else
+    for (int row = 0; row < kCandidateRows && w <= mask.capacity; ++row) {
+      uint32_t begin = 0, end = 0;
+      if (!candidate_row(grid, offsets, x, row, begin, end)) continue;
+      for (uint32_t base = begin; base < end && w <= mask.capacity; base += 32u)
+        put(i, w, base, pair_word(pts, x, support2, skip, base, end));
+    }
+#endif
+    mask.count[i] = w;
+  }
+};
+
+// Calls f(j, p_j, r, r2) for every set bit j of query i's pair mask: the
+// neighbours of for_each_neighbour, in its order (rows in order, j ascending).
+// One flat loop, one neighbour per iteration: the lanes of a warp step through
+// their neighbours together, each loading its next word when its current one
+// is spent. r2 is recomputed here; f must treat r2 >= support2 as a zero
+// contribution (the kernels do), should the rounding differ from the build's.
+// Visits nothing for a query whose mask overflowed (see for_each_pair).
+template <class F>
+SPHRAY_HD SPHRAY_FORCEINLINE void for_each_masked_neighbour(const Float4* pts, Vec3f x, const PairMask& m, uint32_t i,
+                                                            F&& f) {
+  const uint32_t count = m.count[i];
+  if (count > m.capacity) return;
+  uint32_t w = 0, base = 0, bits = 0;
+  for (;;) {
+    while (bits == 0) {
+      if (w == count) return;
+      const PairWord e = m.words[size_t(w) * m.n + i];
+      base = e.base;
+      bits = e.bits;
+      ++w;
+    }
+    const uint32_t j = base + lowest_bit(bits);
+    bits &= bits - 1u;
+    const Float4 pj = load(pts + j);
+    const Vec3f r = x - xyz(pj);
+    f(j, pj, r, length2(r));
+  }
+}
+
+// Whether both masks of query i hold all its words (its loops take the masks).
+SPHRAY_HD SPHRAY_FORCEINLINE bool masks_complete(const PairMask& a, const PairMask& b, uint32_t i) {
+  return a.count[i] <= a.capacity && b.count[i] <= b.capacity;
+}
+
+// The neighbour loop of a launch: the mask walk (Direct = false), or the direct
+// loop (Direct = true) for the queries whose masks overflowed. A stage runs
+// both launches; each query does its work in exactly one (masks_complete).
+template <bool Direct, class F>
+SPHRAY_HD SPHRAY_FORCEINLINE void for_each_pair(const GridGeom& g, const uint32_t* offsets, const Float4* pts, Vec3f x,
+                                                float support2, uint32_t skip, const PairMask& m, uint32_t i, F&& f) {
+  if constexpr (Direct) for_each_neighbour(g, offsets, pts, x, support2, skip, f);
+  else for_each_masked_neighbour(pts, x, m, i, f);
+}
 
 }  // namespace sphray

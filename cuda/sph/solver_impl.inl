@@ -76,6 +76,40 @@ inline GridBuild build_grid_impl(const GridGeom& g, const std::vector<Vec3f>& po
   return {download(order, n), download(keys, n), download(offsets, offsets.size()), download(fine, fine.size())};
 }
 
+inline PairMaskBuild build_pair_masks_impl(const GridGeom& g, const std::vector<Vec3f>& points, float radius,
+                                           uint32_t capacity) {
+  PairMaskBuild out;
+  out.grid = build_grid_impl(g, points);
+  const uint32_t n = out.grid.offsets.back();  // points inside the grid, sorted first
+  std::vector<Float4> sorted(n);
+  for (uint32_t k = 0; k < n; ++k) {
+    const Vec3f p = points[out.grid.order[k]];
+    sorted[k] = {p.x, p.y, p.z, 0.0f};
+  }
+  Vector<Float4> pts;
+  Vector<uint32_t> fine;
+  upload(pts, sorted);
+  upload(fine, out.grid.fine_offsets);
+  Vector<PairWord> words(size_t(capacity) * n);
+  Vector<uint32_t> count(n);
+  const float r2 = radius * radius;
+  parallel_for(n, BuildPairMask{g, raw(fine), raw(pts), raw(pts), r2, true, PairMask{raw(words), raw(count), n, capacity}});
+  std::vector<PairWord> host_words = sphray::SPHRAY_BK::download(words, words.size());
+  std::vector<uint32_t> host_count = sphray::SPHRAY_BK::download(count, n);
+  const PairMask m{host_words.data(), host_count.data(), n, capacity};
+  out.neighbours.resize(n);
+  for (uint32_t i = 0; i < n; ++i) {
+    auto visit = [&](uint32_t j, Float4, Vec3f, float) { out.neighbours[i].push_back(j); };
+    if (masks_complete(m, m, i)) {
+      for_each_pair<false>(g, out.grid.fine_offsets.data(), sorted.data(), xyz(sorted[i]), r2, i, m, i, visit);
+    } else {
+      ++out.overflowed;
+      for_each_pair<true>(g, out.grid.fine_offsets.data(), sorted.data(), xyz(sorted[i]), r2, i, m, i, visit);
+    }
+  }
+  return out;
+}
+
 class SolverImpl final : public Solver {
  public:
   explicit SolverImpl(const SolverInput& in)
@@ -91,6 +125,12 @@ class SolverImpl final : public Solver {
     accel_.resize(n); drho_.resize(n);
     status_.assign(n, uint8_t(kStatusOk)); status_tmp_.resize(n);
     keys_.resize(n); order_.resize(n); offsets_.resize(cells); fine_offsets_.resize(slabs);
+    mask_words_ = in.pair_mask_words >= 0 ? uint32_t(in.pair_mask_words)
+                                          : pair_mask_capacity(double(prm_.kernel.support()) / double(prm_.spacing));
+    fluid_pairs_.resize(size_t(mask_words_) * n);
+    boundary_pairs_.resize(size_t(mask_words_) * n);
+    fluid_pair_count_.resize(n);
+    boundary_pair_count_.resize(n);
     parallel_for(n_, PressureTermOf{prm_, raw(pos_), raw(vel_)});
     set_presence(in.presence);
 
@@ -139,7 +179,8 @@ class SolverImpl final : public Solver {
     auto b = [](const auto& v) { return v.size() * sizeof(typename std::decay_t<decltype(v)>::value_type); };
     return b(pos_) + b(vel_) + b(pos_tmp_) + b(vel_tmp_) + b(accel_) + b(drho_) + b(presence_) + b(presence_tmp_) + b(id_) +
            b(id_tmp_) + b(status_) + b(status_tmp_) + b(keys_) + b(order_) + b(offsets_) + b(fine_offsets_) + b(boundary_) +
-           b(boundary_alpha_) + b(wall_) + b(boundary_offsets_);
+           b(boundary_alpha_) + b(wall_) + b(boundary_offsets_) + b(fluid_pairs_) + b(boundary_pairs_) +
+           b(fluid_pair_count_) + b(boundary_pair_count_);
   }
 
   // Stage order (integrate.h says why): forces, kick, density (+presence), drift, grid.
@@ -147,8 +188,10 @@ class SolverImpl final : public Solver {
     clock_.mark(1);
     parallel_for(uint32_t(boundary_.size()),
                  WallPressure{prm_, grid_, raw(fine_offsets_), raw(pos_), raw(vel_), raw(boundary_), raw(wall_)});
-    parallel_for(n_, Acceleration{prm_, grid_, raw(fine_offsets_), raw(pos_), raw(vel_), raw(boundary_offsets_),
-                                  raw(boundary_), raw(wall_), raw(boundary_alpha_), raw(accel_)});
+    // Each pair stage is two launches: the pair masks, then the direct loop for
+    // the particles whose masks overflowed (neighbours.h; usually none).
+    parallel_for(n_, force_stage<false>());
+    parallel_for(n_, force_stage<true>());
     clock_.mark(2);
     const StepStats s = thrust::transform_reduce(
         policy(), thrust::counting_iterator<uint32_t>(0), thrust::counting_iterator<uint32_t>(n_),
@@ -161,8 +204,13 @@ class SolverImpl final : public Solver {
                               (presence_mode_ == PresenceMode::AtUntil && t_ + dt >= until - 1e-12);
     parallel_for(n_, Kick{float(dt), raw(vel_), raw(accel_)});
     clock_.mark(3);
-    if (presence_now) parallel_for(n_, density_stage<true>());
-    else parallel_for(n_, density_stage<false>());
+    if (presence_now) {
+      parallel_for(n_, density_stage<true, false>());
+      parallel_for(n_, density_stage<true, true>());
+    } else {
+      parallel_for(n_, density_stage<false, false>());
+      parallel_for(n_, density_stage<false, true>());
+    }
     presence_valid_ = presence_now;
     clock_.mark(4);
     parallel_for(n_, Drift{prm_, float(dt), raw(pos_), raw(vel_), raw(drho_), raw(status_)});
@@ -219,11 +267,20 @@ class SolverImpl final : public Solver {
   }
 
  private:
-  template <bool P>
-  DensityRate<P> density_stage() {
-    return DensityRate<P>{prm_, grid_, raw(fine_offsets_), raw(pos_), raw(vel_), raw(boundary_offsets_), raw(boundary_),
-                          raw(drho_), P ? raw(presence_) : nullptr, n_};
+  template <bool Direct>
+  Acceleration<Direct> force_stage() {
+    return {prm_, grid_, raw(fine_offsets_), raw(pos_), raw(vel_), raw(boundary_offsets_), raw(boundary_), raw(wall_),
+            raw(boundary_alpha_), fluid_pairs(), boundary_pairs(), raw(accel_)};
   }
+
+  template <bool P, bool Direct>
+  DensityRate<P, Direct> density_stage() {
+    return DensityRate<P, Direct>{prm_, grid_, raw(fine_offsets_), raw(pos_), raw(vel_), raw(boundary_offsets_), raw(boundary_),
+                          fluid_pairs(), boundary_pairs(), raw(drho_), P ? raw(presence_) : nullptr, n_};
+  }
+
+  PairMask fluid_pairs() { return {raw(fluid_pairs_), raw(fluid_pair_count_), n_, mask_words_}; }
+  PairMask boundary_pairs() { return {raw(boundary_pairs_), raw(boundary_pair_count_), n_, mask_words_}; }
 
   void build_grid() {
     parallel_for(n_, KeyOf<Float4>{grid_, raw(pos_), raw(keys_)});
@@ -240,6 +297,12 @@ class SolverImpl final : public Solver {
     }
     removed_ += n_ - active;
     n_ = active;
+    // The pair masks of the density and force loops (neighbours.h): both run
+    // at these positions (the kick changes velocities only).
+    const float support2 = prm_.kernel.support() * prm_.kernel.support();
+    parallel_for(n_, BuildPairMask{grid_, raw(fine_offsets_), raw(pos_), raw(pos_), support2, true, fluid_pairs()});
+    parallel_for(n_, BuildPairMask{grid_, raw(boundary_offsets_), raw(boundary_), raw(pos_), support2, false,
+                                   boundary_pairs()});
   }
 
   double choose_dt(const StepStats& s, double until) {
@@ -304,5 +367,9 @@ class SolverImpl final : public Solver {
   // offsets_: coarse cell table (view(), the field builder, the raycaster);
   // fine_offsets_ and boundary_offsets_: slab tables of the neighbour loops (grid.h).
   Vector<uint32_t> id_, id_tmp_, keys_, order_, offsets_, fine_offsets_, boundary_offsets_;
+  // Pair masks of every fluid particle against the fluid and the walls (neighbours.h).
+  uint32_t mask_words_ = 0;
+  Vector<PairWord> fluid_pairs_, boundary_pairs_;
+  Vector<uint32_t> fluid_pair_count_, boundary_pair_count_;
   Vector<uint8_t> status_, status_tmp_;
 };
