@@ -99,6 +99,7 @@ void print_table(const std::vector<BenchSimRow>& rows, std::ostream& out) {
       out << "  presence adds " << std::setprecision(1)
           << 100.0 * (rows[k + 1].median_ms.density / rows[k].median_ms.density - 1.0) << "% to the density stage at "
           << rows[k].particles << " particles\n";
+  out << "  grid: the sort, the cell tables and the pair masks of the density and force loops\n";
   out << std::defaultfloat;
 }
 
