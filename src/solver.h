@@ -40,8 +40,8 @@ struct SolverInput {
   float max_dt = 1e-2f;
   PresenceMode presence = PresenceMode::Off;  // only when a later stage needs it
   // Words per particle kept in each pair mask (cuda/sph/neighbours.h); -1:
-  // pair_mask_capacity of the support. Fewer only make the loops test more
-  // candidates on the fly (the tests use 0 and 1 to check that path).
+  // pair_mask_capacity of the support. A particle needing more is served by
+  // the direct loop (the tests use 0 and 1 to check that path).
   int pair_mask_words = -1;
 };
 

@@ -17,8 +17,8 @@ namespace {
 
 // The pair masks' walk visits exactly the direct loop's neighbours, in its
 // order, for a query set against itself (skipping the query) and against
-// another set, with every word stored, a few stored (the rest computed on the
-// fly), and none.
+// another set, with every word stored, a few stored (a query needing more
+// takes the direct loop), and none.
 void check_pair_masks(const GridGeom& g, const GridBuild& gb, const std::vector<Vec3f>& sorted, uint32_t inside,
                       float radius) {
   const float r2 = radius * radius;

@@ -89,7 +89,7 @@ TEST_CASE("a dam break conserves particles and keeps them inside the walls", "[s
 
 TEST_CASE("the pair masks change no result: all, one or no mask words stored give the same run", "[sph][cpu]") {
   // neighbours.h: a particle whose candidates need more words than are kept
-  // computes the rest on the fly, visiting the same neighbours in the same
+  // is served by the direct loop, which visits the same neighbours in the same
   // order, so the runs agree bit for bit. Presence on, so that its loop is covered too.
   const Scene s = load_scene(test::source_path("scenes/dam_break.json"), {"sph.spacing=0.04", "run.end_time=0.1"});
   HostParticles ref;

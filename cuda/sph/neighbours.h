@@ -135,6 +135,14 @@ struct BuildPairMask {
     return below_end & from_begin & not_skip;
   }
 
+  // Appends the words of one of the query's own rows, [begin, end), each
+  // word's candidates loaded by this query alone (stops once overflowed).
+  SPHRAY_HD SPHRAY_FORCEINLINE void put_row(uint32_t i, uint32_t& w, Vec3f x, uint32_t skip, uint32_t begin,
+                                            uint32_t end) const {
+    for (uint32_t base = begin; base < end && w <= mask.capacity; base += 32u)
+      put(i, w, base, pair_word(pts, x, support2, skip, base, end));
+  }
+
   SPHRAY_HD void operator()(uint32_t i) const {
     const Vec3f x = xyz(queries[i]);
     const uint32_t skip = self ? i : kNoSkip;
@@ -142,8 +150,13 @@ struct BuildPairMask {
 #if defined(__CUDA_ARCH__)
     __shared__ Float4 tile[kThreadsPerBlock / 32][32];
     Float4* t = tile[threadIdx.x / 32];
-    // The kernel's lanes with i < n: the first `active` of the warp.
-    const uint32_t lane = threadIdx.x % 32, lanes = __activemask(), active = uint32_t(__popc(lanes));
+    // The lanes that run this (parallel_for: i = block * kThreadsPerBlock +
+    // thread, and only i < n call in): the first `active` of the warp. Derived
+    // from i and n rather than __activemask(), which need not return all of
+    // them, nor a prefix, where the warp has not reconverged.
+    const uint32_t lane = threadIdx.x % 32, warp_first = i - lane;
+    const uint32_t active = mask.n - warp_first < 32u ? mask.n - warp_first : 32u;
+    const uint32_t lanes = active == 32u ? 0xffffffffu : (1u << active) - 1u;
     for (int row = 0; row < kCandidateRows; ++row) {
       uint32_t begin = 0, end = 0;
       if (!candidate_row(grid, offsets, x, row, begin, end) || begin >= end) begin = 0xffffffffu, end = 0;
@@ -151,13 +164,13 @@ struct BuildPairMask {
       const uint32_t longest = __reduce_max_sync(lanes, end > begin ? end - begin : 0u);
       if (hi <= lo) continue;  // no lane has candidates in this row
       if (hi - lo > 2 * longest + 64) {  // the lanes read different grid rows: each its own
-        for (uint32_t base = begin; base < end; base += 32u) put(i, w, base, pair_word(pts, x, support2, skip, base, end));
+        put_row(i, w, x, skip, begin, end);
         continue;
       }
       for (uint32_t base = lo; base < hi; base += 32u) {
         // The tile: the union's next 32 candidates, padded with far-away points.
         const uint32_t count = hi - base < 32u ? hi - base : 32u;
-        for (uint32_t k = lane; k < 32u; k += active)  // the active lanes are 0..active-1
+        for (uint32_t k = lane; k < 32u; k += active)
           t[k] = k < count ? load(pts + base + k) : Float4{1e18f, 1e18f, 1e18f, 0.0f};
         __syncwarp(lanes);
         uint32_t bits = 0;
@@ -170,9 +183,7 @@ struct BuildPairMask {
 #else
     for (int row = 0; row < kCandidateRows && w <= mask.capacity; ++row) {
       uint32_t begin = 0, end = 0;
-      if (!candidate_row(grid, offsets, x, row, begin, end)) continue;
-      for (uint32_t base = begin; base < end && w <= mask.capacity; base += 32u)
-        put(i, w, base, pair_word(pts, x, support2, skip, base, end));
+      if (candidate_row(grid, offsets, x, row, begin, end)) put_row(i, w, x, skip, begin, end);
     }
 #endif
     mask.count[i] = w;
