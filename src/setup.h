@@ -17,7 +17,7 @@ struct SceneSize {
 };
 
 SphParams make_params(const Scene& s);
-// One presence lobe (cuda/sph/density.h) of a particle inside a full cubic
+// One presence lobe (cuda/sph/interaction.h) of a particle inside a full cubic
 // lattice of spacing dx: the value that presence is normalised by.
 double presence_lobe_on_lattice(const SmoothingKernel<double>& k, double dx);
 SceneSize measure_scene(const Scene& s);  // counts only; generates nothing

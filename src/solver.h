@@ -75,9 +75,13 @@ struct RawParticles {
   std::vector<float> presence;   // [6][n] (empty unless asked for and computed)
 };
 
-struct StageTimes {  // milliseconds of the last step
-  double grid = 0, density = 0, forces = 0, integrate = 0;
-  double total() const { return grid + density + forces + integrate; }
+// Milliseconds of the last step. pairs: the wall pressure and the one
+// neighbour loop of forces, density rate and presence (interaction.h);
+// integrate: the step-size reduction and the kick/density/drift; grid: the
+// sort, the cell tables and the next step's pair masks.
+struct StageTimes {
+  double grid = 0, pairs = 0, integrate = 0;
+  double total() const { return grid + pairs + integrate; }
 };
 
 struct StepLimits {  // the last step's size and what bounded it

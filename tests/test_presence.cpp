@@ -15,8 +15,9 @@ namespace {
 constexpr double kDx = 0.01;
 
 // A block of liquid n^3 at rest without gravity (so nothing moves in one step),
-// plus optional extra particles; presence on.
-SolverInput lattice_input(int nx, int ny, int nz, const std::vector<Vec3d>& extra = {}) {
+// plus optional extra particles; presence on. `varied`: densities spread over
+// rho0 .. 1.03 rho0 instead of all rho0 (presence weighs by the particle's volume).
+SolverInput lattice_input(int nx, int ny, int nz, const std::vector<Vec3d>& extra = {}, bool varied = false) {
   const std::string text = R"({"tank": {"min": [-0.1,-0.1,-0.1], "max": [0.4,0.4,0.4]},
     "gravity": [0,0,0], "sph": {"spacing": 0.01}, "run": {"end_time": 1}})";
   const Scene s = parse_scene(text, "presence.json");
@@ -24,7 +25,8 @@ SolverInput lattice_input(int nx, int ny, int nz, const std::vector<Vec3d>& extr
   for (int k = 0; k < nz; ++k)
     for (int j = 0; j < ny; ++j)
       for (int i = 0; i < nx; ++i)
-        in.fluid_pos_rho.push_back({float(i * kDx), float(j * kDx), float(k * kDx), 1000.0f});
+        in.fluid_pos_rho.push_back(
+            {float(i * kDx), float(j * kDx), float(k * kDx), varied ? 1000.0f + 10.0f * float((i * 7 + j * 3 + k * 5) % 4) : 1000.0f});
   for (const auto& e : extra) in.fluid_pos_rho.push_back({float(e.x), float(e.y), float(e.z), 1000.0f});
   in.fluid_vel.assign(in.fluid_pos_rho.size(), Float4{0, 0, 0, 0});
   return in;
@@ -53,12 +55,12 @@ double lattice_lobe(const SmoothingKernel<double>& k) {
   return sum;
 }
 
-// Independent reference in double: the definition in cuda/sph/density.h.
+// Independent reference in double: the definition in cuda/sph/interaction.h.
 std::array<double, 6> reference_presence(const SolverInput& in, size_t i) {
   const auto k = SmoothingKernel<double>::make(KernelType::WendlandC2, double(in.params.kernel.h));
-  const double vol = kDx * kDx * kDx, lobe = lattice_lobe(k);
-  std::array<double, 6> acc{};
   const Float4 a = in.fluid_pos_rho[i];
+  const double vol = double(in.params.particle_mass) / double(a.w), lobe = lattice_lobe(k);  // V_i = m / rho_i
+  std::array<double, 6> acc{};
   for (size_t j = 0; j < in.fluid_pos_rho.size(); ++j) {
     if (j == i) continue;
     const Float4 b = in.fluid_pos_rho[j];
@@ -89,7 +91,7 @@ TEST_CASE("the presence normalisation is about the continuous half-space value",
 }
 
 TEST_CASE("presence equals the double-precision reference for every particle", "[presence][cpu]") {
-  const SolverInput in = lattice_input(7, 6, 5, {{0.031, 0.027, 0.071}, {0.2, 0.2, 0.2}});
+  const SolverInput in = lattice_input(7, 6, 5, {{0.031, 0.027, 0.071}, {0.2, 0.2, 0.2}}, true);
   const auto got = presence_of(in);
   for (size_t i = 0; i < in.fluid_pos_rho.size(); ++i) {
     const auto ref = reference_presence(in, i);

@@ -6,6 +6,7 @@
 #include <cstdint>
 #include <stdexcept>
 #include <string>
+#include <type_traits>
 #include <vector>
 
 #include <cuda_runtime.h>
@@ -84,10 +85,28 @@ __global__ void for_each_index_kernel(uint32_t n, F f) {
   if (i < n) f(i);
 }
 
+// A functor may name its own register cap (static constexpr int
+// kMaxRegisters) where the file-wide -maxrregcount (CMakeLists.txt) would
+// make it spill: __maxnreg__ takes precedence for that kernel.
+template <class F, int MaxRegisters>
+__global__ __maxnreg__(MaxRegisters) void for_each_index_kernel_capped(uint32_t n, F f) {
+  const uint32_t i = blockIdx.x * blockDim.x + threadIdx.x;
+  if (i < n) f(i);
+}
+
+template <class F, class = void>
+struct KernelRegisterCap { static constexpr int value = 0; };
+template <class F>
+struct KernelRegisterCap<F, std::void_t<decltype(F::kMaxRegisters)>> { static constexpr int value = F::kMaxRegisters; };
+
 template <class F>
 void parallel_for(uint32_t n, const F& f) {
   if (n == 0) return;
-  for_each_index_kernel<<<(n + kThreadsPerBlock - 1) / kThreadsPerBlock, kThreadsPerBlock>>>(n, f);
+  const uint32_t blocks = (n + kThreadsPerBlock - 1) / kThreadsPerBlock;
+  if constexpr (KernelRegisterCap<F>::value > 0)
+    for_each_index_kernel_capped<F, KernelRegisterCap<F>::value><<<blocks, kThreadsPerBlock>>>(n, f);
+  else
+    for_each_index_kernel<<<blocks, kThreadsPerBlock>>>(n, f);
   SPHRAY_CUDA_CHECK(cudaGetLastError());
 #if !defined(NDEBUG)
   SPHRAY_CUDA_CHECK(cudaDeviceSynchronize());

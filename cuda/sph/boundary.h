@@ -31,7 +31,7 @@ struct WallPressure {
   GridGeom grid;
   const uint32_t* fluid_offsets;  // slab table (grid.h)
   const Float4* pos_rho;   // sorted fluid
-  const Float4* vel;       // sorted fluid; w = p / rho^2
+  const Float4* flow;      // sorted fluid; w = p / rho^2
   const Float4* boundary;  // sorted boundary: x, y, z, volume
   WallState* wall;         // out, per boundary particle
 
@@ -43,7 +43,7 @@ struct WallPressure {
     for_each_neighbour(grid, fluid_offsets, pos_rho, xb, support2, kNoSkip, [&](uint32_t f, Float4 pf, Vec3f r, float r2) {
       const float w = prm.kernel.W(std::sqrt(r2));
       sum_w += w;
-      sum_pw += load(vel + f).w * pf.w * pf.w * w;
+      sum_pw += load(flow + f).w * pf.w * pf.w * w;
       sum_rho_r += (pf.w * w) * r;
     });
     const float p = sum_w > 0.0f ? (sum_pw + dot(prm.gravity, sum_rho_r)) / sum_w : 0.0f;

@@ -2,15 +2,19 @@
 // treated as the position-like variable it is (continuity density is the time
 // derivative of summation density):
 //   v' = v + dt a(x, v, rho)             kick
-//   rho' = rho + dt drho/dt(x, v')       density stage, at x with the kicked v'
+//   rho' = rho + dt drho/dt(x, v')       at x with the kicked v'
 //   x' = x + dt v'                       drift
 // Evaluating drho/dt with v' (not v) keeps rho consistent with the drift; with
-// v it gains energy at every wall bounce. One force evaluation per step; the
+// v it gains energy at every wall bounce (tests/test_sph.cpp, the lone
+// particle). a and drho/dt come from one neighbour loop at x (interaction.h):
+// the rate is linear in the particle's own velocity, so Advance applies it
+// with the exact v'_i, and the neighbours' v'_j are predicted from the previous
+// step (u, stored here for the next loop). One force evaluation per step; the
 // step is bounded by the CFL, force and viscous limits (Monaghan 1992), so the
 // first-order truncation error stays below the spatial error. Particles that
 // cross a wall face are put back on it with their outward normal velocity
 // removed, and flagged so that the run counts them. Density is floored at the
-// rest density (see Drift).
+// rest density (see Advance).
 #pragma once
 
 #include <cstdint>
@@ -21,34 +25,24 @@ namespace sphray {
 
 enum ParticleStatus : uint8_t { kStatusOk = 0, kStatusClamped = 1 };
 
-struct Kick {
-  float dt;
-  Float4* vel;
-  const Float4* accel;
-
-  SPHRAY_HD void operator()(uint32_t i) const {
-    Float4 v = vel[i];
-    const Float4 a = accel[i];
-    v.x += dt * a.x; v.y += dt * a.y; v.z += dt * a.z;
-    vel[i] = v;
-  }
-};
-
-// vel.w = p / rho^2 from the density (params.h); Drift keeps it current.
+// flow.w = p / rho^2 from the density (params.h); Advance keeps it current.
 struct PressureTermOf {
   SphParams prm;
   const Float4* pos_rho;
-  Float4* vel;
-  SPHRAY_HD void operator()(uint32_t i) const { vel[i].w = pressure_term(prm, pos_rho[i].w); }
+  Float4* flow;
+  SPHRAY_HD void operator()(uint32_t i) const { flow[i].w = pressure_term(prm, pos_rho[i].w); }
 };
 
-struct Drift {
+// Kick, density, drift, and what the next pair loop reads of the particle.
+struct Advance {
   SphParams prm;
   float dt;
   Float4* pos_rho;
-  Float4* vel;
-  const float* drho_dt;
-  uint8_t* status;  // out
+  Float4* vel;              // exact velocity (w unused)
+  Float4* flow;             // out: u = v' + dt a (the next loop's prediction of v''), p / rho'^2
+  const Float4* accel;      // a, R (interaction.h)
+  const Float4* rate_grad;  // G, -
+  uint8_t* status;          // out
 
   SPHRAY_HD static void keep_inside(float& x, float& v, float lo, float hi, bool clamp_hi, uint8_t& st) {
     if (x < lo) { x = lo; if (v < 0.0f) v = 0.0f; st = kStatusClamped; }
@@ -58,21 +52,24 @@ struct Drift {
   SPHRAY_HD void operator()(uint32_t i) const {
     Float4 p = pos_rho[i];
     Float4 v = vel[i];
+    const Float4 a = accel[i], g = rate_grad[i];
+    v.x += dt * a.x; v.y += dt * a.y; v.z += dt * a.z;
+    const float rate = v.x * g.x + v.y * g.y + v.z * g.z + a.w;
     p.x += dt * v.x; p.y += dt * v.y; p.z += dt * v.z;
     // No tension: a free-surface liquid cannot pull, and a particle flying off
     // the bulk would otherwise decompress (continuity density drops by the
     // sum it leaves behind) into a strongly attractive, even negative, density.
     // Flooring at rest density keeps p >= 0 (as the clamped free-surface
     // WCSPH of Becker & Teschner 2007 does).
-    const float rho = p.w + dt * drho_dt[i];
+    const float rho = p.w + dt * rate;
     p.w = rho > prm.rest_density ? rho : prm.rest_density;
-    v.w = pressure_term(prm, p.w);
     uint8_t st = kStatusOk;
     keep_inside(p.x, v.x, prm.tank.min.x, prm.tank.max.x, true, st);
     keep_inside(p.y, v.y, prm.tank.min.y, prm.tank.max.y, true, st);
     keep_inside(p.z, v.z, prm.tank.min.z, prm.tank.max.z, !prm.open_top, st);
     pos_rho[i] = p;
     vel[i] = v;
+    flow[i] = {v.x + dt * a.x, v.y + dt * a.y, v.z + dt * a.z, pressure_term(prm, p.w)};
     status[i] = st;
   }
 };
@@ -83,9 +80,15 @@ struct Drift {
 struct StepStats {
   float max_speed2;
   float max_accel2;
-  uint32_t first_bad;  // sorted index, or UINT32_MAX when all finite
+  // The first particle with a non-finite value: its sorted index, plus
+  // kBadDerived if only what the pair loop computed (acceleration, density
+  // rate) is bad, so that a particle whose own state is bad, the cause, comes
+  // before the neighbours it spread to. UINT32_MAX when all are finite.
+  uint32_t first_bad;
   uint32_t clamped;
 };
+
+constexpr uint32_t kBadDerived = 0x80000000u;
 
 struct StepStatsOf {
   const Float4* pos_rho;
@@ -95,9 +98,10 @@ struct StepStatsOf {
 
   SPHRAY_HD StepStats operator()(uint32_t i) const {
     const Float4 p = pos_rho[i], v = vel[i], a = accel[i];
-    const bool finite = all_finite(xyz(p)) && std::isfinite(p.w) && all_finite(xyz(v)) &&
-                        all_finite(xyz(a)) && p.w > 0.0f;
-    return {length2(xyz(v)), length2(xyz(a)), finite ? 0xffffffffu : i, status[i] == kStatusClamped ? 1u : 0u};
+    const bool state = all_finite(xyz(p)) && std::isfinite(p.w) && all_finite(xyz(v)) && p.w > 0.0f;
+    const bool derived = all_finite(xyz(a)) && std::isfinite(a.w);
+    const uint32_t bad = !state ? i : !derived ? i | kBadDerived : 0xffffffffu;
+    return {length2(xyz(v)), length2(xyz(a)), bad, status[i] == kStatusClamped ? 1u : 0u};
   }
 };
 

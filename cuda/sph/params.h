@@ -44,7 +44,7 @@ struct SphParams {
   float spacing;            // initial particle spacing dx [m]
   Aabb tank;                // fluid side of the tank walls [m]
   bool open_top;            // no lid: particles may leave through the top and are removed
-  float presence_scale;     // 1 / (2 K), K = one presence lobe of a particle inside a full lattice (density.h)
+  float presence_scale;     // 1 / (2 K), K = one presence lobe of a particle inside a full lattice (interaction.h)
 };
 
 // Tait equation of state, gamma = 7 (Monaghan 1994; Batchelor 1967).

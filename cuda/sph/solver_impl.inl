@@ -1,8 +1,8 @@
 // One SPH step, written once for both backends. Included by solver_cpu.cpp and
 // solver_cuda.cu inside their backend namespace (which supplies Vector, raw,
 // policy, parallel_for, upload, download, read_one, StageClock and kBackend).
-// Stages as DESIGN.md names them: grid, density (+presence), forces, integrate;
-// they run as forces, kick, density, drift, grid (integrate.h says why). The
+// Stages: grid, pairs (forces, density rate and presence in one neighbour
+// loop, interaction.h), integrate (integrate.h says why in that order). The
 // grid is rebuilt at the end of a step (and once at construction), so between
 // steps the cell table matches the positions exactly: the field builder reads
 // both as they are (view()).
@@ -118,11 +118,12 @@ class SolverImpl final : public Solver {
     const size_t n = n_, cells = size_t(grid_.num_cells()) + 1, slabs = size_t(grid_.num_fine_cells()) + 1;
     upload(pos_, in.fluid_pos_rho);
     upload(vel_, in.fluid_vel);
+    flow_ = vel_;  // u = v until there is an acceleration to predict with
     std::vector<uint32_t> ids(n);
     for (size_t i = 0; i < n; ++i) ids[i] = uint32_t(i);
     upload(id_, ids);
     pos_tmp_.resize(n); vel_tmp_.resize(n); id_tmp_.resize(n);
-    accel_.resize(n); drho_.resize(n);
+    accel_.resize(n); rate_grad_.resize(n);
     status_.assign(n, uint8_t(kStatusOk)); status_tmp_.resize(n);
     keys_.resize(n); order_.resize(n); offsets_.resize(cells); fine_offsets_.resize(slabs);
     mask_words_ = in.pair_mask_words >= 0 ? uint32_t(in.pair_mask_words)
@@ -131,7 +132,7 @@ class SolverImpl final : public Solver {
     boundary_pairs_.resize(size_t(mask_words_) * n);
     fluid_pair_count_.resize(n);
     boundary_pair_count_.resize(n);
-    parallel_for(n_, PressureTermOf{prm_, raw(pos_), raw(vel_)});
+    parallel_for(n_, PressureTermOf{prm_, raw(pos_), raw(flow_)});
     set_presence(in.presence);
 
     // Static walls: sorted by the same grid once.
@@ -177,48 +178,47 @@ class SolverImpl final : public Solver {
 
   size_t device_bytes() const override {
     auto b = [](const auto& v) { return v.size() * sizeof(typename std::decay_t<decltype(v)>::value_type); };
-    return b(pos_) + b(vel_) + b(pos_tmp_) + b(vel_tmp_) + b(accel_) + b(drho_) + b(presence_) + b(presence_tmp_) + b(id_) +
+    return b(pos_) + b(vel_) + b(flow_) + b(pos_tmp_) + b(vel_tmp_) + b(accel_) + b(rate_grad_) + b(presence_) + b(presence_tmp_) + b(id_) +
            b(id_tmp_) + b(status_) + b(status_tmp_) + b(keys_) + b(order_) + b(offsets_) + b(fine_offsets_) + b(boundary_) +
            b(boundary_alpha_) + b(wall_) + b(boundary_offsets_) + b(fluid_pairs_) + b(boundary_pairs_) +
            b(fluid_pair_count_) + b(boundary_pair_count_);
   }
 
-  // Stage order (integrate.h says why): forces, kick, density (+presence), drift, grid.
+  // Stage order: pairs (wall pressure, then one neighbour loop for the
+  // acceleration, the density rate and presence), the step size from their
+  // extremes, integrate (kick, density, drift), grid.
   void step(double until) override {
+    // Presence is computed in the pair loop, before dt is known: on every
+    // step that may reach `until` (dt can only be smaller than the bound).
+    const bool presence_now = presence_mode_ == PresenceMode::EveryStep ||
+                              (presence_mode_ == PresenceMode::AtUntil && t_ + dt_bound() >= until - 1e-12);
     clock_.mark(1);
     parallel_for(uint32_t(boundary_.size()),
-                 WallPressure{prm_, grid_, raw(fine_offsets_), raw(pos_), raw(vel_), raw(boundary_), raw(wall_)});
-    // Each pair stage is two launches: the pair masks, then the direct loop for
-    // the particles whose masks overflowed (neighbours.h; usually none).
-    parallel_for(n_, force_stage<false>());
-    parallel_for(n_, force_stage<true>());
+                 WallPressure{prm_, grid_, raw(fine_offsets_), raw(pos_), raw(flow_), raw(boundary_), raw(wall_)});
+    // Two launches: the pair masks, then the direct loop for the particles
+    // whose masks overflowed (neighbours.h; usually none).
+    if (presence_now) {
+      parallel_for(n_, pair_stage<true, false>());
+      parallel_for(n_, pair_stage<true, true>());
+    } else {
+      parallel_for(n_, pair_stage<false, false>());
+      parallel_for(n_, pair_stage<false, true>());
+    }
+    presence_valid_ = presence_now;
     clock_.mark(2);
     const StepStats s = thrust::transform_reduce(
         policy(), thrust::counting_iterator<uint32_t>(0), thrust::counting_iterator<uint32_t>(n_),
         StepStatsOf{raw(pos_), raw(vel_), raw(accel_), raw(status_)}, StepStats{0.0f, 0.0f, 0xffffffffu, 0u},
         CombineStepStats());
-    if (s.first_bad != 0xffffffffu) throw SimulationError(describe_bad_particle(s.first_bad));
+    if (s.first_bad != 0xffffffffu) throw SimulationError(describe_bad_particle(s.first_bad & ~kBadDerived));
     clamped_total_ += s.clamped;
     const double dt = choose_dt(s, until);
-    const bool presence_now = presence_mode_ == PresenceMode::EveryStep ||
-                              (presence_mode_ == PresenceMode::AtUntil && t_ + dt >= until - 1e-12);
-    parallel_for(n_, Kick{float(dt), raw(vel_), raw(accel_)});
+    parallel_for(n_, Advance{prm_, float(dt), raw(pos_), raw(vel_), raw(flow_), raw(accel_), raw(rate_grad_), raw(status_)});
     clock_.mark(3);
-    if (presence_now) {
-      parallel_for(n_, density_stage<true, false>());
-      parallel_for(n_, density_stage<true, true>());
-    } else {
-      parallel_for(n_, density_stage<false, false>());
-      parallel_for(n_, density_stage<false, true>());
-    }
-    presence_valid_ = presence_now;
-    clock_.mark(4);
-    parallel_for(n_, Drift{prm_, float(dt), raw(pos_), raw(vel_), raw(drho_), raw(status_)});
-    clock_.mark(5);
     build_grid();
-    clock_.mark(6);
-    clock_.finish(6);
-    times_ = {clock_.ms(5, 6), clock_.ms(3, 4), clock_.ms(1, 2), clock_.ms(2, 3) + clock_.ms(4, 5)};
+    clock_.mark(4);
+    clock_.finish(4);
+    times_ = {clock_.ms(3, 4), clock_.ms(1, 2), clock_.ms(2, 3)};
     t_ += dt;
     ++steps_;
   }
@@ -267,16 +267,11 @@ class SolverImpl final : public Solver {
   }
 
  private:
-  template <bool Direct>
-  Acceleration<Direct> force_stage() {
-    return {prm_, grid_, raw(fine_offsets_), raw(pos_), raw(vel_), raw(boundary_offsets_), raw(boundary_), raw(wall_),
-            raw(boundary_alpha_), fluid_pairs(), boundary_pairs(), raw(accel_)};
-  }
-
   template <bool P, bool Direct>
-  DensityRate<P, Direct> density_stage() {
-    return DensityRate<P, Direct>{prm_, grid_, raw(fine_offsets_), raw(pos_), raw(vel_), raw(boundary_offsets_), raw(boundary_),
-                          fluid_pairs(), boundary_pairs(), raw(drho_), P ? raw(presence_) : nullptr, n_};
+  Interaction<P, Direct> pair_stage() {
+    return {prm_, grid_, raw(fine_offsets_), raw(pos_), raw(flow_), raw(boundary_offsets_), raw(boundary_), raw(wall_),
+            raw(boundary_alpha_), fluid_pairs(), boundary_pairs(), raw(accel_), raw(rate_grad_),
+            P ? raw(presence_) : nullptr, n_};
   }
 
   PairMask fluid_pairs() { return {raw(fluid_pairs_), raw(fluid_pair_count_), n_, mask_words_}; }
@@ -287,6 +282,7 @@ class SolverImpl final : public Solver {
     sort_and_offsets(grid_, n_, keys_, order_, fine_offsets_, &offsets_);
     gather_swap(n_, order_, pos_, pos_tmp_);
     gather_swap(n_, order_, vel_, vel_tmp_);
+    gather_swap(n_, order_, flow_, vel_tmp_);  // the same scratch: the swap leaves vel_tmp_ a full-size buffer
     gather_swap(n_, order_, id_, id_tmp_);
     gather_swap(n_, order_, status_, status_tmp_);
     // Particles outside the grid (only possible through an open top) sorted last: drop them.
@@ -297,12 +293,23 @@ class SolverImpl final : public Solver {
     }
     removed_ += n_ - active;
     n_ = active;
-    // The pair masks of the density and force loops (neighbours.h): both run
-    // at these positions (the kick changes velocities only).
+    // The pair masks of the next step's pair loop (neighbours.h), at these positions.
     const float support2 = prm_.kernel.support() * prm_.kernel.support();
     parallel_for(n_, BuildPairMask{grid_, raw(fine_offsets_), raw(pos_), raw(pos_), support2, true, fluid_pairs()});
     parallel_for(n_, BuildPairMask{grid_, raw(boundary_offsets_), raw(boundary_), raw(pos_), support2, false,
                                    boundary_pairs()});
+  }
+
+  // The viscous limit of dt: 0.125 h^2 / nu with the 3D equivalent viscosity of
+  // the artificial one (Monaghan 2005).
+  double dt_viscous() const {
+    const double h = prm_.kernel.h, nu_art = prm_.viscosity_alpha * h * prm_.speed_of_sound / 10.0;
+    return nu_art > 0 ? 0.125 * h * h / nu_art : std::numeric_limits<double>::infinity();
+  }
+
+  // An upper bound of the next dt: choose_dt at zero speed and acceleration.
+  double dt_bound() const {
+    return std::min(double(max_dt_), cfl_ * std::min(double(prm_.kernel.h) / prm_.speed_of_sound, dt_viscous()));
   }
 
   double choose_dt(const StepStats& s, double until) {
@@ -314,8 +321,7 @@ class SolverImpl final : public Solver {
     l.max_accel = std::sqrt(double(s.max_accel2));
     l.dt_cfl = h / (c0 + l.max_speed);
     l.dt_force = l.max_accel > 0 ? std::sqrt(h / l.max_accel) : inf;
-    const double nu_art = prm_.viscosity_alpha * h * c0 / 10.0;  // 3D equivalent viscosity, Monaghan 2005
-    l.dt_viscous = nu_art > 0 ? 0.125 * h * h / nu_art : inf;
+    l.dt_viscous = dt_viscous();
     double dt = std::min(double(max_dt_), cfl_ * std::min({l.dt_cfl, l.dt_force, l.dt_viscous}));
     if (dt < min_dt_) {
       const char* by = l.dt_force < l.dt_cfl ? "the force limit" : "the CFL (sound speed) limit";
@@ -338,7 +344,8 @@ class SolverImpl final : public Solver {
                        : !std::isfinite(p.w) ? "density"
                        : p.w <= 0            ? "density (not positive)"
                        : !all_finite(xyz(v)) ? "velocity"
-                                             : "acceleration";
+                       : !all_finite(xyz(a)) ? "acceleration"
+                                             : "density rate";
     std::ostringstream os;
     os << "non-finite or invalid " << what << " at step " << steps_ << " (t = " << t_ << " s) in particle " << id
        << " (initial index): position (" << p.x << ", " << p.y << ", " << p.z << "), density " << p.w
@@ -361,8 +368,10 @@ class SolverImpl final : public Solver {
   StageTimes times_;
   StageClock clock_;
 
-  Vector<Float4> pos_, vel_, pos_tmp_, vel_tmp_, accel_, boundary_;
-  Vector<float> drho_, presence_, presence_tmp_, boundary_alpha_;
+  // vel_: the exact velocity; flow_: what the pair loop reads of a neighbour,
+  // u (the predicted kicked velocity) and p / rho^2 (integrate.h).
+  Vector<Float4> pos_, vel_, flow_, pos_tmp_, vel_tmp_, accel_, rate_grad_, boundary_;
+  Vector<float> presence_, presence_tmp_, boundary_alpha_;
   Vector<WallState> wall_;
   // offsets_: coarse cell table (view(), the field builder, the raycaster);
   // fine_offsets_ and boundary_offsets_: slab tables of the neighbour loops (grid.h).

@@ -9,7 +9,6 @@
 #include <type_traits>
 
 #include "boundary.h"
-#include "density.h"
-#include "forces.h"
 #include "grid.h"
 #include "integrate.h"
+#include "interaction.h"

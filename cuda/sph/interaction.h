@@ -1,0 +1,153 @@
+// The pair stage: one neighbour loop per step computes the acceleration, the
+// terms of the density rate and, when asked for, the particle presence.
+//
+// Momentum: symmetric pressure gradient with the Tait equation of state,
+// Monaghan (1992) artificial viscosity, gravity, and wall forces from boundary
+// particles that carry the extrapolated wall pressure p_w of Adami et al.
+// (2012; boundary.h) in the same symmetric form, with m_w = rho_w V_w. Walls are
+// viscous (the artificial viscosity against a wall at rest, as in DualSPHysics)
+// except the faces a scene declares free-slip (per-particle coefficient 0).
+// Walls only push: negative pressures are clamped in the wall term, so tension
+// cannot glue liquid to a wall.
+//
+// Density: continuity equation with the delta-SPH density-diffusion term of
+// Molteni & Colagrossi (2009, eq. 8) with the hydrostatic correction of
+// Fourtakas et al. (2019, "DDT" of DualSPHysics 5): only the departure from the
+// hydrostatic density difference diffuses, otherwise the one-sided free surface
+// pumps density upward and a tank at rest loses its hydrostatic profile. The
+// rate is wanted at the kicked velocities (integrate.h), which exist only after
+// this loop. It is linear in the particle's own velocity, so the loop returns
+//   drho_i/dt = v'_i . G_i + R_i,
+//   G_i = sum_j m_j dW_ij/dr r_ij / r + rho_i sum_b V_b dW_ib/dr r_ib / r,
+//   R_i = -sum_j m_j dW_ij/dr (u_j . r_ij) / r + diffusion,
+// and Advance completes it with the exact kicked v'_i. For a neighbour the loop
+// reads u_j = v_j + dt_prev a_j,prev, its velocity kicked with the previous
+// step's acceleration and step size (Advance stores it): a prediction of v'_j
+// that is off by dt (a_j - a_j,prev), second order. The artificial viscosity
+// reads the same u of both particles (symmetric, so momentum is conserved).
+//
+// Presence, as defined here: for each signed axis direction d,
+//   P_d = min(1, (1 / K) * sum_{j in half-space d} V_i (-dW/dr) |cos(r_ij, d)|)
+// with V_i = m / rho_i and K the same sum for a particle inside a full cubic
+// lattice of the scene's spacing (setup.cpp, presence_lobe_on_lattice): a
+// particle deep in the liquid reads ~1 in all six directions, a free-surface
+// particle 0 toward the air (~1 into the liquid, in between sideways) and an
+// isolated one 0; the particle itself weighs nothing (r = 0). Per axis a, with
+// U_a = sum_j m (dW/dr / r) |r_a| and the fluid part of G above,
+// G_a = sum_j m (dW/dr / r) r_a, the two lobes are (G_a - U_a) / (2 K rho_i)
+// toward +a (neighbours with r_a < 0 lie toward +a) and -(G_a + U_a) / (2 K rho_i)
+// toward -a: presence costs one FMA per axis and neighbour (|r_a| is an
+// operand modifier on the GPU). (Yasuda, Harada & Kawaguchi, shared/papers,
+// sec. 4.2.3; their own weight is an ad hoc k / (x / y^2); any smooth lobe
+// with these three properties serves the field builder. The particle's own
+// volume rather than V_j is what lets G serve: with V_j it cost twice the
+// FMAs and, with its six accumulators, spilled registers.) Only liquid
+// counts: walls are not liquid.
+//
+// Why one loop: on the GPU both loops were bound by the scattered 16-byte
+// neighbour loads (docs/benchmarks.md), and both loaded the same two per
+// neighbour; one loop loads them once.
+#pragma once
+
+#include <cmath>
+#include <cstdint>
+
+#include "boundary.h"
+#include "neighbours.h"
+
+namespace sphray {
+
+// Direct: the launch for the particles whose pair masks overflowed (neighbours.h).
+template <bool WithPresence, bool Direct = false>
+struct Interaction {
+  // Registers per thread on the GPU (cuda/backend/cuda.cuh): the file-wide cap
+  // of 40 (CMakeLists.txt) suits the loop without presence; with presence's
+  // three more accumulators it spills there (docs/benchmarks.md).
+  static constexpr int kMaxRegisters = WithPresence ? 48 : 0;
+  SphParams prm;
+  GridGeom grid;
+  const uint32_t* fluid_offsets;  // slab tables (grid.h)
+  const Float4* pos_rho;          // sorted fluid: x, y, z, density
+  const Float4* flow;             // sorted fluid: u (predicted kicked velocity), p / rho^2
+  const uint32_t* boundary_offsets;
+  const Float4* boundary;       // sorted boundary: x, y, z, volume
+  const WallState* wall;        // boundary.h
+  const float* boundary_alpha;  // artificial viscosity against each wall particle; 0 = free slip
+  PairMask fluid_pairs, boundary_pairs;  // neighbours.h, built with the grid
+  Float4* accel;       // out: ax, ay, az, R
+  Float4* rate_grad;   // out: G, -
+  float* presence;     // out, [6][n] direction-major (+x,-x,+y,-y,+z,-z); null without presence
+  uint32_t n;
+
+  SPHRAY_HD void operator()(uint32_t i) const {
+    if (masks_complete(fluid_pairs, boundary_pairs, i) == Direct) return;  // the other launch's particle
+    const Float4 pi = pos_rho[i];
+    const Vec3f xi = xyz(pi);
+    const Float4 flow_i = flow[i];
+    const Vec3f ui = xyz(flow_i);
+    const float h = prm.kernel.h;
+    const float support2 = prm.kernel.support() * prm.kernel.support();
+    const float p_over_rho2_i = flow_i.w;  // pressure_term(rho_i), see params.h
+    // Monaghan's eta^2 = 0.01 h^2 keeps mu finite for close pairs.
+    const float eta2 = 0.01f * h * h;
+    const float diffusion = 2.0f * prm.density_diffusion * h * prm.speed_of_sound;
+    // Linearised Tait: hydrostatic rho_j - rho_i = rho0 g.(x_j - x_i) / c0^2.
+    const float hydro = prm.rest_density / (prm.speed_of_sound * prm.speed_of_sound);
+    Vec3f a = {0.0f, 0.0f, 0.0f}, grad = {0.0f, 0.0f, 0.0f};
+    float rest = 0.0f;
+    // Presence's U_a in registers (named scalars, not an indexed array, so the
+    // GPU keeps them out of local memory).
+    float ux = 0, uy = 0, uz = 0;
+
+    for_each_pair<Direct>(grid, fluid_offsets, pos_rho, xi, support2, i, fluid_pairs, i, [&](uint32_t j, Float4 pj, Vec3f r, float r2) {
+      const float dwr = prm.kernel.dW_over_r(r2 * inv_sqrt(r2));
+      const Float4 fj = load(flow + j);
+      const Vec3f uj = xyz(fj);
+      const float m_dwr = prm.particle_mass * dwr;
+      float term = p_over_rho2_i + fj.w;
+      const float vr = dot(ui - uj, r);
+      if (vr < 0.0f) {  // mu / rho_mean with mu = h vr / (r^2 + eta^2), in one division
+        term -= prm.viscosity_alpha * prm.speed_of_sound * fast_div(h * vr, (r2 + eta2) * (0.5f * (pi.w + pj.w)));
+      }
+      a -= (m_dwr * term) * r;
+      grad += m_dwr * r;
+      const float weight = -dwr * fast_div(prm.particle_mass, pj.w);  // V_j (-dW/dr / r) >= 0
+      rest += diffusion * ((pj.w - pi.w) + hydro * dot(prm.gravity, r)) * weight - m_dwr * dot(uj, r);
+      if (WithPresence) {
+        ux += m_dwr * std::fabs(r.x);
+        uy += m_dwr * std::fabs(r.y);
+        uz += m_dwr * std::fabs(r.z);
+      }
+    });
+    if (WithPresence) {  // from the fluid sums only, before the walls add to G
+      const float c = prm.presence_scale / pi.w;  // 1 / (2 K rho_i)
+      presence[0 * n + i] = std::fmin(1.0f, std::fmax(0.0f, c * (grad.x - ux)));
+      presence[1 * n + i] = std::fmin(1.0f, std::fmax(0.0f, -c * (grad.x + ux)));
+      presence[2 * n + i] = std::fmin(1.0f, std::fmax(0.0f, c * (grad.y - uy)));
+      presence[3 * n + i] = std::fmin(1.0f, std::fmax(0.0f, -c * (grad.y + uy)));
+      presence[4 * n + i] = std::fmin(1.0f, std::fmax(0.0f, c * (grad.z - uz)));
+      presence[5 * n + i] = std::fmin(1.0f, std::fmax(0.0f, -c * (grad.z + uz)));
+    }
+
+    // Static walls (boundary particles of volume V_b, at rest): the wall
+    // pressure and viscosity push; approaching a wall compresses the particle
+    // (Adami et al. 2012, eq. 22 with v_w = 0), the rho_i V_b term of G.
+    const float p_wall_i = p_over_rho2_i > 0.0f ? p_over_rho2_i : 0.0f;
+    for_each_pair<Direct>(grid, boundary_offsets, boundary, xi, support2, kNoSkip, boundary_pairs, i, [&](uint32_t b, Float4 pb, Vec3f r, float r2) {
+      const float dwr = prm.kernel.dW_over_r(r2 * inv_sqrt(r2));
+      const WallState w = wall[b];
+      float term = p_wall_i + w.p_over_rho2;
+      const float vr = dot(ui, r);
+      if (vr < 0.0f)
+        term -= boundary_alpha[b] * prm.speed_of_sound * fast_div(h * vr, (r2 + eta2) * (0.5f * (pi.w + w.rho)));
+      a -= (w.rho * pb.w * term * dwr) * r;
+      grad += (pi.w * pb.w * dwr) * r;
+    });
+
+    a += prm.gravity;
+    accel[i] = {a.x, a.y, a.z, rest};
+    rate_grad[i] = {grad.x, grad.y, grad.z, 0.0f};
+  }
+};
+
+}  // namespace sphray
