@@ -17,9 +17,9 @@ namespace sphray {
 
 enum class Backend { Cpu, Cuda };
 
-// When the density stage also computes particle presence: never, every step,
-// or only on a step that reaches the time its step() call was given (the last
-// step before an output frame, which is when the field builder reads it).
+// When the pair loop also computes particle presence: never, every step, or
+// only on a step that may reach the time its step() call was given (the last
+// one or two steps before an output frame, whose field builder reads it).
 enum class PresenceMode { Off, EveryStep, AtUntil };
 const char* backend_name(Backend b);
 
@@ -136,8 +136,8 @@ GridBuild build_grid(Backend b, const GridGeom& g, const std::vector<Vec3f>& poi
 
 // The pair masks of the points against themselves (cuda/sph/neighbours.h),
 // built on the backend with `capacity` words per point, then walked on the
-// host: for each sorted point (grid.order), the sorted indices its density and
-// force loops would visit, in their order. For tests of the GPU build.
+// host: for each sorted point (grid.order), the sorted indices its pair loop
+// would visit, in their order. For tests of the GPU build.
 struct PairMaskBuild {
   GridBuild grid;
   std::vector<std::vector<uint32_t>> neighbours;  // per sorted point inside the grid

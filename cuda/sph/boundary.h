@@ -19,7 +19,7 @@ SPHRAY_HD SPHRAY_FORCEINLINE float tait_density(const SphParams& p, float pressu
   return p.rest_density * std::pow(1.0f + pressure / p.tait_b, 1.0f / 7.0f);
 }
 
-// What the forces stage reads of a wall particle: p_w / rho_w^2 and rho_w,
+// What the pair loop reads of a wall particle: p_w / rho_w^2 and rho_w,
 // computed once per wall particle and step rather than per fluid neighbour.
 struct alignas(8) WallState {
   float p_over_rho2;

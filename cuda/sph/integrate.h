@@ -74,7 +74,7 @@ struct Advance {
   }
 };
 
-// What the host needs after the forces stage: the extremes for this step's
+// What the host needs after the pair loop: the extremes for this step's
 // size, the first particle holding a non-finite value, and the wall clamps of
 // the previous drift. Reduced with thrust::transform_reduce.
 struct StepStats {

@@ -8,7 +8,7 @@
 // the whole warp executes the pair physics: a candidate then costs the test
 // plus the physics, whatever the culling saved. With a mask the candidate
 // tests run once per step in a pass of their own (no physics), and the
-// density and force loops visit only the set bits, one neighbour per lane per
+// pair loop (interaction.h) visits only the set bits, one neighbour per lane per
 // iteration, so the pair physics runs with (nearly) all lanes busy.
 #pragma once
 

@@ -55,8 +55,9 @@ SPHRAY_HD SPHRAY_FORCEINLINE float tait_pressure(const SphParams& p, float rho) 
 }
 
 // p / rho^2, the pressure term of the momentum equation. Each particle keeps it
-// in vel.w (written when its density changes), so the force loop reads it with
-// the velocity it loads anyway instead of evaluating Tait per neighbour.
+// in the w of what the pair loop gathers (flow.w, written when its density
+// changes), so the loop reads it with the velocity it loads anyway instead of
+// evaluating Tait per neighbour.
 SPHRAY_HD SPHRAY_FORCEINLINE float pressure_term(const SphParams& p, float rho) {
   return tait_pressure(p, rho) / (rho * rho);
 }
