@@ -161,3 +161,15 @@ TEST_CASE("two particles meeting head-on do not part faster than they met", "[sp
   CHECK(p.vel[0].x * (p.pos[0].x - p.pos[1].x) > 0);                // moving apart
   CHECK(speed <= 1.0 + 1e-3);
 }
+
+TEST_CASE("the scene check's memory estimate covers what the solver allocates", "[sph][cpu]") {
+  // setup.cpp estimates the device memory before a solver exists (the scene
+  // check refuses scenes that do not fit); it must not fall below the real
+  // buffers, presence and pair masks included.
+  for (const char* spacing : {"sph.spacing=0.04", "sph.spacing=0.02"}) {
+    const Scene s = load_scene(test::source_path("scenes/dam_break.json"), {spacing});
+    auto solver = make_cpu_solver(make_solver_input(s, PresenceMode::EveryStep));
+    INFO(spacing << ": estimate " << measure_scene(s).bytes << " B, solver " << solver->device_bytes() << " B");
+    CHECK(measure_scene(s).bytes >= solver->device_bytes());
+  }
+}
