@@ -107,8 +107,12 @@ inline uint32_t pair_mask_capacity(double support_over_dx) {
 // 1M particles on the H100). A row whose lanes lie in different rows of the
 // grid (the union far longer than any lane's range) is built per lane. Either
 // way a lane's words hold its own neighbours in the order of for_each_neighbour;
-// only where the words start differs.
+// where the words start differs, and the tile's test may add a candidate within
+// a relative 1e-4 of the support squared (kTileSlack), which weighs zero.
 struct BuildPairMask {
+  // Relative slack of the GPU's shared-tile test (below): a superset of the
+  // exact neighbours, never a subset.
+  static constexpr float kTileSlack = 1e-4f;
   GridGeom grid;
   const uint32_t* offsets;  // slab table of pts
   const Float4* pts;
@@ -168,14 +172,35 @@ struct BuildPairMask {
         continue;
       }
       for (uint32_t base = lo; base < hi; base += 32u) {
-        // The tile: the union's next 32 candidates, padded with far-away points.
+        // The tile: the union's next 32 candidates relative to its first, o,
+        // with their squared lengths (padding: never within reach). With y = x - o,
+        // |y - t|^2 < s^2  <=>  |t|^2 - 2 y.t < s^2 - |y|^2: three FMAs and a
+        // compare per candidate instead of the difference, its square and the
+        // compare. Relative to o the magnitudes stay within a few supports for
+        // every lane the word can hold bits for (own_bits), so the rounding is a
+        // few 1e-7 of s^2; the test takes s^2 (1 + kTileSlack), so that it never
+        // drops a neighbour. It may keep a candidate a hair beyond the support,
+        // which the loops weigh zero (for_each_masked_neighbour).
         const uint32_t count = hi - base < 32u ? hi - base : 32u;
-        for (uint32_t k = lane; k < 32u; k += active)
-          t[k] = k < count ? load(pts + base + k) : Float4{1e18f, 1e18f, 1e18f, 0.0f};
+        const Vec3f o = xyz(load(pts + base));
+        for (uint32_t k = lane; k < 32u; k += active) {
+          if (k < count) {
+            const Vec3f r = xyz(load(pts + base + k)) - o;
+            t[k] = {r.x, r.y, r.z, length2(r)};
+          } else {
+            t[k] = {0.0f, 0.0f, 0.0f, 1e30f};
+          }
+        }
+        const Vec3f y = x - o;
+        const float mx = -2.0f * y.x, my = -2.0f * y.y, mz = -2.0f * y.z;
+        const float reach = support2 * (1.0f + kTileSlack) - length2(y);
         __syncwarp(lanes);
         uint32_t bits = 0;
 #pragma unroll
-        for (uint32_t k = 0; k < 32u; ++k) bits |= uint32_t(length2(x - xyz(t[k])) < support2) << k;
+        for (uint32_t k = 0; k < 32u; ++k) {
+          const Float4 c = t[k];
+          bits |= uint32_t(fmaf(mz, c.z, fmaf(my, c.y, fmaf(mx, c.x, c.w))) < reach) << k;
+        }
         __syncwarp(lanes);
         put(i, w, base, bits & own_bits(base, begin, end, skip));
       }
@@ -194,8 +219,9 @@ struct BuildPairMask {
 // neighbours of for_each_neighbour, in its order (rows in order, j ascending).
 // One flat loop, one neighbour per iteration: the lanes of a warp step through
 // their neighbours together, each loading its next word when its current one
-// is spent. r2 is recomputed here; f must treat r2 >= support2 as a zero
-// contribution (the kernels do), should the rounding differ from the build's.
+// is spent. r2 is recomputed here; f must weigh a pair at or beyond the
+// support zero (the kernels do: dW/dr vanishes there), as the GPU build may
+// keep one a hair beyond it (BuildPairMask::kTileSlack).
 // Visits nothing for a query whose mask overflowed (see for_each_pair).
 template <class F>
 SPHRAY_HD SPHRAY_FORCEINLINE void for_each_masked_neighbour(const Float4* pts, Vec3f x, const PairMask& m, uint32_t i,
