@@ -195,15 +195,8 @@ class SolverImpl final : public Solver {
     clock_.mark(1);
     parallel_for(uint32_t(boundary_.size()),
                  WallPressure{prm_, grid_, raw(fine_offsets_), raw(pos_), raw(flow_), raw(boundary_), raw(wall_)});
-    // Two launches: the pair masks, then the direct loop for the particles
-    // whose masks overflowed (neighbours.h; usually none).
-    if (presence_now) {
-      parallel_for(n_, pair_stage<true, false>());
-      parallel_for(n_, pair_stage<true, true>());
-    } else {
-      parallel_for(n_, pair_stage<false, false>());
-      parallel_for(n_, pair_stage<false, true>());
-    }
+    if (presence_now) pair_launches<true>();
+    else pair_launches<false>();
     presence_valid_ = presence_now;
     clock_.mark(2);
     const StepStats s = thrust::transform_reduce(
@@ -272,6 +265,14 @@ class SolverImpl final : public Solver {
     return {prm_, grid_, raw(fine_offsets_), raw(pos_), raw(flow_), raw(boundary_offsets_), raw(boundary_), raw(wall_),
             raw(boundary_alpha_), fluid_pairs(), boundary_pairs(), raw(accel_), raw(rate_grad_),
             P ? raw(presence_) : nullptr, n_};
+  }
+
+  // The pair loop is two launches: the pair masks, then the direct loop for
+  // the particles whose masks overflowed (neighbours.h; usually none).
+  template <bool P>
+  void pair_launches() {
+    parallel_for(n_, pair_stage<P, false>());
+    parallel_for(n_, pair_stage<P, true>());
   }
 
   PairMask fluid_pairs() { return {raw(fluid_pairs_), raw(fluid_pair_count_), n_, mask_words_}; }
