@@ -2,6 +2,7 @@
 // faces, empty cells, everything in one cell, and points outside the grid; the
 // pair masks (neighbours.h) against the direct loop on the same inputs.
 #include <algorithm>
+#include <cmath>
 #include <random>
 #include <set>
 #include <vector>
@@ -24,6 +25,24 @@ void check_pair_masks(const GridGeom& g, const GridBuild& gb, const std::vector<
   const float r2 = radius * radius;
   std::vector<Float4> pts(inside);
   for (uint32_t i = 0; i < inside; ++i) pts[i] = {sorted[i].x, sorted[i].y, sorted[i].z, 0.0f};
+  // The near-cell flags (grid.h) against brute force: cell c is flagged iff a
+  // point lies in a cell at most one away in each axis.
+  std::vector<uint8_t> near(g.num_cells());
+  const CellsNear flag{g, gb.fine_offsets.data(), near.data()};
+  for (uint32_t c = 0; c < g.num_cells(); ++c) flag(c);
+  std::vector<uint8_t> brute(g.num_cells(), 0);
+  for (uint32_t k = 0; k < inside; ++k) {
+    const int x = int(std::floor((sorted[k].x - g.origin.x) / g.cell_size)), y = g.coord(sorted[k].y, g.origin.y),
+              z = g.coord(sorted[k].z, g.origin.z);
+    for (int dz = -1; dz <= 1; ++dz)
+      for (int dy = -1; dy <= 1; ++dy)
+        for (int dx = -1; dx <= 1; ++dx) {
+          const int cx = x + dx, cy = y + dy, cz = z + dz;
+          if (cx < 0 || cy < 0 || cz < 0 || cx >= g.nx || cy >= g.ny || cz >= g.nz) continue;
+          brute[(size_t(cz) * g.ny + cy) * g.nx + cx] = 1;
+        }
+  }
+  REQUIRE(near == brute);
   for (uint32_t capacity : {64u, 3u, 0u})
     for (bool self : {true, false}) {
       std::vector<PairWord> words(size_t(capacity) * inside + 1, PairWord{0xdeadbeefu, 0u});
@@ -215,4 +234,51 @@ TEST_CASE("a warp-built mask word keeps only the query's own candidates", "[grid
     INFO("base " << base << " begin " << begin << " end " << end << " skip " << skip);
     REQUIRE(BuildPairMask::own_bits(base, begin, end, skip) == expected);
   }
+}
+
+TEST_CASE("pair masks against another set skip queries in unflagged cells and lose no neighbour", "[grid][cpu]") {
+  // A "wall": points in a slab at x < 0.15; queries everywhere in the unit
+  // cube. With the wall's near-cell flags (CellsNear), a query more than a
+  // cell from the slab stores no words, and every query still walks exactly
+  // the direct loop's wall neighbours.
+  const GridGeom g = unit_grid(10, 0.1f);
+  std::vector<Vec3f> wall = random_points(3000, 0.0f, 1.0f, 21);
+  for (auto& p : wall) p.x *= 0.15f;
+  const GridBuild gb = build_grid(Backend::Cpu, g, wall);
+  const uint32_t nw = gb.offsets.back();
+  REQUIRE(nw == wall.size());
+  std::vector<Float4> sorted(nw);
+  for (uint32_t k = 0; k < nw; ++k) {
+    const Vec3f p = wall[gb.order[k]];
+    sorted[k] = {p.x, p.y, p.z, 0.0f};
+  }
+  std::vector<uint8_t> near(g.num_cells());
+  for (uint32_t c = 0; c < g.num_cells(); ++c) CellsNear{g, gb.fine_offsets.data(), near.data()}(c);
+  const std::vector<Vec3f> queries = random_points(2000, 0.0f, 1.0f, 22);
+  std::vector<Float4> q(queries.size());
+  for (size_t k = 0; k < q.size(); ++k) q[k] = {queries[k].x, queries[k].y, queries[k].z, 0.0f};
+  const uint32_t nq = uint32_t(q.size()), capacity = 64;
+  std::vector<PairWord> words(size_t(capacity) * nq);
+  std::vector<uint32_t> count(nq);
+  const PairMask m{words.data(), count.data(), nq, capacity};
+  const float r2 = 0.1f * 0.1f;
+  const BuildPairMask build{g, gb.fine_offsets.data(), sorted.data(), q.data(), r2, false, m, near.data()};
+  uint32_t skipped = 0, with_neighbours = 0;
+  for (uint32_t i = 0; i < nq; ++i) {
+    build(i);
+    std::vector<uint32_t> walked, direct;
+    REQUIRE(count[i] <= capacity);
+    for_each_pair<false>(g, gb.fine_offsets.data(), sorted.data(), queries[i], r2, kNoSkip, m, i,
+                         [&](uint32_t j, Float4, Vec3f, float) { walked.push_back(j); });
+    for_each_neighbour(g, gb.fine_offsets.data(), sorted.data(), queries[i], r2, kNoSkip,
+                       [&](uint32_t j, Float4, Vec3f, float) { direct.push_back(j); });
+    INFO("query " << i << " at x = " << queries[i].x);
+    REQUIRE(walked == direct);
+    skipped += !cell_near(g, near.data(), queries[i]);
+    with_neighbours += !direct.empty();
+    if (queries[i].x >= 0.3f) CHECK(count[i] == 0);  // two cells from the slab: flagged off
+  }
+  // The slab's cells and their neighbours (x cells 0..2) are flagged, the rest not.
+  CHECK(skipped > nq / 2);
+  CHECK(with_neighbours > nq / 10);
 }

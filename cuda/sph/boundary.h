@@ -32,6 +32,7 @@ struct WallPressure {
   const uint32_t* fluid_offsets;  // slab table (grid.h)
   const Float4* pos_rho;   // sorted fluid
   const Float4* flow;      // sorted fluid; w = p / rho^2
+  const uint8_t* fluid_near;  // CellsNear of the fluid (grid.h): a dry wall particle skips its rows
   const Float4* boundary;  // sorted boundary: x, y, z, volume
   WallState* wall;         // out, per boundary particle
 
@@ -40,7 +41,9 @@ struct WallPressure {
     const float support2 = prm.kernel.support() * prm.kernel.support();
     float sum_w = 0.0f, sum_pw = 0.0f;
     Vec3f sum_rho_r = {0.0f, 0.0f, 0.0f};
-    for_each_neighbour(grid, fluid_offsets, pos_rho, xb, support2, kNoSkip, [&](uint32_t f, Float4 pf, Vec3f r, float r2) {
+    // A dry wall particle (no fluid in the 27 cells around it) skips its rows:
+    // its sums are empty (p_w = 0) either way.
+    if (cell_near(grid, fluid_near, xb)) for_each_neighbour(grid, fluid_offsets, pos_rho, xb, support2, kNoSkip, [&](uint32_t f, Float4 pf, Vec3f r, float r2) {
       const float w = prm.kernel.W(std::sqrt(r2));
       sum_w += w;
       sum_pw += load(flow + f).w * pf.w * pf.w * w;

@@ -106,3 +106,42 @@ SPHRAY_HD SPHRAY_FORCEINLINE void for_each_candidate(const GridGeom& g, const ui
 }
 
 }  // namespace sphray
+
+namespace sphray {
+
+// near[c] = 1 where any particle of a set sorted by this grid (slab table
+// `fine_offsets`) lies in the 3 x 3 x 3 cells around cell c, else 0. With
+// cells one support radius wide, a point in a cell whose flag is 0 has no
+// particle of the set within its support: the loops that would find nothing
+// there skip their candidate rows (the dry wall particles of the wall
+// pressure, the fluid far from every wall in the wall pair masks).
+struct CellsNear {
+  GridGeom grid;
+  const uint32_t* fine_offsets;
+  uint8_t* near;
+  SPHRAY_HD void operator()(uint32_t c) const {
+    const int nx = grid.nx, ny = grid.ny, nz = grid.nz;
+    const int x = int(c % uint32_t(nx)), y = int(c / uint32_t(nx) % uint32_t(ny)), z = int(c / (uint32_t(nx) * uint32_t(ny)));
+    const int x0 = x > 0 ? x - 1 : 0, x1 = x + 1 < nx ? x + 1 : nx - 1;
+    uint8_t any = 0;
+    for (int zz = z - 1; zz <= z + 1; ++zz) {
+      for (int yy = y - 1; yy <= y + 1; ++yy) {
+        if (zz < 0 || zz >= nz || yy < 0 || yy >= ny) continue;
+        const uint32_t row = (uint32_t(zz) * uint32_t(ny) + uint32_t(yy)) * uint32_t(nx);
+        const uint32_t k = uint32_t(GridGeom::kSubX);
+        any |= uint8_t(fine_offsets[(row + uint32_t(x1) + 1u) * k] > fine_offsets[(row + uint32_t(x0)) * k]);
+      }
+    }
+    near[c] = any;
+  }
+};
+
+// Whether the set flagged in `near` (CellsNear) may have a particle within
+// one cell of p: the cell's flag, or true outside the grid (no flag there; the
+// caller then runs its loop as without flags).
+SPHRAY_HD SPHRAY_FORCEINLINE bool cell_near(const GridGeom& g, const uint8_t* near, Vec3f p) {
+  const uint32_t c = g.key_of(p);
+  return c >= g.num_cells() || near[c] != 0;
+}
+
+}  // namespace sphray

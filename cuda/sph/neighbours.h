@@ -120,6 +120,9 @@ struct BuildPairMask {
   float support2;
   bool self;  // queries and pts are the same set: skip j == i
   PairMask mask;
+  // CellsNear of pts (grid.h), or null: a query in an unflagged cell has no
+  // candidates (the wall masks of the fluid far from every wall).
+  const uint8_t* near = nullptr;
 
   // Appends one word (if it has a neighbour) to query i's mask; w counts the
   // query's words, capacity + 1 at most (the overflow mark).
@@ -150,6 +153,9 @@ struct BuildPairMask {
   SPHRAY_HD void operator()(uint32_t i) const {
     const Vec3f x = xyz(queries[i]);
     const uint32_t skip = self ? i : kNoSkip;
+    // No particle of pts within a cell of x: no words (on the GPU when the
+    // whole warp has none; a lane among others finds its rows empty anyway).
+    const bool none = near != nullptr && !cell_near(grid, near, x);
     uint32_t w = 0;
 #if defined(__CUDA_ARCH__)
     __shared__ Float4 tile[kThreadsPerBlock / 32][32];
@@ -161,6 +167,10 @@ struct BuildPairMask {
     const uint32_t lane = threadIdx.x % 32, warp_first = i - lane;
     const uint32_t active = mask.n - warp_first < 32u ? mask.n - warp_first : 32u;
     const uint32_t lanes = active == 32u ? 0xffffffffu : (1u << active) - 1u;
+    if (__all_sync(lanes, none)) {
+      mask.count[i] = 0;
+      return;
+    }
     for (int row = 0; row < kCandidateRows; ++row) {
       uint32_t begin = 0, end = 0;
       if (!candidate_row(grid, offsets, x, row, begin, end) || begin >= end) begin = 0xffffffffu, end = 0;
@@ -206,6 +216,10 @@ struct BuildPairMask {
       }
     }
 #else
+    if (none) {
+      mask.count[i] = 0;
+      return;
+    }
     for (int row = 0; row < kCandidateRows && w <= mask.capacity; ++row) {
       uint32_t begin = 0, end = 0;
       if (candidate_row(grid, offsets, x, row, begin, end)) put_row(i, w, x, skip, begin, end);

@@ -150,6 +150,9 @@ class SolverImpl final : public Solver {
     sort_and_offsets(grid_, nb, bkeys, border, boundary_offsets_, nullptr);
     thrust::gather(policy(), border.begin(), border.end(), boundary_in.begin(), boundary_.begin());
     thrust::gather(policy(), border.begin(), border.end(), alpha_in.begin(), boundary_alpha_.begin());
+    boundary_near_.resize(grid_.num_cells());
+    fluid_near_.resize(grid_.num_cells());
+    parallel_for(grid_.num_cells(), CellsNear{grid_, raw(boundary_offsets_), raw(boundary_near_)});
     build_grid();
   }
 
@@ -181,7 +184,7 @@ class SolverImpl final : public Solver {
     return b(pos_) + b(vel_) + b(flow_) + b(pos_tmp_) + b(vel_tmp_) + b(accel_) + b(rate_grad_) + b(presence_) + b(presence_tmp_) + b(id_) +
            b(id_tmp_) + b(status_) + b(status_tmp_) + b(keys_) + b(order_) + b(offsets_) + b(fine_offsets_) + b(boundary_) +
            b(boundary_alpha_) + b(wall_) + b(boundary_offsets_) + b(fluid_pairs_) + b(boundary_pairs_) +
-           b(fluid_pair_count_) + b(boundary_pair_count_);
+           b(fluid_pair_count_) + b(boundary_pair_count_) + b(fluid_near_) + b(boundary_near_);
   }
 
   // Stage order: pairs (wall pressure, then one neighbour loop for the
@@ -194,7 +197,7 @@ class SolverImpl final : public Solver {
                               (presence_mode_ == PresenceMode::AtUntil && t_ + dt_bound() >= until - 1e-12);
     clock_.mark(1);
     parallel_for(uint32_t(boundary_.size()),
-                 WallPressure{prm_, grid_, raw(fine_offsets_), raw(pos_), raw(flow_), raw(boundary_), raw(wall_)});
+                 WallPressure{prm_, grid_, raw(fine_offsets_), raw(pos_), raw(flow_), raw(fluid_near_), raw(boundary_), raw(wall_)});
     if (presence_now) pair_launches<true>();
     else pair_launches<false>();
     presence_valid_ = presence_now;
@@ -294,11 +297,12 @@ class SolverImpl final : public Solver {
     }
     removed_ += n_ - active;
     n_ = active;
+    parallel_for(grid_.num_cells(), CellsNear{grid_, raw(fine_offsets_), raw(fluid_near_)});
     // The pair masks of the next step's pair loop (neighbours.h), at these positions.
     const float support2 = prm_.kernel.support() * prm_.kernel.support();
     parallel_for(n_, BuildPairMask{grid_, raw(fine_offsets_), raw(pos_), raw(pos_), support2, true, fluid_pairs()});
     parallel_for(n_, BuildPairMask{grid_, raw(boundary_offsets_), raw(boundary_), raw(pos_), support2, false,
-                                   boundary_pairs()});
+                                   boundary_pairs(), raw(boundary_near_)});
   }
 
   // The viscous limit of dt: 0.125 h^2 / nu with the 3D equivalent viscosity of
@@ -382,4 +386,7 @@ class SolverImpl final : public Solver {
   Vector<PairWord> fluid_pairs_, boundary_pairs_;
   Vector<uint32_t> fluid_pair_count_, boundary_pair_count_;
   Vector<uint8_t> status_, status_tmp_;
+  // Per grid cell: whether fluid (updated with the grid) or wall particles
+  // (static) lie in the 27 cells around it (CellsNear, grid.h).
+  Vector<uint8_t> fluid_near_, boundary_near_;
 };
