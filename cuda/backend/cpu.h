@@ -46,6 +46,12 @@ inline auto policy() {
 #endif
 }
 
+// Stable sort of keys[0, n) with their values (end_bit: the bits the keys use,
+// which CUB's radix sort of the CUDA backend limits itself to).
+inline void sort_pairs(Vector<uint32_t>& keys, Vector<uint32_t>& values, uint32_t n, int /*end_bit*/) {
+  thrust::stable_sort_by_key(policy(), keys.begin(), keys.begin() + n, values.begin());
+}
+
 template <class F>
 void parallel_for(uint32_t n, const F& f) {
 #pragma omp parallel for schedule(static)

@@ -10,6 +10,7 @@
 #include <vector>
 
 #include <cuda_runtime.h>
+#include <cub/device/device_radix_sort.cuh>
 #include <cub/util_allocator.cuh>
 #include <thrust/count.h>
 #include <thrust/device_vector.h>
@@ -77,6 +78,30 @@ inline uint32_t resident_threads() {
 inline auto policy() {
   static CachedTempAllocator alloc;
   return thrust::cuda::par(alloc);
+}
+
+// Stable sort of keys[0, n) with their values by the key bits [0, end_bit):
+// CUB's radix sort over only the bits the keys use (Thrust's sort_by_key sorts
+// all 32, one pass per 8 bits), its double buffers from the caching allocator.
+inline void sort_pairs(Vector<uint32_t>& keys, Vector<uint32_t>& values, uint32_t n, int end_bit) {
+  if (n == 0) return;
+  auto& cache = CachedTempAllocator::cache();
+  void* alt = nullptr;
+  SPHRAY_CUDA_CHECK(cache.DeviceAllocate(&alt, 2 * sizeof(uint32_t) * size_t(n)));
+  uint32_t* keys_alt = static_cast<uint32_t*>(alt);
+  cub::DoubleBuffer<uint32_t> k(raw(keys), keys_alt),
+      v(raw(values), keys_alt + n);
+  size_t bytes = 0;
+  SPHRAY_CUDA_CHECK(cub::DeviceRadixSort::SortPairs(nullptr, bytes, k, v, n, 0, end_bit));
+  void* temp = nullptr;
+  SPHRAY_CUDA_CHECK(cache.DeviceAllocate(&temp, bytes));
+  SPHRAY_CUDA_CHECK(cub::DeviceRadixSort::SortPairs(temp, bytes, k, v, n, 0, end_bit));
+  if (k.Current() != raw(keys))
+    SPHRAY_CUDA_CHECK(cudaMemcpyAsync(raw(keys), k.Current(), sizeof(uint32_t) * n, cudaMemcpyDeviceToDevice));
+  if (v.Current() != raw(values))
+    SPHRAY_CUDA_CHECK(cudaMemcpyAsync(raw(values), v.Current(), sizeof(uint32_t) * n, cudaMemcpyDeviceToDevice));
+  SPHRAY_CUDA_CHECK(cache.DeviceFree(temp));
+  SPHRAY_CUDA_CHECK(cache.DeviceFree(alt));
 }
 
 template <class F>

@@ -48,13 +48,15 @@ struct CoarseOffsets {
 };
 
 // Sorts `n` fine keys with their order (stable, so both backends agree on the
-// order within a slab) and fills fine[k] = first sorted index with key >= k, for
+// order within a slab; on the bits the keys use) and fills fine[k] = first sorted index with key >= k, for
 // k in [0, num_fine_cells]: one vectorised binary search per slab, parallel over
 // slabs. Then the coarse table, when one is asked for.
 inline void sort_and_offsets(const GridGeom& g, uint32_t n, Vector<uint32_t>& keys, Vector<uint32_t>& order,
                              Vector<uint32_t>& fine, Vector<uint32_t>* coarse) {
   thrust::sequence(policy(), order.begin(), order.begin() + n);
-  thrust::stable_sort_by_key(policy(), keys.begin(), keys.begin() + n, order.begin());
+  int bits = 1;  // the keys run up to num_fine_cells() (outside the grid)
+  while (bits < 32 && (g.num_fine_cells() >> bits) != 0) ++bits;
+  sort_pairs(keys, order, n, bits);
   thrust::lower_bound(policy(), keys.begin(), keys.begin() + n, thrust::counting_iterator<uint32_t>(0),
                       thrust::counting_iterator<uint32_t>(g.num_fine_cells() + 1), fine.begin());
   if (coarse) parallel_for(g.num_cells() + 1, CoarseOffsets{raw(fine), raw(*coarse)});
