@@ -57,13 +57,24 @@
 
 namespace sphray {
 
+// What the masked loops fetch of a neighbour (for_each_masked).
+struct FluidNeighbour {
+  Float4 pos_rho, flow;
+};
+struct WallNeighbour {
+  Float4 pos_volume;
+  WallState state;
+  float alpha;
+};
+
 // Direct: the launch for the particles whose pair masks overflowed (neighbours.h).
 template <bool WithPresence, bool Direct = false>
 struct Interaction {
-  // Registers per thread on the GPU (cuda/backend/cuda.cuh): the file-wide cap
-  // of 40 (CMakeLists.txt) suits the loop without presence; with presence's
-  // three more accumulators it spills there (docs/benchmarks.md).
-  static constexpr int kMaxRegisters = WithPresence ? 48 : 0;
+  // Registers per thread on the GPU (cuda/backend/cuda.cuh): 48, above the
+  // file-wide cap of 40 (CMakeLists.txt), under which both variants spill
+  // (presence's three more accumulators; the fetched neighbour structs);
+  // measured against 40, 56 and 64 in docs/benchmarks.md.
+  static constexpr int kMaxRegisters = 48;
   SphParams prm;
   GridGeom grid;
   const uint32_t* fluid_offsets;  // slab tables (grid.h)
@@ -99,9 +110,10 @@ struct Interaction {
     // GPU keeps them out of local memory).
     float ux = 0, uy = 0, uz = 0;
 
-    for_each_pair<Direct>(grid, fluid_offsets, pos_rho, xi, support2, i, fluid_pairs, i, [&](uint32_t j, Float4 pj, Vec3f r, float r2) {
+    auto fluid_pair = [&](Float4 pj, Float4 fj) {
+      const Vec3f r = xi - xyz(pj);
+      const float r2 = length2(r);
       const float dwr = prm.kernel.dW_over_r(r2 * inv_sqrt(r2));
-      const Float4 fj = load(flow + j);
       const Vec3f uj = xyz(fj);
       const float m_dwr = prm.particle_mass * dwr;
       float term = p_over_rho2_i + fj.w;
@@ -118,7 +130,14 @@ struct Interaction {
         uy += m_dwr * std::fabs(r.y);
         uz += m_dwr * std::fabs(r.z);
       }
-    });
+    };
+    if constexpr (Direct) {
+      for_each_neighbour(grid, fluid_offsets, pos_rho, xi, support2, i,
+                         [&](uint32_t j, Float4 pj, Vec3f, float) { fluid_pair(pj, load(flow + j)); });
+    } else {
+      for_each_masked(fluid_pairs, i, [&](uint32_t j) { return FluidNeighbour{load(pos_rho + j), load(flow + j)}; },
+                      [&](uint32_t, const FluidNeighbour& d) { fluid_pair(d.pos_rho, d.flow); });
+    }
     if (WithPresence) {  // from the fluid sums only, before the walls add to G
       const float c = prm.presence_scale / pi.w;  // 1 / (2 K rho_i)
       presence[0 * n + i] = std::fmin(1.0f, std::fmax(0.0f, c * (grad.x - ux)));
@@ -133,16 +152,24 @@ struct Interaction {
     // pressure and viscosity push; approaching a wall compresses the particle
     // (Adami et al. 2012, eq. 22 with v_w = 0), the rho_i V_b term of G.
     const float p_wall_i = p_over_rho2_i > 0.0f ? p_over_rho2_i : 0.0f;
-    for_each_pair<Direct>(grid, boundary_offsets, boundary, xi, support2, kNoSkip, boundary_pairs, i, [&](uint32_t b, Float4 pb, Vec3f r, float r2) {
+    auto wall_pair = [&](Float4 pb, WallState w, float alpha) {
+      const Vec3f r = xi - xyz(pb);
+      const float r2 = length2(r);
       const float dwr = prm.kernel.dW_over_r(r2 * inv_sqrt(r2));
-      const WallState w = wall[b];
       float term = p_wall_i + w.p_over_rho2;
       const float vr = dot(ui, r);
-      if (vr < 0.0f)
-        term -= boundary_alpha[b] * prm.speed_of_sound * fast_div(h * vr, (r2 + eta2) * (0.5f * (pi.w + w.rho)));
+      if (vr < 0.0f) term -= alpha * prm.speed_of_sound * fast_div(h * vr, (r2 + eta2) * (0.5f * (pi.w + w.rho)));
       a -= (w.rho * pb.w * term * dwr) * r;
       grad += (pi.w * pb.w * dwr) * r;
-    });
+    };
+    if constexpr (Direct) {
+      for_each_neighbour(grid, boundary_offsets, boundary, xi, support2, kNoSkip,
+                         [&](uint32_t b, Float4 pb, Vec3f, float) { wall_pair(pb, wall[b], boundary_alpha[b]); });
+    } else {
+      for_each_masked(boundary_pairs, i,
+                      [&](uint32_t b) { return WallNeighbour{load(boundary + b), wall[b], boundary_alpha[b]}; },
+                      [&](uint32_t, const WallNeighbour& d) { wall_pair(d.pos_volume, d.state, d.alpha); });
+    }
 
     a += prm.gravity;
     accel[i] = {a.x, a.y, a.z, rest};

@@ -229,34 +229,45 @@ struct BuildPairMask {
   }
 };
 
-// Calls f(j, p_j, r, r2) for every set bit j of query i's pair mask: the
+// Calls f(j, fetch(j)) for every set bit j of query i's pair mask: the
 // neighbours of for_each_neighbour, in its order (rows in order, j ascending).
 // One flat loop, one neighbour per iteration: the lanes of a warp step through
 // their neighbours together, each loading its next word when its current one
-// is spent. r2 is recomputed here; f must weigh a pair at or beyond the
-// support zero (the kernels do: dW/dr vanishes there), as the GPU build may
-// keep one a hair beyond it (BuildPairMask::kTileSlack).
+// is spent. fetch(j) loads what f needs of neighbour j (its position and
+// whatever else the loop reads), so that the loads are issued together. f must weigh a pair at or beyond the support zero (the
+// kernels do: dW/dr vanishes there), as the GPU build may keep one a hair
+// beyond it (BuildPairMask::kTileSlack).
 // Visits nothing for a query whose mask overflowed (see for_each_pair).
-template <class F>
-SPHRAY_HD SPHRAY_FORCEINLINE void for_each_masked_neighbour(const Float4* pts, Vec3f x, const PairMask& m, uint32_t i,
-                                                            F&& f) {
+template <class Fetch, class F>
+SPHRAY_HD SPHRAY_FORCEINLINE void for_each_masked(const PairMask& m, uint32_t i, Fetch&& fetch, F&& f) {
   const uint32_t count = m.count[i];
   if (count > m.capacity) return;
   uint32_t w = 0, base = 0, bits = 0;
-  for (;;) {
+  auto next = [&](uint32_t& j) {
     while (bits == 0) {
-      if (w == count) return;
+      if (w == count) return false;
       const PairWord e = m.words[size_t(w) * m.n + i];
       base = e.base;
       bits = e.bits;
       ++w;
     }
-    const uint32_t j = base + lowest_bit(bits);
+    j = base + lowest_bit(bits);
     bits &= bits - 1u;
-    const Float4 pj = load(pts + j);
+    return true;
+  };
+  uint32_t j = 0;
+  while (next(j)) f(j, fetch(j));
+}
+
+// for_each_masked with the neighbour's position loaded: f(j, p_j, r, r2),
+// r = x - x_j; r2 is recomputed here.
+template <class F>
+SPHRAY_HD SPHRAY_FORCEINLINE void for_each_masked_neighbour(const Float4* pts, Vec3f x, const PairMask& m, uint32_t i,
+                                                            F&& f) {
+  for_each_masked(m, i, [&](uint32_t j) { return load(pts + j); }, [&](uint32_t j, const Float4& pj) {
     const Vec3f r = x - xyz(pj);
     f(j, pj, r, length2(r));
-  }
+  });
 }
 
 // Whether both masks of query i hold all its words (its loops take the masks).
