@@ -51,7 +51,7 @@ struct WallPressure {
     });
     const float p = sum_w > 0.0f ? (sum_pw + dot(prm.gravity, sum_rho_r)) / sum_w : 0.0f;
     const float p_w = p > 0.0f ? p : 0.0f;
-    const float rho_w = tait_density(prm, p_w);
+    const float rho_w = p_w > 0.0f ? tait_density(prm, p_w) : prm.rest_density;  // the same value, without the pow
     wall[b] = {p_w / (rho_w * rho_w), rho_w};
   }
 };
