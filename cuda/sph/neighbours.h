@@ -234,9 +234,9 @@ struct BuildPairMask {
 // One flat loop, one neighbour per iteration: the lanes of a warp step through
 // their neighbours together, each loading its next word when its current one
 // is spent. fetch(j) loads what f needs of neighbour j (its position and
-// whatever else the loop reads), so that the loads are issued together. f must weigh a pair at or beyond the support zero (the
-// kernels do: dW/dr vanishes there), as the GPU build may keep one a hair
-// beyond it (BuildPairMask::kTileSlack).
+// whatever else the loop reads of it). f must weigh a pair at or beyond the
+// support zero (the kernels do: dW/dr vanishes there), as the GPU build may
+// keep one a hair beyond it (BuildPairMask::kTileSlack).
 // Visits nothing for a query whose mask overflowed (see for_each_pair).
 template <class Fetch, class F>
 SPHRAY_HD SPHRAY_FORCEINLINE void for_each_masked(const PairMask& m, uint32_t i, Fetch&& fetch, F&& f) {

@@ -48,9 +48,10 @@ struct CoarseOffsets {
 };
 
 // Sorts `n` fine keys with their order (stable, so both backends agree on the
-// order within a slab; on the bits the keys use) and fills fine[k] = first sorted index with key >= k, for
-// k in [0, num_fine_cells]: one vectorised binary search per slab, parallel over
-// slabs. Then the coarse table, when one is asked for.
+// order within a slab; on the key bits in use) and fills fine[k] = first
+// sorted index with key >= k, for k in [0, num_fine_cells]: one vectorised
+// binary search per slab, parallel over slabs. Then the coarse table, when one
+// is asked for.
 inline void sort_and_offsets(const GridGeom& g, uint32_t n, Vector<uint32_t>& keys, Vector<uint32_t>& order,
                              Vector<uint32_t>& fine, Vector<uint32_t>* coarse) {
   thrust::sequence(policy(), order.begin(), order.begin() + n);
