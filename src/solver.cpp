@@ -4,8 +4,10 @@ namespace sphray {
 
 GridBuild build_grid_cpu(const GridGeom& g, const std::vector<Vec3f>& points);
 GridBuild build_grid_cuda(const GridGeom& g, const std::vector<Vec3f>& points);
-PairMaskBuild build_pair_masks_cpu(const GridGeom& g, const std::vector<Vec3f>& points, float radius, uint32_t capacity);
-PairMaskBuild build_pair_masks_cuda(const GridGeom& g, const std::vector<Vec3f>& points, float radius, uint32_t capacity);
+PairMaskBuild build_pair_masks_cpu(const GridGeom& g, const std::vector<Vec3f>& points, float radius, uint32_t capacity,
+                                   const std::vector<Vec3f>* queries);
+PairMaskBuild build_pair_masks_cuda(const GridGeom& g, const std::vector<Vec3f>& points, float radius, uint32_t capacity,
+                                    const std::vector<Vec3f>* queries);
 
 const char* backend_name(Backend b) { return b == Backend::Cuda ? "cuda" : "cpu"; }
 
@@ -14,9 +16,9 @@ GridBuild build_grid(Backend b, const GridGeom& g, const std::vector<Vec3f>& poi
 }
 
 PairMaskBuild build_pair_masks(Backend b, const GridGeom& g, const std::vector<Vec3f>& points, float radius,
-                               uint32_t capacity) {
-  return b == Backend::Cuda ? build_pair_masks_cuda(g, points, radius, capacity)
-                            : build_pair_masks_cpu(g, points, radius, capacity);
+                               uint32_t capacity, const std::vector<Vec3f>* queries) {
+  return b == Backend::Cuda ? build_pair_masks_cuda(g, points, radius, capacity, queries)
+                            : build_pair_masks_cpu(g, points, radius, capacity, queries);
 }
 
 }  // namespace sphray

@@ -143,7 +143,10 @@ struct PairMaskBuild {
   std::vector<std::vector<uint32_t>> neighbours;  // per sorted point inside the grid
   uint32_t overflowed = 0;                        // points whose masks overflowed (the direct loop serves them)
 };
+// With `queries`: the masks of each query (in the given order) against the
+// points instead, with the points' near-cell flags (CellsNear), as the solver
+// builds the fluid's wall masks; neighbours[k] belongs to queries[k].
 PairMaskBuild build_pair_masks(Backend b, const GridGeom& g, const std::vector<Vec3f>& points, float radius,
-                               uint32_t capacity);
+                               uint32_t capacity, const std::vector<Vec3f>* queries = nullptr);
 
 }  // namespace sphray

@@ -281,4 +281,13 @@ TEST_CASE("pair masks against another set skip queries in unflagged cells and lo
   // The slab's cells and their neighbours (x cells 0..2) are flagged, the rest not.
   CHECK(skipped > nq / 2);
   CHECK(with_neighbours > nq / 10);
+  // The library's build-and-walk with queries (what the gpu test compares across backends) agrees.
+  const PairMaskBuild pm = build_pair_masks(Backend::Cpu, g, wall, 0.1f, capacity, &queries);
+  REQUIRE(pm.neighbours.size() == nq);
+  for (uint32_t i = 0; i < nq; ++i) {
+    std::vector<uint32_t> direct;
+    for_each_neighbour(g, gb.fine_offsets.data(), sorted.data(), queries[i], r2, kNoSkip,
+                       [&](uint32_t j, Float4, Vec3f, float) { direct.push_back(j); });
+    REQUIRE(pm.neighbours[i] == direct);
+  }
 }

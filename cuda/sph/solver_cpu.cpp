@@ -15,8 +15,9 @@ GridBuild build_grid_cpu(const GridGeom& g, const std::vector<Vec3f>& points) {
   return cpu_backend::build_grid_impl(g, points);
 }
 
-PairMaskBuild build_pair_masks_cpu(const GridGeom& g, const std::vector<Vec3f>& points, float radius, uint32_t capacity) {
-  return cpu_backend::build_pair_masks_impl(g, points, radius, capacity);
+PairMaskBuild build_pair_masks_cpu(const GridGeom& g, const std::vector<Vec3f>& points, float radius, uint32_t capacity,
+                                   const std::vector<Vec3f>* queries) {
+  return cpu_backend::build_pair_masks_impl(g, points, radius, capacity, queries);
 }
 
 }  // namespace sphray

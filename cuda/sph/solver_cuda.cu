@@ -38,9 +38,10 @@ GridBuild build_grid_cuda(const GridGeom& g, const std::vector<Vec3f>& points) {
   return cuda_backend::build_grid_impl(g, points);
 }
 
-PairMaskBuild build_pair_masks_cuda(const GridGeom& g, const std::vector<Vec3f>& points, float radius, uint32_t capacity) {
+PairMaskBuild build_pair_masks_cuda(const GridGeom& g, const std::vector<Vec3f>& points, float radius, uint32_t capacity,
+                                    const std::vector<Vec3f>* queries) {
   if (!cuda_available()) throw std::runtime_error("the CUDA backend was asked for, but no CUDA device is present");
-  return cuda_backend::build_pair_masks_impl(g, points, radius, capacity);
+  return cuda_backend::build_pair_masks_impl(g, points, radius, capacity, queries);
 }
 
 }  // namespace sphray

@@ -80,7 +80,7 @@ inline GridBuild build_grid_impl(const GridGeom& g, const std::vector<Vec3f>& po
 }
 
 inline PairMaskBuild build_pair_masks_impl(const GridGeom& g, const std::vector<Vec3f>& points, float radius,
-                                           uint32_t capacity) {
+                                           uint32_t capacity, const std::vector<Vec3f>* queries) {
   PairMaskBuild out;
   out.grid = build_grid_impl(g, points);
   const uint32_t n = out.grid.offsets.back();  // points inside the grid, sorted first
@@ -89,25 +89,41 @@ inline PairMaskBuild build_pair_masks_impl(const GridGeom& g, const std::vector<
     const Vec3f p = points[out.grid.order[k]];
     sorted[k] = {p.x, p.y, p.z, 0.0f};
   }
-  Vector<Float4> pts;
+  // The queries: the sorted points themselves, or the given ones.
+  std::vector<Float4> query_pts = sorted;
+  if (queries) {
+    query_pts.resize(queries->size());
+    for (size_t k = 0; k < queries->size(); ++k) query_pts[k] = {(*queries)[k].x, (*queries)[k].y, (*queries)[k].z, 0.0f};
+  }
+  const uint32_t nq = uint32_t(query_pts.size());
+  Vector<Float4> pts, qpts;
   Vector<uint32_t> fine;
+  Vector<uint8_t> near;
   upload(pts, sorted);
+  upload(qpts, query_pts);
   upload(fine, out.grid.fine_offsets);
-  Vector<PairWord> words(size_t(capacity) * n);
-  Vector<uint32_t> count(n);
+  if (queries) {
+    near.resize(g.num_cells());
+    parallel_for(g.num_cells(), CellsNear{g, raw(fine), raw(near)});
+  }
+  Vector<PairWord> words(size_t(capacity) * nq);
+  Vector<uint32_t> count(nq);
   const float r2 = radius * radius;
-  parallel_for(n, BuildPairMask{g, raw(fine), raw(pts), raw(pts), r2, true, PairMask{raw(words), raw(count), n, capacity}});
+  parallel_for(nq, BuildPairMask{g, raw(fine), raw(pts), raw(qpts), r2, queries == nullptr,
+                                 PairMask{raw(words), raw(count), nq, capacity}, queries ? raw(near) : nullptr});
   std::vector<PairWord> host_words = sphray::SPHRAY_BK::download(words, words.size());
-  std::vector<uint32_t> host_count = sphray::SPHRAY_BK::download(count, n);
-  const PairMask m{host_words.data(), host_count.data(), n, capacity};
-  out.neighbours.resize(n);
-  for (uint32_t i = 0; i < n; ++i) {
+  std::vector<uint32_t> host_count = sphray::SPHRAY_BK::download(count, nq);
+  const PairMask m{host_words.data(), host_count.data(), nq, capacity};
+  out.neighbours.resize(nq);
+  for (uint32_t i = 0; i < nq; ++i) {
     auto visit = [&](uint32_t j, Float4, Vec3f, float) { out.neighbours[i].push_back(j); };
+    const Vec3f x = xyz(query_pts[i]);
+    const uint32_t skip = queries ? kNoSkip : i;
     if (masks_complete(m, m, i)) {
-      for_each_pair<false>(g, out.grid.fine_offsets.data(), sorted.data(), xyz(sorted[i]), r2, i, m, i, visit);
+      for_each_pair<false>(g, out.grid.fine_offsets.data(), sorted.data(), x, r2, skip, m, i, visit);
     } else {
       ++out.overflowed;
-      for_each_pair<true>(g, out.grid.fine_offsets.data(), sorted.data(), xyz(sorted[i]), r2, i, m, i, visit);
+      for_each_pair<true>(g, out.grid.fine_offsets.data(), sorted.data(), x, r2, skip, m, i, visit);
     }
   }
   return out;
