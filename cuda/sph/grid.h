@@ -105,10 +105,6 @@ SPHRAY_HD SPHRAY_FORCEINLINE void for_each_candidate(const GridGeom& g, const ui
   }
 }
 
-}  // namespace sphray
-
-namespace sphray {
-
 // near[c] = 1 where any particle of a set sorted by this grid (slab table
 // `fine_offsets`) lies in the 3 x 3 x 3 cells around cell c, else 0. With
 // cells one support radius wide, a point in a cell whose flag is 0 has no

@@ -110,7 +110,10 @@ struct Interaction {
     // GPU keeps them out of local memory).
     float ux = 0, uy = 0, uz = 0;
 
-    auto fluid_pair = [&](Float4 pj, Float4 fj) {
+    for_each_pair<Direct>(grid, fluid_offsets, pos_rho, xi, support2, i, fluid_pairs, i,
+                          [&](uint32_t j) { return FluidNeighbour{load(pos_rho + j), load(flow + j)}; },
+                          [&](uint32_t, const FluidNeighbour& d) {
+      const Float4 pj = d.pos_rho, fj = d.flow;
       const Vec3f r = xi - xyz(pj);
       const float r2 = length2(r);
       const float dwr = prm.kernel.dW_over_r(r2 * inv_sqrt(r2));
@@ -130,14 +133,7 @@ struct Interaction {
         uy += m_dwr * std::fabs(r.y);
         uz += m_dwr * std::fabs(r.z);
       }
-    };
-    if constexpr (Direct) {
-      for_each_neighbour(grid, fluid_offsets, pos_rho, xi, support2, i,
-                         [&](uint32_t j, Float4 pj, Vec3f, float) { fluid_pair(pj, load(flow + j)); });
-    } else {
-      for_each_masked(fluid_pairs, i, [&](uint32_t j) { return FluidNeighbour{load(pos_rho + j), load(flow + j)}; },
-                      [&](uint32_t, const FluidNeighbour& d) { fluid_pair(d.pos_rho, d.flow); });
-    }
+    });
     if (WithPresence) {  // from the fluid sums only, before the walls add to G
       const float c = prm.presence_scale / pi.w;  // 1 / (2 K rho_i)
       presence[0 * n + i] = std::fmin(1.0f, std::fmax(0.0f, c * (grad.x - ux)));
@@ -152,7 +148,12 @@ struct Interaction {
     // pressure and viscosity push; approaching a wall compresses the particle
     // (Adami et al. 2012, eq. 22 with v_w = 0), the rho_i V_b term of G.
     const float p_wall_i = p_over_rho2_i > 0.0f ? p_over_rho2_i : 0.0f;
-    auto wall_pair = [&](Float4 pb, WallState w, float alpha) {
+    for_each_pair<Direct>(grid, boundary_offsets, boundary, xi, support2, kNoSkip, boundary_pairs, i,
+                          [&](uint32_t b) { return WallNeighbour{load(boundary + b), wall[b], boundary_alpha[b]}; },
+                          [&](uint32_t, const WallNeighbour& d) {
+      const Float4 pb = d.pos_volume;
+      const WallState w = d.state;
+      const float alpha = d.alpha;
       const Vec3f r = xi - xyz(pb);
       const float r2 = length2(r);
       const float dwr = prm.kernel.dW_over_r(r2 * inv_sqrt(r2));
@@ -161,15 +162,7 @@ struct Interaction {
       if (vr < 0.0f) term -= alpha * prm.speed_of_sound * fast_div(h * vr, (r2 + eta2) * (0.5f * (pi.w + w.rho)));
       a -= (w.rho * pb.w * term * dwr) * r;
       grad += (pi.w * pb.w * dwr) * r;
-    };
-    if constexpr (Direct) {
-      for_each_neighbour(grid, boundary_offsets, boundary, xi, support2, kNoSkip,
-                         [&](uint32_t b, Float4 pb, Vec3f, float) { wall_pair(pb, wall[b], boundary_alpha[b]); });
-    } else {
-      for_each_masked(boundary_pairs, i,
-                      [&](uint32_t b) { return WallNeighbour{load(boundary + b), wall[b], boundary_alpha[b]}; },
-                      [&](uint32_t, const WallNeighbour& d) { wall_pair(d.pos_volume, d.state, d.alpha); });
-    }
+    });
 
     a += prm.gravity;
     accel[i] = {a.x, a.y, a.z, rest};

@@ -285,4 +285,15 @@ SPHRAY_HD SPHRAY_FORCEINLINE void for_each_pair(const GridGeom& g, const uint32_
   else for_each_masked_neighbour(pts, x, m, i, f);
 }
 
+// The same with a fetch: f(j, fetch(j)) for every neighbour j (for_each_masked;
+// the direct loop finds j by the positions in pts, then fetches).
+template <bool Direct, class Fetch, class F>
+SPHRAY_HD SPHRAY_FORCEINLINE void for_each_pair(const GridGeom& g, const uint32_t* offsets, const Float4* pts, Vec3f x,
+                                                float support2, uint32_t skip, const PairMask& m, uint32_t i,
+                                                Fetch&& fetch, F&& f) {
+  if constexpr (Direct)
+    for_each_neighbour(g, offsets, pts, x, support2, skip, [&](uint32_t j, Float4, Vec3f, float) { f(j, fetch(j)); });
+  else for_each_masked(m, i, fetch, f);
+}
+
 }  // namespace sphray
