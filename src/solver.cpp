@@ -7,7 +7,7 @@ GridBuild build_grid_cuda(const GridGeom& g, const std::vector<Vec3f>& points);
 PairMaskBuild build_pair_masks_cpu(const GridGeom& g, const std::vector<Vec3f>& points, float radius, uint32_t capacity,
                                    const std::vector<Vec3f>* queries);
 PairMaskBuild build_pair_masks_cuda(const GridGeom& g, const std::vector<Vec3f>& points, float radius, uint32_t capacity,
-                                    const std::vector<Vec3f>* queries);
+                                    const std::vector<Vec3f>* queries, bool tensor_tiles);
 
 const char* backend_name(Backend b) { return b == Backend::Cuda ? "cuda" : "cpu"; }
 
@@ -16,8 +16,8 @@ GridBuild build_grid(Backend b, const GridGeom& g, const std::vector<Vec3f>& poi
 }
 
 PairMaskBuild build_pair_masks(Backend b, const GridGeom& g, const std::vector<Vec3f>& points, float radius,
-                               uint32_t capacity, const std::vector<Vec3f>* queries) {
-  return b == Backend::Cuda ? build_pair_masks_cuda(g, points, radius, capacity, queries)
+                               uint32_t capacity, const std::vector<Vec3f>* queries, bool tensor_tiles) {
+  return b == Backend::Cuda ? build_pair_masks_cuda(g, points, radius, capacity, queries, tensor_tiles)
                             : build_pair_masks_cpu(g, points, radius, capacity, queries);
 }
 

@@ -146,7 +146,10 @@ struct PairMaskBuild {
 // With `queries`: the masks of each query (in the given order) against the
 // points instead, with the points' near-cell flags (CellsNear), as the solver
 // builds the fluid's wall masks; neighbours[k] belongs to queries[k].
+// tensor_tiles = false: the GPU build's FMA tile test everywhere (the solver
+// uses the tensor-core test where it can, cuda/sph/tile_mma.h).
 PairMaskBuild build_pair_masks(Backend b, const GridGeom& g, const std::vector<Vec3f>& points, float radius,
-                               uint32_t capacity, const std::vector<Vec3f>* queries = nullptr);
+                               uint32_t capacity, const std::vector<Vec3f>* queries = nullptr,
+                               bool tensor_tiles = true);
 
 }  // namespace sphray

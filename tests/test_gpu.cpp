@@ -72,7 +72,10 @@ TEST_CASE("cuda pair masks visit the cpu's neighbours in the same order", "[gpu]
   // same neighbours in the same order: uniform points (a particle count that
   // leaves a partial last warp), a jittered lattice at h = 2 dx (rows shared by
   // a warp's lanes), a pile-up in one cell (masks overflow), and with few words
-  // kept (the direct loop takes over).
+  // kept (the direct loop takes over). Both tile tests of the GPU build: the
+  // tensor cores' (tile_mma.h; the lattice's warps are compact enough for it,
+  // the sparse uniform points' are not and take the FMA test) and the FMA
+  // test everywhere.
   std::mt19937 rng(17);
   std::uniform_real_distribution<float> u(0.0f, 1.0f), jit(-0.1f, 0.1f);
   std::vector<Vec3f> uniform(30011), lattice, pile(3000);
@@ -84,22 +87,25 @@ TEST_CASE("cuda pair masks visit the cpu's neighbours in the same order", "[gpu]
   for (auto& p : pile) p = {0.54f + 0.03f * u(rng), 0.54f + 0.03f * u(rng), 0.54f + 0.03f * u(rng)};
   const GridGeom g{{0, 0, 0}, 0.05f, 20, 20, 20};  // support 4 lattice spacings, as h = 2 dx
   struct Case { const char* name; const std::vector<Vec3f>* pts; uint32_t capacity; };
-  for (const Case& c : {Case{"uniform", &uniform, pair_mask_capacity(4.0)}, Case{"lattice", &lattice, pair_mask_capacity(4.0)},
-                        Case{"lattice, 4 words", &lattice, 4u}, Case{"pile", &pile, pair_mask_capacity(4.0)}}) {
-    INFO(c.name);
-    const PairMaskBuild cpu = build_pair_masks(Backend::Cpu, g, *c.pts, g.cell_size, c.capacity);
-    const PairMaskBuild gpu = build_pair_masks(Backend::Cuda, g, *c.pts, g.cell_size, c.capacity);
-    REQUIRE(cpu.neighbours.size() == c.pts->size());
-    const double s2 = double(g.cell_size) * double(g.cell_size);
-    check_gpu_lists_hold_cpu_lists(cpu, gpu, s2, [&](size_t i, uint32_t j) {
-      return distance2((*c.pts)[cpu.grid.order[i]], (*c.pts)[cpu.grid.order[j]]);
-    });
-    size_t pairs = 0;
-    for (const auto& l : cpu.neighbours) pairs += l.size();
-    INFO("neighbours per point " << double(pairs) / double(c.pts->size()) << ", overflowed cpu " << cpu.overflowed
-                                 << " gpu " << gpu.overflowed);
-    if (c.pts == &pile) CHECK(gpu.overflowed > 0.9 * double(c.pts->size()));
-    if (c.capacity == 4u) CHECK(gpu.overflowed > c.pts->size() / 2);
+  const Case cases[] = {{"uniform", &uniform, pair_mask_capacity(4.0)}, {"lattice", &lattice, pair_mask_capacity(4.0)},
+                        {"lattice, 4 words", &lattice, 4u}, {"pile", &pile, pair_mask_capacity(4.0)}};
+  for (const Case& c : cases) {
+    for (const bool tensor : {true, false}) {
+      INFO(c.name << (tensor ? ", tensor-core tile test" : ", FMA tile test"));
+      const PairMaskBuild cpu = build_pair_masks(Backend::Cpu, g, *c.pts, g.cell_size, c.capacity);
+      const PairMaskBuild gpu = build_pair_masks(Backend::Cuda, g, *c.pts, g.cell_size, c.capacity, nullptr, tensor);
+      REQUIRE(cpu.neighbours.size() == c.pts->size());
+      const double s2 = double(g.cell_size) * double(g.cell_size);
+      check_gpu_lists_hold_cpu_lists(cpu, gpu, s2, [&](size_t i, uint32_t j) {
+        return distance2((*c.pts)[cpu.grid.order[i]], (*c.pts)[cpu.grid.order[j]]);
+      });
+      size_t pairs = 0;
+      for (const auto& l : cpu.neighbours) pairs += l.size();
+      INFO("neighbours per point " << double(pairs) / double(c.pts->size()) << ", overflowed cpu " << cpu.overflowed
+                                   << " gpu " << gpu.overflowed);
+      if (c.pts == &pile) CHECK(gpu.overflowed > 0.9 * double(c.pts->size()));
+      if (c.capacity == 4u) CHECK(gpu.overflowed > c.pts->size() / 2);
+    }
   }
 }
 

@@ -20,7 +20,7 @@ size_t cuda_free_memory() { return 0; }
 std::unique_ptr<Solver> make_cuda_solver(const SolverInput&) { no_cuda(); }
 GridBuild build_grid_cuda(const GridGeom&, const std::vector<Vec3f>&) { no_cuda(); }
 PairMaskBuild build_pair_masks_cuda(const GridGeom&, const std::vector<Vec3f>&, float, uint32_t,
-                                    const std::vector<Vec3f>*) {
+                                    const std::vector<Vec3f>*, bool) {
   no_cuda();
 }
 std::unique_ptr<FieldBuilder> make_cuda_field_builder(const FieldSetup&) { no_cuda(); }

@@ -18,6 +18,7 @@
 
 #include "grid.h"
 #include "params.h"
+#include "tile_mma.h"
 
 namespace sphray {
 
@@ -101,7 +102,9 @@ inline uint32_t pair_mask_capacity(double support_over_dx) {
 // sorted particles share most of their candidate rows, so per row the warp
 // loads the union of its lanes' ranges 32 candidates at a time into shared
 // memory (one coalesced load) and every lane tests each of them from there
-// (a broadcast read), keeping those within its own range. Loading each lane's
+// (a broadcast read), keeping those within its own range; a full warp whose
+// queries lie close together tests the whole 32 x 32 tile on the tensor
+// cores instead (tile_mma.h). Loading each lane's
 // own candidates instead (the CPU path below) makes 32 scattered reads per
 // candidate, and that kernel was bound by the L1 cache (96% busy, 1.3 ms at
 // 1M particles on the H100). A row whose lanes lie in different rows of the
@@ -113,6 +116,10 @@ struct BuildPairMask {
   // Relative slack of the GPU's shared-tile test (below): a superset of the
   // exact neighbours, never a subset.
   static constexpr float kTileSlack = 1e-4f;
+  // Registers per thread on the GPU (cuda/backend/cuda.cuh): the tensor-core
+  // test keeps the warp's A fragments in registers; at 56 the kernel spills
+  // (8 bytes), under the file-wide 40 it spilled 48.
+  static constexpr int kMaxRegisters = 64;
   GridGeom grid;
   const uint32_t* offsets;  // slab table of pts
   const Float4* pts;
@@ -123,6 +130,9 @@ struct BuildPairMask {
   // CellsNear of pts (grid.h), or null: a query in an unflagged cell has no
   // candidates (the wall masks of the fluid far from every wall).
   const uint8_t* near = nullptr;
+  // The tile test on the tensor cores where the GPU has them (tile_mma.h);
+  // false: the FMA test everywhere.
+  bool tensor_tiles = true;
 
   // Appends one word (if it has a neighbour) to query i's mask; w counts the
   // query's words, capacity + 1 at most (the overflow mark).
@@ -150,6 +160,45 @@ struct BuildPairMask {
       put(i, w, base, pair_word(pts, x, support2, skip, base, end));
   }
 
+#if defined(__CUDA_ARCH__)
+  // The FMA tile test: the bits of the tile pts[base, base + count) for the
+  // query at x, the warp's `lanes` loading the tile into t together. The tile
+  // is taken relative to its first candidate, o: with y = x - o,
+  // |y - t|^2 < s^2  <=>  |t|^2 - 2 y.t < s^2 - |y|^2, three FMAs and a
+  // compare per candidate instead of the difference, its square and the
+  // compare. Relative to o the magnitudes stay within a few supports for
+  // every lane the word can hold bits for (own_bits), so the rounding is a
+  // few 1e-7 of s^2; the test takes s^2 (1 + kTileSlack), so that it never
+  // drops a neighbour. It may keep a candidate a hair beyond the support,
+  // which the loops weigh zero (for_each_masked_neighbour). Padding: never
+  // within reach.
+  __device__ __forceinline__ uint32_t fma_tile(Vec3f x, uint32_t base, uint32_t count, uint32_t active,
+                                               uint32_t lanes, Float4* t) const {
+    const uint32_t lane = threadIdx.x % 32;
+    const Vec3f o = xyz(load(pts + base));
+    for (uint32_t k = lane; k < 32u; k += active) {
+      if (k < count) {
+        const Vec3f r = xyz(load(pts + base + k)) - o;
+        t[k] = {r.x, r.y, r.z, length2(r)};
+      } else {
+        t[k] = {0.0f, 0.0f, 0.0f, 1e30f};
+      }
+    }
+    const Vec3f y = x - o;
+    const float mx = -2.0f * y.x, my = -2.0f * y.y, mz = -2.0f * y.z;
+    const float reach = support2 * (1.0f + kTileSlack) - length2(y);
+    __syncwarp(lanes);
+    uint32_t bits = 0;
+#pragma unroll
+    for (uint32_t k = 0; k < 32u; ++k) {
+      const Float4 c = t[k];
+      bits |= uint32_t(fmaf(mz, c.z, fmaf(my, c.y, fmaf(mx, c.x, c.w))) < reach) << k;
+    }
+    __syncwarp(lanes);
+    return bits;
+  }
+#endif
+
   SPHRAY_HD void operator()(uint32_t i) const {
     const Vec3f x = xyz(queries[i]);
     const uint32_t skip = self ? i : kNoSkip;
@@ -171,6 +220,14 @@ struct BuildPairMask {
       mask.count[i] = 0;
       return;
     }
+#if defined(SPHRAY_TILE_MMA)
+    // The tile test on the tensor cores (tile_mma.h) for a full warp whose
+    // queries lie close enough together; the FMA test below otherwise.
+    __shared__ __align__(16) uint32_t mma_words[kThreadsPerBlock / 32][TileMma::kSharedWords];
+    uint32_t* mma_shared = mma_words[threadIdx.x / 32];
+    TileMma mma;
+    const bool tensor = tensor_tiles && active == 32u && mma.setup(x, support2, kTileSlack, mma_shared);
+#endif
     for (int row = 0; row < kCandidateRows; ++row) {
       uint32_t begin = 0, end = 0;
       if (!candidate_row(grid, offsets, x, row, begin, end) || begin >= end) begin = 0xffffffffu, end = 0;
@@ -182,36 +239,12 @@ struct BuildPairMask {
         continue;
       }
       for (uint32_t base = lo; base < hi; base += 32u) {
-        // The tile: the union's next 32 candidates relative to its first, o,
-        // with their squared lengths (padding: never within reach). With y = x - o,
-        // |y - t|^2 < s^2  <=>  |t|^2 - 2 y.t < s^2 - |y|^2: three FMAs and a
-        // compare per candidate instead of the difference, its square and the
-        // compare. Relative to o the magnitudes stay within a few supports for
-        // every lane the word can hold bits for (own_bits), so the rounding is a
-        // few 1e-7 of s^2; the test takes s^2 (1 + kTileSlack), so that it never
-        // drops a neighbour. It may keep a candidate a hair beyond the support,
-        // which the loops weigh zero (for_each_masked_neighbour).
         const uint32_t count = hi - base < 32u ? hi - base : 32u;
-        const Vec3f o = xyz(load(pts + base));
-        for (uint32_t k = lane; k < 32u; k += active) {
-          if (k < count) {
-            const Vec3f r = xyz(load(pts + base + k)) - o;
-            t[k] = {r.x, r.y, r.z, length2(r)};
-          } else {
-            t[k] = {0.0f, 0.0f, 0.0f, 1e30f};
-          }
-        }
-        const Vec3f y = x - o;
-        const float mx = -2.0f * y.x, my = -2.0f * y.y, mz = -2.0f * y.z;
-        const float reach = support2 * (1.0f + kTileSlack) - length2(y);
-        __syncwarp(lanes);
-        uint32_t bits = 0;
-#pragma unroll
-        for (uint32_t k = 0; k < 32u; ++k) {
-          const Float4 c = t[k];
-          bits |= uint32_t(fmaf(mz, c.z, fmaf(my, c.y, fmaf(mx, c.x, c.w))) < reach) << k;
-        }
-        __syncwarp(lanes);
+#if defined(SPHRAY_TILE_MMA)
+        const uint32_t bits = tensor ? mma.bits(pts, base, count, mma_shared) : fma_tile(x, base, count, active, lanes, t);
+#else
+        const uint32_t bits = fma_tile(x, base, count, active, lanes, t);
+#endif
         put(i, w, base, bits & own_bits(base, begin, end, skip));
       }
     }

@@ -39,9 +39,9 @@ GridBuild build_grid_cuda(const GridGeom& g, const std::vector<Vec3f>& points) {
 }
 
 PairMaskBuild build_pair_masks_cuda(const GridGeom& g, const std::vector<Vec3f>& points, float radius, uint32_t capacity,
-                                    const std::vector<Vec3f>* queries) {
+                                    const std::vector<Vec3f>* queries, bool tensor_tiles) {
   if (!cuda_available()) throw std::runtime_error("the CUDA backend was asked for, but no CUDA device is present");
-  return cuda_backend::build_pair_masks_impl(g, points, radius, capacity, queries);
+  return cuda_backend::build_pair_masks_impl(g, points, radius, capacity, queries, tensor_tiles);
 }
 
 }  // namespace sphray

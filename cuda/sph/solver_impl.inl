@@ -80,7 +80,8 @@ inline GridBuild build_grid_impl(const GridGeom& g, const std::vector<Vec3f>& po
 }
 
 inline PairMaskBuild build_pair_masks_impl(const GridGeom& g, const std::vector<Vec3f>& points, float radius,
-                                           uint32_t capacity, const std::vector<Vec3f>* queries) {
+                                           uint32_t capacity, const std::vector<Vec3f>* queries,
+                                           bool tensor_tiles = true) {
   PairMaskBuild out;
   out.grid = build_grid_impl(g, points);
   const uint32_t n = out.grid.offsets.back();  // points inside the grid, sorted first
@@ -110,7 +111,8 @@ inline PairMaskBuild build_pair_masks_impl(const GridGeom& g, const std::vector<
   Vector<uint32_t> count(nq);
   const float r2 = radius * radius;
   parallel_for(nq, BuildPairMask{g, raw(fine), raw(pts), raw(qpts), r2, queries == nullptr,
-                                 PairMask{raw(words), raw(count), nq, capacity}, queries ? raw(near) : nullptr});
+                                 PairMask{raw(words), raw(count), nq, capacity}, queries ? raw(near) : nullptr,
+                                 tensor_tiles});
   std::vector<PairWord> host_words = sphray::SPHRAY_BK::download(words, words.size());
   std::vector<uint32_t> host_count = sphray::SPHRAY_BK::download(count, nq);
   const PairMask m{host_words.data(), host_count.data(), nq, capacity};
