@@ -68,7 +68,8 @@ struct WallNeighbour {
 };
 
 // Direct: the launch for the particles whose pair masks overflowed (neighbours.h).
-template <bool WithPresence, bool Direct = false>
+// K: the scene's kernel (prm.kernel.type), fixed at compile time in the loop.
+template <bool WithPresence, bool Direct, KernelType K>
 struct Interaction {
   // Registers per thread on the GPU (cuda/backend/cuda.cuh): 48, above the
   // file-wide cap of 40 (CMakeLists.txt), under which both variants spill
@@ -116,7 +117,7 @@ struct Interaction {
       const Float4 pj = d.pos_rho, fj = d.flow;
       const Vec3f r = xi - xyz(pj);
       const float r2 = length2(r);
-      const float dwr = prm.kernel.dW_over_r(r2 * inv_sqrt(r2));
+      const float dwr = prm.kernel.template dW_over_r_for<K>(r2 * inv_sqrt(r2));
       const Vec3f uj = xyz(fj);
       const float m_dwr = prm.particle_mass * dwr;
       float term = p_over_rho2_i + fj.w;
@@ -156,7 +157,7 @@ struct Interaction {
       const float alpha = d.alpha;
       const Vec3f r = xi - xyz(pb);
       const float r2 = length2(r);
-      const float dwr = prm.kernel.dW_over_r(r2 * inv_sqrt(r2));
+      const float dwr = prm.kernel.template dW_over_r_for<K>(r2 * inv_sqrt(r2));
       float term = p_wall_i + w.p_over_rho2;
       const float vr = dot(ui, r);
       if (vr < 0.0f) term -= alpha * prm.speed_of_sound * fast_div(h * vr, (r2 + eta2) * (0.5f * (pi.w + w.rho)));

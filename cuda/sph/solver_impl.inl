@@ -284,8 +284,8 @@ class SolverImpl final : public Solver {
   }
 
  private:
-  template <bool P, bool Direct>
-  Interaction<P, Direct> pair_stage() {
+  template <bool P, bool Direct, KernelType K>
+  Interaction<P, Direct, K> pair_stage() {
     return {prm_, grid_, raw(fine_offsets_), raw(pos_), raw(flow_), raw(boundary_offsets_), raw(boundary_), raw(wall_),
             raw(boundary_alpha_), fluid_pairs(), boundary_pairs(), raw(accel_), raw(rate_grad_),
             P ? raw(presence_) : nullptr, n_};
@@ -293,10 +293,16 @@ class SolverImpl final : public Solver {
 
   // The pair loop is two launches: the pair masks, then the direct loop for
   // the particles whose masks overflowed (neighbours.h; usually none).
+  // The kernel type is a template parameter of the loop (kernel.h, dW_over_r_for).
   template <bool P>
   void pair_launches() {
-    parallel_for(n_, pair_stage<P, false>());
-    parallel_for(n_, pair_stage<P, true>());
+    if (prm_.kernel.type == KernelType::WendlandC2) {
+      parallel_for(n_, pair_stage<P, false, KernelType::WendlandC2>());
+      parallel_for(n_, pair_stage<P, true, KernelType::WendlandC2>());
+    } else {
+      parallel_for(n_, pair_stage<P, false, KernelType::CubicSpline>());
+      parallel_for(n_, pair_stage<P, true, KernelType::CubicSpline>());
+    }
   }
 
   PairMask fluid_pairs() { return {raw(fluid_pairs_), raw(fluid_pair_count_), n_, mask_words_}; }
