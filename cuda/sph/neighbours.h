@@ -146,10 +146,16 @@ struct BuildPairMask {
   // candidates: within [begin, end), and not `skip`.
   SPHRAY_HD SPHRAY_FORCEINLINE static uint32_t own_bits(uint32_t base, uint32_t begin, uint32_t end, uint32_t skip) {
     const uint32_t kb = begin > base ? begin - base : 0u, ke = end > base ? end - base : 0u;
+#if defined(__CUDA_ARCH__)
+    // ~0 << min(k, 32) and 1 << min(k, 32) (0 for k >= 32) as clamped funnel
+    // shifts, one instruction each; it runs once per tile and lane.
+    return ~__funnelshift_lc(0u, ~0u, ke) & __funnelshift_lc(0u, ~0u, kb) & ~__funnelshift_lc(0u, 1u, skip - base);
+#else
     const uint32_t below_end = ke >= 32u ? 0xffffffffu : (1u << ke) - 1u;
     const uint32_t from_begin = kb >= 32u ? 0u : ~((1u << kb) - 1u);
     const uint32_t not_skip = skip - base < 32u ? ~(1u << (skip - base)) : 0xffffffffu;
     return below_end & from_begin & not_skip;
+#endif
   }
 
   // Appends the words of one of the query's own rows, [begin, end), each
