@@ -247,7 +247,8 @@ struct BuildPairMask {
       for (uint32_t base = lo; base < hi; base += 32u) {
         const uint32_t count = hi - base < 32u ? hi - base : 32u;
 #if defined(SPHRAY_TILE_MMA)
-        const uint32_t bits = tensor ? mma.bits(pts, base, count, mma_shared) : fma_tile(x, base, count, active, lanes, t);
+        const uint32_t bits =
+            tensor ? mma.bits(pts, base, count, mma_shared) : fma_tile(x, base, count, active, lanes, t);
 #else
         const uint32_t bits = fma_tile(x, base, count, active, lanes, t);
 #endif

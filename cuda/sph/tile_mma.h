@@ -154,7 +154,8 @@ class TileMma {
       }
     }
     // One byte per slot (byte 2m + h).
-    const uint32_t packed = __byte_perm(__byte_perm(slot[0], slot[1], 0x0040), __byte_perm(slot[2], slot[3], 0x0040), 0x5410);
+    const uint32_t packed =
+        __byte_perm(__byte_perm(slot[0], slot[1], 0x0040), __byte_perm(slot[2], slot[3], 0x0040), 0x5410);
     __syncwarp();
     // Query `lane`: byte lane / 8 of lanes 4 (lane % 8) + t, t = 0..3, in order.
     const uint32_t src = 4 * (lane % 8), byte = lane / 8, sel = byte | ((byte + 4) << 4);
