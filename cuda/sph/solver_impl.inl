@@ -296,13 +296,13 @@ class SolverImpl final : public Solver {
   // The kernel type is a template parameter of the loop (kernel.h, dW_over_r_for).
   template <bool P>
   void pair_launches() {
-    if (prm_.kernel.type == KernelType::WendlandC2) {
-      parallel_for(n_, pair_stage<P, false, KernelType::WendlandC2>());
-      parallel_for(n_, pair_stage<P, true, KernelType::WendlandC2>());
-    } else {
-      parallel_for(n_, pair_stage<P, false, KernelType::CubicSpline>());
-      parallel_for(n_, pair_stage<P, true, KernelType::CubicSpline>());
-    }
+    if (prm_.kernel.type == KernelType::WendlandC2) pair_launches<P, KernelType::WendlandC2>();
+    else pair_launches<P, KernelType::CubicSpline>();
+  }
+  template <bool P, KernelType K>
+  void pair_launches() {
+    parallel_for(n_, pair_stage<P, false, K>());
+    parallel_for(n_, pair_stage<P, true, K>());
   }
 
   PairMask fluid_pairs() { return {raw(fluid_pairs_), raw(fluid_pair_count_), n_, mask_words_}; }

@@ -47,6 +47,7 @@
 #include <cstdint>
 
 #include "../common/vec.h"
+#include "params.h"
 
 namespace sphray {
 
@@ -70,7 +71,7 @@ class TileMma {
       hi_y = fmaxf(hi_y, __shfl_xor_sync(all, hi_y, d));
       hi_z = fmaxf(hi_z, __shfl_xor_sync(all, hi_z, d));
     }
-    inv_s_ = rsqrtf(support2);
+    inv_s_ = inv_sqrt(support2);
     const float spread = fmaxf(hi_x - lo_x, fmaxf(hi_y - lo_y, hi_z - lo_z)) * inv_s_;
     if (!(spread <= 2.0f)) return false;  // (and a NaN position)
     origin_ = {0.5f * (lo_x + hi_x), 0.5f * (lo_y + hi_y), 0.5f * (lo_z + hi_z)};
@@ -112,7 +113,7 @@ class TileMma {
     // This lane's candidate, q = lane, as one column of B (padding: |t|^2 far beyond reach).
     uint32_t w[6];
     if (lane < count) {
-      const Vec3f tv = (xyz(pts[base + lane]) - origin_) * inv_s_;
+      const Vec3f tv = (xyz(load(pts + base + lane)) - origin_) * inv_s_;
       float th[3], tl[3], t2h, t2l;
       split(tv.x, th[0], tl[0]);
       split(tv.y, th[1], tl[1]);
