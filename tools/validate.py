@@ -4,8 +4,10 @@
   validate.py run --sphray BUILD/sphray --backend cpu --resolutions 10,20 --out results.json
       runs scenes/validation/martin_moyce.json at spacing a/N for each N, and
       records the surge-front error against the experiment and the wall time.
-  validate.py report results_cpu.json results_cuda.json ...
-      prints the table for docs/validation.md and writes docs/validation_front.png.
+  validate.py report results_cpu.json results_cuda.json ... [--png docs/validation_front.png]
+      prints the table for docs/validation.md and writes the plot (surge fronts; error against wall time).
+  --set KEY=VALUE (run, repeatable) is passed on to every sphray run, e.g. --set sph.smoothing_ratio=1.5;
+      the results record it and the report labels them with it.
 
 Needs python3 with matplotlib (Debian: python3-matplotlib) for `report` only.
 """
@@ -54,6 +56,8 @@ def run(args):
             metrics, summary = os.path.join(tmp, "m.csv"), os.path.join(tmp, "s.json")
             cmd = [args.sphray, "run", SCENE, "--backend", args.backend, "--quiet",
                    "--set", f"sph.spacing={spacing:.9g}", "--metrics-csv", metrics, "--summary-json", summary]
+            for o in args.set:
+                cmd += ["--set", o]
             print("running:", " ".join(cmd), flush=True)
             try:
                 subprocess.run(cmd, check=True, timeout=args.timeout)
@@ -68,11 +72,18 @@ def run(args):
         results.append({"backend": args.backend, "a_over_dx": n, "spacing_m": spacing,
                         "particles": s["fluid_start"], "steps": s["steps"], "wall_s": s["wall_s"],
                         "rms_relative_error": rms, "max_relative_error": worst, "points": points,
-                        "wall_clamps": s["clamped"], "T": T, "Z": Z, "command": " ".join(cmd)})
+                        "wall_clamps": s["clamped"], "overrides": args.set, "T": T, "Z": Z,
+                        "command": " ".join(cmd)})
         print(f"  a/{n}: {s['fluid_start']} particles, {s['steps']} steps, {s['wall_s']:.1f} s, "
               f"RMS {100 * rms:.1f}% (max {100 * worst:.1f}%)", flush=True)
     with open(args.out, "w") as f:
         json.dump({"device": args.device, "results": results}, f, indent=1)
+
+
+def tag(r):
+    """The run's --set overrides, for a label (empty for the scene as it is)."""
+    o = r.get("overrides", [])
+    return f" [{', '.join(x.replace('sph.smoothing_ratio=', 'h/dx=') for x in o)}]" if o else ""
 
 
 def report(args):
@@ -86,7 +97,7 @@ def report(args):
     ax1.plot(te, ze, "ko", label="Martin & Moyce 1952")
     for s in sets:
         for r in s["results"]:
-            ax1.plot(r["T"], r["Z"], "-", lw=1, label=f"{r['backend']} a/{r['a_over_dx']}")
+            ax1.plot(r["T"], r["Z"], "-", lw=1, label=f"{r['backend']} a/{r['a_over_dx']}{tag(r)}")
     ax1.set_xlabel("T = t sqrt(2g/a)")
     ax1.set_ylabel("Z = front / a")
     ax1.set_xlim(0, 10)
@@ -98,7 +109,7 @@ def report(args):
         if not rs:
             continue
         ax2.semilogx([r["wall_s"] for r in rs], [100 * r["rms_relative_error"] for r in rs], "o-",
-                   label=f"{rs[0]['backend']} ({s['device']})")
+                   label=f"{rs[0]['backend']} ({s['device']}){tag(rs[0])}")
         for r in rs:
             ax2.annotate(f"a/{r['a_over_dx']}", (r["wall_s"], 100 * r["rms_relative_error"]), fontsize=7)
     ax2.set_xlabel("wall time [s]")
@@ -106,16 +117,20 @@ def report(args):
     ax2.set_title("Error against run time")
     ax2.legend(fontsize=7)
     fig.tight_layout()
-    png = os.path.join(ROOT, "docs/validation_front.png")
+    png = args.png
     fig.savefig(png, dpi=110)
 
-    lines = ["| backend | device | a/dx | fluid particles | steps | wall time [s] | RMS rel. error | max rel. error | wall clamps |",
-             "|---|---|---|---|---|---|---|---|---|"]
+    # A settings column only where some run had --set overrides.
+    with_settings = any(r.get("overrides") for s in sets for r in s["results"])
+    head = ["backend", "device"] + (["settings"] if with_settings else []) + [
+        "a/dx", "fluid particles", "steps", "wall time [s]", "RMS rel. error", "max rel. error", "wall clamps"]
+    lines = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
     for s in sets:
         for r in s["results"]:
-            lines.append(f"| {r['backend']} | {s['device']} | {r['a_over_dx']} | {r['particles']} | {r['steps']} | "
-                         f"{r['wall_s']:.1f} | {100 * r['rms_relative_error']:.1f}% | "
-                         f"{100 * r['max_relative_error']:.1f}% | {r['wall_clamps']} |")
+            cells = [r["backend"], s["device"]] + ([", ".join(r.get("overrides", [])) or "scene"] if with_settings else []) + [
+                str(r["a_over_dx"]), str(r["particles"]), str(r["steps"]), f"{r['wall_s']:.1f}",
+                f"{100 * r['rms_relative_error']:.1f}%", f"{100 * r['max_relative_error']:.1f}%", str(r["wall_clamps"])]
+            lines.append("| " + " | ".join(cells) + " |")
     print("\n".join(lines))
     print("wrote", png, "; the table above goes into docs/validation.md")
 
@@ -130,8 +145,11 @@ def main():
     r.add_argument("--device", default="cpu")
     r.add_argument("--timeout", type=float, default=3000)
     r.add_argument("--out", required=True)
+    r.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
+                   help="passed on to every run (sphray run --set), e.g. sph.smoothing_ratio=1.5")
     q = sub.add_parser("report")
     q.add_argument("files", nargs="+")
+    q.add_argument("--png", default=os.path.join(ROOT, "docs/validation_front.png"), help="where the plot goes")
     args = p.parse_args()
     run(args) if args.cmd == "run" else report(args)
 
