@@ -71,11 +71,12 @@ struct WallNeighbour {
 // K: the scene's kernel (prm.kernel.type), fixed at compile time in the loop.
 template <bool WithPresence, bool Direct, KernelType K>
 struct Interaction {
-  // Registers per thread on the GPU (cuda/backend/cuda.cuh): 48, above the
-  // file-wide cap of 40 (CMakeLists.txt), under which both variants spill
-  // (presence's three more accumulators; the fetched neighbour structs);
-  // measured against 40, 56 and 64 in docs/benchmarks.md.
-  static constexpr int kMaxRegisters = 48;
+  // Registers per thread on the GPU (cuda/backend/cuda.cuh): 48 without
+  // presence and 56 with it, above the file-wide cap of 40 (CMakeLists.txt),
+  // under which both variants spill (presence's three more accumulators; the
+  // fetched neighbour structs); measured against 40, 48, 56 and 64 in
+  // docs/benchmarks.md.
+  static constexpr int kMaxRegisters = WithPresence ? 56 : 48;
   SphParams prm;
   GridGeom grid;
   const uint32_t* fluid_offsets;  // slab tables (grid.h)
@@ -122,9 +123,14 @@ struct Interaction {
       const float m_dwr = prm.particle_mass * dwr;
       float term = p_over_rho2_i + fj.w;
       const float vr = dot(ui - uj, r);
-      if (vr < 0.0f) {  // mu / rho_mean with mu = h vr / (r^2 + eta^2), in one division
-        term -= prm.viscosity_alpha * prm.speed_of_sound * fast_div(h * vr, (r2 + eta2) * (0.5f * (pi.w + pj.w)));
-      }
+      // Artificial viscosity for approaching pairs: mu / rho_mean with
+      // mu = h vr / (r^2 + eta^2), in one division. Computed for every pair
+      // and selected: as a branch, a warp ran it whenever any lane's pair
+      // approached, and paid the branch besides. The select sits inside the
+      // product, so that the subtraction still fuses with it (the results are
+      // those of the branch, bit for bit).
+      const float visc = fast_div(h * vr, (r2 + eta2) * (0.5f * (pi.w + pj.w)));
+      term -= prm.viscosity_alpha * prm.speed_of_sound * (vr < 0.0f ? visc : 0.0f);
       a -= (m_dwr * term) * r;
       grad += m_dwr * r;
       const float weight = -dwr * fast_div(prm.particle_mass, pj.w);  // V_j (-dW/dr / r) >= 0
@@ -160,7 +166,8 @@ struct Interaction {
       const float dwr = prm.kernel.template dW_over_r_for<K>(r2 * inv_sqrt(r2));
       float term = p_wall_i + w.p_over_rho2;
       const float vr = dot(ui, r);
-      if (vr < 0.0f) term -= alpha * prm.speed_of_sound * fast_div(h * vr, (r2 + eta2) * (0.5f * (pi.w + w.rho)));
+      const float visc = fast_div(h * vr, (r2 + eta2) * (0.5f * (pi.w + w.rho)));
+      term -= alpha * prm.speed_of_sound * (vr < 0.0f ? visc : 0.0f);  // selected, as for the fluid
       a -= (w.rho * pb.w * term * dwr) * r;
       grad += (pi.w * pb.w * dwr) * r;
     });

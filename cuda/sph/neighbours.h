@@ -278,18 +278,22 @@ struct BuildPairMask {
 // support zero (the kernels do: dW/dr vanishes there), as the GPU build may
 // keep one a hair beyond it (BuildPairMask::kTileSlack).
 // Visits nothing for a query whose mask overflowed (see for_each_pair).
+// The next word is loaded one word ahead: the words are written by the build
+// and read once here, so they come from DRAM, and a lane that waited for its
+// next word would hold up the whole warp every few neighbours.
 template <class Fetch, class F>
 SPHRAY_HD SPHRAY_FORCEINLINE void for_each_masked(const PairMask& m, uint32_t i, Fetch&& fetch, F&& f) {
   const uint32_t count = m.count[i];
   if (count > m.capacity) return;
   uint32_t w = 0, base = 0, bits = 0;
+  PairWord ahead = count > 0 ? m.words[i] : PairWord{0u, 0u};
   auto next = [&](uint32_t& j) {
     while (bits == 0) {
       if (w == count) return false;
-      const PairWord e = m.words[size_t(w) * m.n + i];
-      base = e.base;
-      bits = e.bits;
+      base = ahead.base;
+      bits = ahead.bits;
       ++w;
+      if (w < count) ahead = m.words[size_t(w) * m.n + i];
     }
     j = base + lowest_bit(bits);
     bits &= bits - 1u;
