@@ -37,14 +37,17 @@ struct Hydrostatic {
 // independent of where the free surface is). Interior particles only (more
 // than one support from the side walls); WCSPH pressure carries acoustic
 // noise, so both average 10 snapshots over the last 0.2 s.
-// c0 > 0 sets sph.speed_of_sound (default: 10 sqrt(g H), docs/method.md).
+// c0 > 0 sets sph.speed_of_sound (default: 10 sqrt(g H), docs/method.md);
+// smoothing_ratio > 0 sets sph.smoothing_ratio = h / dx (default 2).
 // The run settles for `settle` seconds (kinetic energy sampled 8 times), then
 // averages 10 snapshots over 0.2 s.
-inline Hydrostatic run_hydrostatic(Backend b, double dx, double c0 = 0, double settle = 0.8) {
+inline Hydrostatic run_hydrostatic(Backend b, double dx, double c0 = 0, double settle = 0.8,
+                                   double smoothing_ratio = 0) {
   std::ostringstream text;
   text << R"({"tank": {"min": [0,0,0], "max": [0.12,0.12,0.3]},
     "fluid": [{"min": [0,0,0], "max": [0.12,0.12,0.2]}],
     "sph": {"spacing": )" << dx << (c0 > 0 ? ", \"speed_of_sound\": " + std::to_string(c0) : std::string())
+       << (smoothing_ratio > 0 ? ", \"smoothing_ratio\": " + std::to_string(smoothing_ratio) : std::string())
        << R"(, "viscosity_alpha": 0.5}, "run": {"end_time": )" << settle + 0.4 << "}}";
   const Scene s = parse_scene(text.str(), "hydrostatic.json");
   const SphParams prm = make_params(s);
