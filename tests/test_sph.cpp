@@ -35,7 +35,7 @@ TEST_CASE("a tank at rest settles to hydrostatic pressure within 2%", "[sph][cpu
 }
 
 // The study behind the smoothing-length section of docs/validation.md (not run
-// by ctest: about 2.5 minutes on 2 cores; `build/tests/sphray_tests "[study]"`).
+// by ctest: about 3 minutes on 2 cores; `build/tests/sphray_tests "[study]"`).
 // The cpu test's tank (1 cm, c0 = 28 m/s, 0.4 s of settling) at h = 1.3 .. 2.0
 // dx: the hydrostatic bounds hold from 1.4 dx on; at 1.3 dx they do not (the
 // kernel's moment on the lattice is 0.979 there, docs/validation.md).

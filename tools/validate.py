@@ -64,6 +64,8 @@ def run(args):
             except subprocess.TimeoutExpired:
                 print(f"  a/{n}: stopped after {args.timeout} s, not recorded", flush=True)
                 continue
+            except subprocess.CalledProcessError as e:  # sphray has said why (a bad --set, say)
+                sys.exit(f"validate.py: a/{n}: sphray exited with code {e.returncode}; nothing written to {args.out}")
             rows = list(csv.DictReader(open(metrics)))
             s = json.load(open(summary))
         T = [float(r["time_s"]) * math.sqrt(2 * G / A) for r in rows]
