@@ -59,6 +59,9 @@ void check_pair_masks(const GridGeom& g, const GridBuild& gb, const std::vector<
         auto visit = [&](uint32_t j, Float4, Vec3f, float) { walked.push_back(j); };
         const bool complete = count[i] <= capacity;
         overflowed += !complete;
+        // No stored word is empty: the mask walk takes a word's lowest bit
+        // without testing the word first (for_each_masked).
+        for (uint32_t w = 0; complete && w < count[i]; ++w) REQUIRE(words[size_t(w) * inside + i].bits != 0u);
         if (complete) for_each_pair<false>(g, gb.fine_offsets.data(), pts.data(), sorted[i], r2, skip, m, i, visit);
         else for_each_pair<true>(g, gb.fine_offsets.data(), pts.data(), sorted[i], r2, skip, m, i, visit);
         for_each_neighbour(g, gb.fine_offsets.data(), pts.data(), sorted[i], r2, skip,

@@ -280,7 +280,10 @@ struct BuildPairMask {
 // Visits nothing for a query whose mask overflowed (see for_each_pair).
 // The next word is loaded one word ahead: the words are written by the build
 // and read once here, so they come from DRAM, and a lane that waited for its
-// next word would hold up the whole warp every few neighbours.
+// next word would hold up the whole warp every few neighbours. The switch to
+// the next word is written as selects and a predicated load, run by every
+// lane on every neighbour: with 32 lanes, one of them switches on nearly
+// every iteration, and as a branch the others waited for it each time.
 template <class Fetch, class F>
 SPHRAY_HD SPHRAY_FORCEINLINE void for_each_masked(const PairMask& m, uint32_t i, Fetch&& fetch, F&& f) {
   const uint32_t count = m.count[i];
@@ -288,13 +291,13 @@ SPHRAY_HD SPHRAY_FORCEINLINE void for_each_masked(const PairMask& m, uint32_t i,
   uint32_t w = 0, base = 0, bits = 0;
   PairWord ahead = count > 0 ? m.words[i] : PairWord{0u, 0u};
   auto next = [&](uint32_t& j) {
-    while (bits == 0) {
-      if (w == count) return false;
-      base = ahead.base;
-      bits = ahead.bits;
-      ++w;
-      if (w < count) ahead = m.words[size_t(w) * m.n + i];
-    }
+    const bool take = bits == 0;  // no stored word is empty (BuildPairMask::put)
+    if (take && w == count) return false;
+    base = take ? ahead.base : base;
+    bits = take ? ahead.bits : bits;
+    w += take ? 1u : 0u;
+    const bool more = take && w < count;
+    ahead = more ? m.words[size_t(w) * m.n + i] : ahead;
     j = base + lowest_bit(bits);
     bits &= bits - 1u;
     return true;
