@@ -89,18 +89,19 @@ TEST_CASE("cuda pair masks visit the cpu's neighbours in the same order", "[gpu]
   struct Case { const char* name; const std::vector<Vec3f>* pts; uint32_t capacity; };
   const Case cases[] = {{"uniform", &uniform, pair_mask_capacity(4.0)}, {"lattice", &lattice, pair_mask_capacity(4.0)},
                         {"lattice, 4 words", &lattice, 4u}, {"pile", &pile, pair_mask_capacity(4.0)}};
+  const double s2 = double(g.cell_size) * double(g.cell_size);
   for (const Case& c : cases) {
+    INFO(c.name);
+    const PairMaskBuild cpu = build_pair_masks(Backend::Cpu, g, *c.pts, g.cell_size, c.capacity);
+    REQUIRE(cpu.neighbours.size() == c.pts->size());
+    size_t pairs = 0;
+    for (const auto& l : cpu.neighbours) pairs += l.size();
     for (const bool tensor : {true, false}) {
-      INFO(c.name << (tensor ? ", tensor-core tile test" : ", FMA tile test"));
-      const PairMaskBuild cpu = build_pair_masks(Backend::Cpu, g, *c.pts, g.cell_size, c.capacity);
+      INFO((tensor ? "tensor-core tile test" : "FMA tile test"));
       const PairMaskBuild gpu = build_pair_masks(Backend::Cuda, g, *c.pts, g.cell_size, c.capacity, nullptr, tensor);
-      REQUIRE(cpu.neighbours.size() == c.pts->size());
-      const double s2 = double(g.cell_size) * double(g.cell_size);
       check_gpu_lists_hold_cpu_lists(cpu, gpu, s2, [&](size_t i, uint32_t j) {
         return distance2((*c.pts)[cpu.grid.order[i]], (*c.pts)[cpu.grid.order[j]]);
       });
-      size_t pairs = 0;
-      for (const auto& l : cpu.neighbours) pairs += l.size();
       INFO("neighbours per point " << double(pairs) / double(c.pts->size()) << ", overflowed cpu " << cpu.overflowed
                                    << " gpu " << gpu.overflowed);
       if (c.pts == &pile) CHECK(gpu.overflowed > 0.9 * double(c.pts->size()));
