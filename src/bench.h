@@ -1,7 +1,8 @@
 // `sphray bench sim`: milliseconds per SPH step, split by stage, for dam breaks
 // of given particle counts, with and without particle presence. Stage times
 // come from device events (CUDA) or the steady clock (CPU), after warm-up
-// steps, as medians over the measured steps.
+// steps, as medians over the measured steps; with them the wall time of each
+// whole step on the host's clock.
 #pragma once
 
 #include <iosfwd>
@@ -26,7 +27,11 @@ struct BenchSimRow {
   size_t particles = 0, boundary = 0;
   bool presence = false;
   StageTimes median_ms;
-  double median_total_ms = 0;
+  double median_total_ms = 0;  // the stages' device time
+  // The host's clock around each step() call: the stages plus what the
+  // device waits for between them (launches, host round trips), i.e. what a
+  // run pays per step.
+  double median_wall_ms = 0;
 };
 
 // Spacing that gives about `target` fluid particles in the scene's fluid blocks.

@@ -9,6 +9,8 @@
 #include <string>
 #include <sys/wait.h>
 
+#include <nlohmann/json.hpp>
+
 #include "catch.h"
 #include "helpers.h"
 #include "../src/render.h"
@@ -95,6 +97,30 @@ TEST_CASE("sphray run builds the field at every frame when the scene has one", "
   std::stringstream ss;
   ss << f.rdbuf();
   CHECK(has(ss.str(), "\"builds_without_presence\": 1"));
+}
+
+TEST_CASE("sphray bench sim writes every row with its stages and its wall time", "[cli][cpu]") {
+  const std::string json_path = "/tmp/sphray_cli_bench_sim.json";
+  std::remove(json_path.c_str());
+  const std::string scene = sphray::test::source_path("scenes/bench/dam_break.json");
+  const Result r =
+      run_cli("bench sim --backend cpu --scene " + scene + " --sizes 2k --warmup 1 --steps 3 --json " + json_path);
+  REQUIRE(r.code == 0);
+  std::ifstream f(json_path);
+  REQUIRE(f.good());
+  const nlohmann::json j = nlohmann::json::parse(f);
+  REQUIRE(j["rows"].size() == 2);  // presence off and on
+  for (const auto& row : j["rows"]) {
+    const double grid = row["grid_ms"], pairs = row["pairs_ms"], integrate = row["integrate_ms"];
+    const double total = row["total_ms"], wall = row["wall_ms"];
+    CHECK(grid > 0);
+    CHECK(pairs > 0);
+    CHECK(integrate > 0);
+    // The stages are timed inside each step, so each step's wall time (the
+    // host's clock around the whole call) is at least their sum, and so are
+    // the medians.
+    CHECK(wall >= total);
+  }
 }
 
 TEST_CASE("sphray bench field reports bad input with exit code 2", "[cli][cpu]") {
