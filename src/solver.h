@@ -11,6 +11,7 @@
 #include <vector>
 
 #include "../cuda/sph/grid.h"
+#include "../cuda/sph/integrate.h"  // StepLimits
 #include "../cuda/sph/params.h"
 
 namespace sphray {
@@ -82,11 +83,6 @@ struct RawParticles {
 struct StageTimes {
   double grid = 0, pairs = 0, integrate = 0;
   double total() const { return grid + pairs + integrate; }
-};
-
-struct StepLimits {  // the last step's size and what bounded it
-  double dt = 0, dt_cfl = 0, dt_force = 0, dt_viscous = 0;
-  double max_speed = 0, max_accel = 0;
 };
 
 class Solver {

@@ -69,6 +69,18 @@ TEST_CASE("a non-finite value stops the run and names step, particle and quantit
   CHECK(msg.find("velocity") != std::string::npos);
   CHECK(msg.find("particle 17 ") != std::string::npos);
   CHECK(msg.find("step 0") != std::string::npos);
+  // The refused step moved nothing: the state is the one the guard found.
+  CHECK(solver->steps() == 0);
+  CHECK(solver->time() == 0.0);
+  const HostParticles after = solver->download();
+  REQUIRE(after.id.size() == in.fluid_pos_rho.size());
+  for (size_t k = 0; k < after.id.size(); ++k) {
+    const Float4& p0 = in.fluid_pos_rho[after.id[k]];
+    REQUIRE(after.pos[k].x == p0.x);
+    REQUIRE(after.pos[k].y == p0.y);
+    REQUIRE(after.pos[k].z == p0.z);
+    REQUIRE(after.density[k] == p0.w);
+  }
 }
 
 TEST_CASE("a time step below the floor is an error with its reason", "[sph][cpu]") {

@@ -8,6 +8,7 @@
 
 #include <thrust/iterator/counting_iterator.h>
 #include <thrust/reduce.h>
+#include <thrust/scan.h>
 #include <thrust/sequence.h>
 #include <thrust/sort.h>
 #include <thrust/binary_search.h>
@@ -57,6 +58,25 @@ void parallel_for(uint32_t n, const F& f) {
 #pragma omp parallel for schedule(static)
   for (int64_t i = 0; i < int64_t(n); ++i) f(uint32_t(i));
 }
+
+// *out = op-reduction of f(0), ..., f(n - 1) and init (the CUDA backend's
+// leaves it on the device).
+template <class T, class F, class Op>
+void transform_reduce_into(uint32_t n, const F& f, const Op& op, const T& init, T* out) {
+  *out = thrust::transform_reduce(policy(), thrust::counting_iterator<uint32_t>(0), thrust::counting_iterator<uint32_t>(n),
+                                  f, init, op);
+}
+
+// The CUDA backend's read-back of a device value; here a copy.
+template <class T>
+class ReadBack {
+ public:
+  void start(const T* value) { value_ = *value; }
+  const T& value() const { return value_; }
+
+ private:
+  T value_{};
+};
 
 template <class T>
 void upload(Vector<T>& dst, const std::vector<T>& src) { dst.assign(src.begin(), src.end()); }

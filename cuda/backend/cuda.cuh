@@ -11,6 +11,7 @@
 
 #include <cuda_runtime.h>
 #include <cub/device/device_radix_sort.cuh>
+#include <cub/device/device_reduce.cuh>
 #include <cub/util_allocator.cuh>
 #include <thrust/count.h>
 #include <thrust/device_vector.h>
@@ -19,7 +20,9 @@
 #include <thrust/binary_search.h>
 #include <thrust/gather.h>
 #include <thrust/iterator/counting_iterator.h>
+#include <thrust/iterator/transform_iterator.h>
 #include <thrust/reduce.h>
+#include <thrust/scan.h>
 #include <thrust/sequence.h>
 #include <thrust/sort.h>
 #include <thrust/transform_reduce.h>
@@ -137,6 +140,52 @@ void parallel_for(uint32_t n, const F& f) {
   SPHRAY_CUDA_CHECK(cudaDeviceSynchronize());
 #endif
 }
+
+template <class T>
+struct StoreValue {
+  T* out;
+  T value;
+  __device__ void operator()(uint32_t) const { *out = value; }
+};
+
+// *out = op-reduction of f(0), ..., f(n - 1) and init, left on the device
+// (CUB's reduce; Thrust's transform_reduce would copy the result to the host
+// and wait for it).
+template <class T, class F, class Op>
+void transform_reduce_into(uint32_t n, const F& f, const Op& op, const T& init, T* out) {
+  if (n == 0) {
+    parallel_for(1, StoreValue<T>{out, init});
+    return;
+  }
+  const auto in = thrust::make_transform_iterator(thrust::counting_iterator<uint32_t>(0), f);
+  auto& cache = CachedTempAllocator::cache();
+  size_t bytes = 0;
+  SPHRAY_CUDA_CHECK(cub::DeviceReduce::Reduce(nullptr, bytes, in, out, n, op, init));
+  void* temp = nullptr;
+  SPHRAY_CUDA_CHECK(cache.DeviceAllocate(&temp, bytes));
+  SPHRAY_CUDA_CHECK(cub::DeviceReduce::Reduce(temp, bytes, in, out, n, op, init));
+  SPHRAY_CUDA_CHECK(cache.DeviceFree(temp));
+}
+
+// A value on the device that the host reads without a wait of its own:
+// start() queues its copy into pinned memory behind the work before it;
+// value() is valid once the host has waited for something queued after
+// start() (the solver's stage clock at the end of a step).
+template <class T>
+class ReadBack {
+ public:
+  ReadBack() { SPHRAY_CUDA_CHECK(cudaMallocHost(&host_, sizeof(T))); }
+  ~ReadBack() { cudaFreeHost(host_); }
+  ReadBack(const ReadBack&) = delete;
+  ReadBack& operator=(const ReadBack&) = delete;
+  void start(const T* device_value) {
+    SPHRAY_CUDA_CHECK(cudaMemcpyAsync(host_, device_value, sizeof(T), cudaMemcpyDeviceToHost));
+  }
+  const T& value() const { return *host_; }
+
+ private:
+  T* host_ = nullptr;
+};
 
 template <class T>
 void upload(Vector<T>& dst, const std::vector<T>& src) { dst.assign(src.begin(), src.end()); }

@@ -17,6 +17,7 @@
 // rest density (see Advance).
 #pragma once
 
+#include <cmath>
 #include <cstdint>
 
 #include "params.h"
@@ -33,10 +34,101 @@ struct PressureTermOf {
   SPHRAY_HD void operator()(uint32_t i) const { flow[i].w = pressure_term(prm, pos_rho[i].w); }
 };
 
+// What the host needs after the pair loop: the extremes for this step's
+// size, the first particle holding a non-finite value, and the wall clamps of
+// the previous drift. Reduced on the device (transform_reduce_into).
+struct StepStats {
+  float max_speed2;
+  float max_accel2;
+  // The first particle with a non-finite value: its sorted index, plus
+  // kBadDerived if only what the pair loop computed (acceleration, density
+  // rate) is bad, so that a particle whose own state is bad, the cause, comes
+  // before the neighbours it spread to. UINT32_MAX when all are finite.
+  uint32_t first_bad;
+  uint32_t clamped;
+};
+
+constexpr uint32_t kBadDerived = 0x80000000u;
+
+// The last step's size and what bounded it (Solver::last_limits).
+struct StepLimits {
+  double dt = 0, dt_cfl = 0, dt_force = 0, dt_viscous = 0;
+  double max_speed = 0, max_accel = 0;
+};
+
+// The step-size rule: Monaghan (1992) / Monaghan & Kos (1999), CFL (sound +
+// flow speed), force and viscous limits, in double.
+struct StepRule {
+  double h, speed_of_sound, cfl, max_dt, dt_viscous;
+  SPHRAY_HD StepLimits limits(const StepStats& s) const {
+    const double inf = HUGE_VAL;
+    StepLimits l;
+    l.max_speed = std::sqrt(double(s.max_speed2));
+    l.max_accel = std::sqrt(double(s.max_accel2));
+    l.dt_cfl = h / (speed_of_sound + l.max_speed);
+    l.dt_force = l.max_accel > 0 ? std::sqrt(h / l.max_accel) : inf;
+    l.dt_viscous = dt_viscous;
+    const double bound = l.dt_cfl < l.dt_force ? l.dt_cfl : l.dt_force;
+    const double dt = cfl * (bound < l.dt_viscous ? bound : l.dt_viscous);
+    l.dt = dt < max_dt ? dt : max_dt;
+    return l;
+  }
+};
+
+enum StepOutcome : uint32_t { kStepOk = 0, kStepBadParticle = 1, kStepBelowFloor = 2 };
+
+// One step's decision, made on the device so that the kick follows the
+// reduction without the host reading the extremes first (a round trip that
+// left the GPU idle every step): the host reads it once, when the step's work
+// is done, and raises the error then. A bad particle's state is kept as it
+// was found, for the message.
+struct StepControl {
+  StepStats stats;
+  StepLimits limits;  // limits.dt: the step taken when outcome is kStepOk
+  uint32_t outcome;   // StepOutcome
+  uint32_t bad_id;
+  Float4 bad_pos, bad_vel, bad_accel;
+};
+
+// Fills control->limits and ->outcome from control->stats (one thread):
+// refused for a bad particle or a dt below min_dt, else dt capped at
+// `remaining` (the time left to the caller's `until`, >= 0).
+struct ChooseStep {
+  StepRule rule;
+  double min_dt, remaining;
+  StepControl* control;
+  const Float4* pos_rho;
+  const Float4* vel;
+  const Float4* accel;
+  const uint32_t* id;
+  SPHRAY_HD void operator()(uint32_t) const {
+    StepControl& c = *control;
+    c.limits = rule.limits(c.stats);
+    if (c.stats.first_bad != 0xffffffffu) {
+      const uint32_t i = c.stats.first_bad & ~kBadDerived;
+      c.outcome = kStepBadParticle;
+      c.bad_id = id[i];
+      c.bad_pos = pos_rho[i];
+      c.bad_vel = vel[i];
+      c.bad_accel = accel[i];
+      return;
+    }
+    if (c.limits.dt < min_dt) {
+      c.outcome = kStepBelowFloor;  // limits.dt: the step refused
+      return;
+    }
+    c.outcome = kStepOk;
+    c.limits.dt = c.limits.dt < remaining ? c.limits.dt : remaining;
+  }
+};
+
 // Kick, density, drift, and what the next pair loop reads of the particle.
+// The step's size comes from the device (ChooseStep, above); a step that
+// ChooseStep refused (a bad particle, dt below its floor) leaves every
+// particle as it is.
 struct Advance {
   SphParams prm;
-  float dt;
+  const StepControl* control;
   Float4* pos_rho;
   Float4* vel;              // exact velocity (w unused)
   Float4* flow;             // out: u = v' + dt a (the next loop's prediction of v''), p / rho'^2
@@ -50,6 +142,8 @@ struct Advance {
   }
 
   SPHRAY_HD void operator()(uint32_t i) const {
+    if (control->outcome != kStepOk) return;
+    const float dt = float(control->limits.dt);
     Float4 p = pos_rho[i];
     Float4 v = vel[i];
     const Float4 a = accel[i], g = rate_grad[i];
@@ -73,22 +167,6 @@ struct Advance {
     status[i] = st;
   }
 };
-
-// What the host needs after the pair loop: the extremes for this step's
-// size, the first particle holding a non-finite value, and the wall clamps of
-// the previous drift. Reduced with thrust::transform_reduce.
-struct StepStats {
-  float max_speed2;
-  float max_accel2;
-  // The first particle with a non-finite value: its sorted index, plus
-  // kBadDerived if only what the pair loop computed (acceleration, density
-  // rate) is bad, so that a particle whose own state is bad, the cause, comes
-  // before the neighbours it spread to. UINT32_MAX when all are finite.
-  uint32_t first_bad;
-  uint32_t clamped;
-};
-
-constexpr uint32_t kBadDerived = 0x80000000u;
 
 struct StepStatsOf {
   const Float4* pos_rho;

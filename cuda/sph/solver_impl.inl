@@ -1,6 +1,7 @@
 // One SPH step, written once for both backends. Included by solver_cpu.cpp and
 // solver_cuda.cu inside their backend namespace (which supplies Vector, raw,
-// policy, parallel_for, upload, download, read_one, StageClock and kBackend).
+// policy, parallel_for, transform_reduce_into, ReadBack, upload, download, read_one,
+// StageClock and kBackend).
 // Stages: grid, pairs (forces, density rate and presence in one neighbour
 // loop, interaction.h), integrate (integrate.h says why in that order). The
 // grid is rebuilt at the end of a step (and once at construction), so between
@@ -9,29 +10,37 @@
 
 // Its dependencies come from stages.h, included first outside the namespace.
 
-// Reorders src by order into scratch, then swaps: particle data stays sorted by cell.
-template <class T>
-void gather_swap(uint32_t n, const Vector<uint32_t>& order, Vector<T>& src, Vector<T>& scratch) {
-  thrust::gather(policy(), order.begin(), order.begin() + n, src.begin(), scratch.begin());
-  src.swap(scratch);
-}
-
 SPHRAY_HD SPHRAY_FORCEINLINE Vec3f position_of(const Float4& p) { return xyz(p); }
 SPHRAY_HD SPHRAY_FORCEINLINE Vec3f position_of(const Vec3f& p) { return p; }
 
-// Cell key of every point (particles as Float4, plain points as Vec3f).
-// Presence follows its particles through the re-sort: [6][n_old] -> [6][n_new].
-struct GatherPresence {
+// The particle data into the new sorted order, one kernel for all of it
+// (one read of the order): out[i] = in[order[i]] for the first n_new sorted
+// particles. Presence, when there is one, [6][n_old] -> [6][n_new].
+struct GatherParticles {
   const uint32_t* order;
-  const float* src;
-  float* dst;
-  uint32_t n_old, n_new;
+  const Float4 *pos, *vel, *flow;
+  const uint32_t* id;
+  const uint8_t* status;
+  const float* presence;  // null: none to carry
+  uint32_t n_old;
+  Float4 *pos_out, *vel_out, *flow_out;
+  uint32_t* id_out;
+  uint8_t* status_out;
+  float* presence_out;
+  uint32_t n_new;
   SPHRAY_HD void operator()(uint32_t i) const {
     const uint32_t j = order[i];
-    for (uint32_t k = 0; k < 6; ++k) dst[k * n_new + i] = src[k * n_old + j];
+    pos_out[i] = pos[j];
+    vel_out[i] = vel[j];
+    flow_out[i] = flow[j];
+    id_out[i] = id[j];
+    status_out[i] = status[j];
+    if (presence)
+      for (uint32_t k = 0; k < 6; ++k) presence_out[k * n_new + i] = presence[k * n_old + j];
   }
 };
 
+// Cell key of every point (particles as Float4, plain points as Vec3f).
 template <class P>
 struct KeyOf {
   GridGeom grid;
@@ -47,19 +56,36 @@ struct CoarseOffsets {
   SPHRAY_HD void operator()(uint32_t c) const { coarse[c] = fine[c * uint32_t(GridGeom::kSubX)]; }
 };
 
+// fine[keys[i]] = i for the first sorted particle of each occupied slab.
+struct SlabStarts {
+  const uint32_t* keys;
+  uint32_t* fine;
+  SPHRAY_HD void operator()(uint32_t i) const {
+    if (i == 0 || keys[i] != keys[i - 1]) fine[keys[i]] = i;
+  }
+};
+
+struct MinOf {
+  SPHRAY_HD uint32_t operator()(uint32_t a, uint32_t b) const { return a < b ? a : b; }
+};
+
 // Sorts `n` fine keys with their order (stable, so both backends agree on the
 // order within a slab; on the key bits in use) and fills fine[k] = first
-// sorted index with key >= k, for k in [0, num_fine_cells]: one vectorised
-// binary search per slab, parallel over slabs. Then the coarse table, when one
-// is asked for.
+// sorted index with key >= k, for k in [0, num_fine_cells] (`fine` has
+// exactly those entries): n everywhere, the start of every occupied slab,
+// then the minimum from the right, so that an empty slab takes the start of
+// the next occupied one. (A binary search per slab, thrust::lower_bound, did
+// the same in 21 us at 1M particles on the H100; docs/benchmarks.md.) Then
+// the coarse table, when one is asked for.
 inline void sort_and_offsets(const GridGeom& g, uint32_t n, Vector<uint32_t>& keys, Vector<uint32_t>& order,
                              Vector<uint32_t>& fine, Vector<uint32_t>* coarse) {
   thrust::sequence(policy(), order.begin(), order.begin() + n);
   int bits = 1;  // the keys run up to num_fine_cells() (outside the grid)
   while (bits < 32 && (g.num_fine_cells() >> bits) != 0) ++bits;
   sort_pairs(keys, order, n, bits);
-  thrust::lower_bound(policy(), keys.begin(), keys.begin() + n, thrust::counting_iterator<uint32_t>(0),
-                      thrust::counting_iterator<uint32_t>(g.num_fine_cells() + 1), fine.begin());
+  thrust::fill(policy(), fine.begin(), fine.end(), n);
+  parallel_for(n, SlabStarts{raw(keys), raw(fine)});
+  thrust::inclusive_scan(policy(), fine.rbegin(), fine.rend(), fine.rbegin(), MinOf());
   if (coarse) parallel_for(g.num_cells() + 1, CoarseOffsets{raw(fine), raw(*coarse)});
 }
 
@@ -143,7 +169,7 @@ class SolverImpl final : public Solver {
     std::vector<uint32_t> ids(n);
     for (size_t i = 0; i < n; ++i) ids[i] = uint32_t(i);
     upload(id_, ids);
-    pos_tmp_.resize(n); vel_tmp_.resize(n); id_tmp_.resize(n);
+    pos_tmp_.resize(n); vel_tmp_.resize(n); flow_tmp_.resize(n); id_tmp_.resize(n);
     accel_.resize(n); rate_grad_.resize(n);
     status_.assign(n, uint8_t(kStatusOk)); status_tmp_.resize(n);
     keys_.resize(n); order_.resize(n); offsets_.resize(cells); fine_offsets_.resize(slabs);
@@ -202,7 +228,7 @@ class SolverImpl final : public Solver {
 
   size_t device_bytes() const override {
     auto b = [](const auto& v) { return v.size() * sizeof(typename std::decay_t<decltype(v)>::value_type); };
-    return b(pos_) + b(vel_) + b(flow_) + b(pos_tmp_) + b(vel_tmp_) + b(accel_) + b(rate_grad_) + b(presence_) + b(presence_tmp_) + b(id_) +
+    return b(pos_) + b(vel_) + b(flow_) + b(pos_tmp_) + b(vel_tmp_) + b(flow_tmp_) + b(accel_) + b(rate_grad_) + b(presence_) + b(presence_tmp_) + b(id_) +
            b(id_tmp_) + b(status_) + b(status_tmp_) + b(keys_) + b(order_) + b(offsets_) + b(fine_offsets_) + b(boundary_) +
            b(boundary_alpha_) + b(wall_) + b(boundary_offsets_) + b(fluid_pairs_) + b(boundary_pairs_) +
            b(fluid_pair_count_) + b(boundary_pair_count_) + b(fluid_near_) + b(boundary_near_);
@@ -223,20 +249,28 @@ class SolverImpl final : public Solver {
     else pair_launches<false>();
     presence_valid_ = presence_now;
     clock_.mark(2);
-    const StepStats s = thrust::transform_reduce(
-        policy(), thrust::counting_iterator<uint32_t>(0), thrust::counting_iterator<uint32_t>(n_),
-        StepStatsOf{raw(pos_), raw(vel_), raw(accel_), raw(status_)}, StepStats{0.0f, 0.0f, 0xffffffffu, 0u},
-        CombineStepStats());
-    if (s.first_bad != 0xffffffffu) throw SimulationError(describe_bad_particle(s.first_bad & ~kBadDerived));
-    clamped_total_ += s.clamped;
-    const double dt = choose_dt(s, until);
-    parallel_for(n_, Advance{prm_, float(dt), raw(pos_), raw(vel_), raw(flow_), raw(accel_), raw(rate_grad_), raw(status_)});
+    // The step's size is chosen on the device (integrate.h, ChooseStep), so
+    // that nothing waits for the host between the reduction and the kick; the
+    // host reads the decision once the step's work is done, and raises its
+    // error then (a refused step moves no particle).
+    StepControl* control = raw(control_);
+    transform_reduce_into(n_, StepStatsOf{raw(pos_), raw(vel_), raw(accel_), raw(status_)}, CombineStepStats(),
+                          StepStats{0.0f, 0.0f, 0xffffffffu, 0u}, &control->stats);
+    parallel_for(1, ChooseStep{step_rule(), min_dt_, std::max(until - t_, 0.0), control, raw(pos_), raw(vel_),
+                               raw(accel_), raw(id_)});
+    parallel_for(n_, Advance{prm_, control, raw(pos_), raw(vel_), raw(flow_), raw(accel_), raw(rate_grad_), raw(status_)});
+    control_read_.start(control);
     clock_.mark(3);
     build_grid();
     clock_.mark(4);
     clock_.finish(4);
+    const StepControl& c = control_read_.value();
+    if (c.outcome == kStepBadParticle) throw SimulationError(describe_bad_particle(c));
+    clamped_total_ += c.stats.clamped;
+    limits_ = c.limits;
+    if (c.outcome == kStepBelowFloor) throw SimulationError(describe_dt_floor());
     times_ = {clock_.ms(3, 4), clock_.ms(1, 2), clock_.ms(2, 3)};
-    t_ += dt;
+    t_ += limits_.dt;
     ++steps_;
   }
 
@@ -311,17 +345,20 @@ class SolverImpl final : public Solver {
   void build_grid() {
     parallel_for(n_, KeyOf<Float4>{grid_, raw(pos_), raw(keys_)});
     sort_and_offsets(grid_, n_, keys_, order_, fine_offsets_, &offsets_);
-    gather_swap(n_, order_, pos_, pos_tmp_);
-    gather_swap(n_, order_, vel_, vel_tmp_);
-    gather_swap(n_, order_, flow_, vel_tmp_);  // the same scratch: the swap leaves vel_tmp_ a full-size buffer
-    gather_swap(n_, order_, id_, id_tmp_);
-    gather_swap(n_, order_, status_, status_tmp_);
-    // Particles outside the grid (only possible through an open top) sorted last: drop them.
-    const uint32_t active = read_one(offsets_, grid_.num_cells());
-    if (presence_valid_) {
-      parallel_for(active, GatherPresence{raw(order_), raw(presence_), raw(presence_tmp_), n_, active});
-      presence_.swap(presence_tmp_);
-    }
+    // Particles outside the grid (only possible through an open top: Advance
+    // keeps them inside a closed tank, whose grid holds its walls besides)
+    // sorted last: drop them. Reading their count waits for the sort, so a
+    // closed tank does not.
+    const uint32_t active = prm_.open_top ? read_one(offsets_, grid_.num_cells()) : n_;
+    parallel_for(active, GatherParticles{raw(order_), raw(pos_), raw(vel_), raw(flow_), raw(id_), raw(status_),
+                                         presence_valid_ ? raw(presence_) : nullptr, n_, raw(pos_tmp_), raw(vel_tmp_),
+                                         raw(flow_tmp_), raw(id_tmp_), raw(status_tmp_), raw(presence_tmp_), active});
+    pos_.swap(pos_tmp_);
+    vel_.swap(vel_tmp_);
+    flow_.swap(flow_tmp_);
+    id_.swap(id_tmp_);
+    status_.swap(status_tmp_);
+    if (presence_valid_) presence_.swap(presence_tmp_);
     removed_ += n_ - active;
     n_ = active;
     parallel_for(grid_.num_cells(), CellsNear{grid_, raw(fine_offsets_), raw(fluid_near_)});
@@ -339,39 +376,31 @@ class SolverImpl final : public Solver {
     return nu_art > 0 ? 0.125 * h * h / nu_art : std::numeric_limits<double>::infinity();
   }
 
-  // An upper bound of the next dt: choose_dt at zero speed and acceleration.
+  // An upper bound of the next dt: the step rule at zero speed and acceleration.
   double dt_bound() const {
     return std::min(double(max_dt_), cfl_ * std::min(double(prm_.kernel.h) / prm_.speed_of_sound, dt_viscous()));
   }
 
-  double choose_dt(const StepStats& s, double until) {
-    // Monaghan (1992) / Monaghan & Kos (1999): CFL (sound + flow speed), force and viscous limits.
-    const double h = prm_.kernel.h, c0 = prm_.speed_of_sound;
-    const double inf = std::numeric_limits<double>::infinity();
-    StepLimits& l = limits_;
-    l.max_speed = std::sqrt(double(s.max_speed2));
-    l.max_accel = std::sqrt(double(s.max_accel2));
-    l.dt_cfl = h / (c0 + l.max_speed);
-    l.dt_force = l.max_accel > 0 ? std::sqrt(h / l.max_accel) : inf;
-    l.dt_viscous = dt_viscous();
-    double dt = std::min(double(max_dt_), cfl_ * std::min({l.dt_cfl, l.dt_force, l.dt_viscous}));
-    if (dt < min_dt_) {
-      const char* by = l.dt_force < l.dt_cfl ? "the force limit" : "the CFL (sound speed) limit";
-      std::ostringstream os;
-      os << "time step " << dt << " s fell below the floor run.min_dt = " << min_dt_ << " s at t = " << t_
-         << " s (step " << steps_ << "), bounded by " << by << ": max speed " << l.max_speed
-         << " m/s, max acceleration " << l.max_accel << " m/s^2. The scene is too stiff or unstable at this "
-         << "resolution; raise sph.spacing, lower the speed of sound or check the initial state.";
-      throw SimulationError(os.str());
-    }
-    dt = std::min(dt, std::max(until - t_, 0.0));
-    l.dt = dt;
-    return dt;
+  StepRule step_rule() const {
+    return {double(prm_.kernel.h), double(prm_.speed_of_sound), cfl_, max_dt_, dt_viscous()};
   }
 
-  std::string describe_bad_particle(uint32_t i) const {
-    const Float4 p = read_one(pos_, i), v = read_one(vel_, i), a = read_one(accel_, i);
-    const uint32_t id = read_one(id_, i);
+  // The message of a step refused for a dt below its floor (limits_ holds
+  // what bounded it).
+  std::string describe_dt_floor() const {
+    const StepLimits& l = limits_;
+    const char* by = l.dt_force < l.dt_cfl ? "the force limit" : "the CFL (sound speed) limit";
+    std::ostringstream os;
+    os << "time step " << l.dt << " s fell below the floor run.min_dt = " << min_dt_ << " s at t = " << t_
+       << " s (step " << steps_ << "), bounded by " << by << ": max speed " << l.max_speed
+       << " m/s, max acceleration " << l.max_accel << " m/s^2. The scene is too stiff or unstable at this "
+       << "resolution; raise sph.spacing, lower the speed of sound or check the initial state.";
+    return os.str();
+  }
+
+  std::string describe_bad_particle(const StepControl& c) const {
+    const Float4 p = c.bad_pos, v = c.bad_vel, a = c.bad_accel;
+    const uint32_t id = c.bad_id;
     const char* what = !all_finite(xyz(p))   ? "position"
                        : !std::isfinite(p.w) ? "density"
                        : p.w <= 0            ? "density (not positive)"
@@ -399,10 +428,13 @@ class SolverImpl final : public Solver {
   StepLimits limits_;
   StageTimes times_;
   StageClock clock_;
+  // The step's decision on the device (ChooseStep) and its copy for the host.
+  Vector<StepControl> control_ = Vector<StepControl>(1);
+  ReadBack<StepControl> control_read_;
 
   // vel_: the exact velocity; flow_: what the pair loop reads of a neighbour,
   // u (the predicted kicked velocity) and p / rho^2 (integrate.h).
-  Vector<Float4> pos_, vel_, flow_, pos_tmp_, vel_tmp_, accel_, rate_grad_, boundary_;
+  Vector<Float4> pos_, vel_, flow_, pos_tmp_, vel_tmp_, flow_tmp_, accel_, rate_grad_, boundary_;
   Vector<float> presence_, presence_tmp_, boundary_alpha_;
   Vector<WallState> wall_;
   // offsets_: coarse cell table (view(), the field builder, the raycaster);
