@@ -118,8 +118,11 @@ struct BuildPairMask {
   static constexpr float kTileSlack = 1e-4f;
   // Registers per thread on the GPU (cuda/backend/cuda.cuh): the tensor-core
   // test keeps the warp's A fragments in registers; at 56 the kernel spills
-  // (8 bytes), under the file-wide 40 it spilled 48.
-  static constexpr int kMaxRegisters = 64;
+  // (8 bytes), under the file-wide 40 it spilled 48. 72 rather than 64:
+  // measured faster despite the lower occupancy (grid stage at 1M 0.856-0.875
+  // -> 0.834-0.844 ms, docs/benchmarks.md), and the tile loaded ahead (below)
+  // spills at 64.
+  static constexpr int kMaxRegisters = 72;
   GridGeom grid;
   const uint32_t* offsets;  // slab table of pts
   const Float4* pts;
@@ -244,11 +247,19 @@ struct BuildPairMask {
         put_row(i, w, x, skip, begin, end);
         continue;
       }
+#if defined(SPHRAY_TILE_MMA)
+      // The tensor test's candidates loaded one tile ahead: the test waits
+      // on nothing else (the words it stores are not read back here).
+      Vec3f ahead = {0.0f, 0.0f, 0.0f};
+      if (tensor && lo + lane < hi) ahead = xyz(load(pts + lo + lane));
+#endif
       for (uint32_t base = lo; base < hi; base += 32u) {
         const uint32_t count = hi - base < 32u ? hi - base : 32u;
 #if defined(SPHRAY_TILE_MMA)
+        const Vec3f candidate = ahead;
+        if (tensor && base + 32u + lane < hi) ahead = xyz(load(pts + base + 32u + lane));
         const uint32_t bits =
-            tensor ? mma.bits(pts, base, count, mma_shared) : fma_tile(x, base, count, active, lanes, t);
+            tensor ? mma.bits(candidate, count, mma_shared) : fma_tile(x, base, count, active, lanes, t);
 #else
         const uint32_t bits = fma_tile(x, base, count, active, lanes, t);
 #endif

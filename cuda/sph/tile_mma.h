@@ -106,14 +106,15 @@ class TileMma {
   }
 
   // The bits of one tile for this lane's query: bit k set where candidate k
-  // (pts[base + k], k < count) lies within the support (and its slack). All
+  // (pts[base + k], k < count; lane k holds it) lies within the support (and its slack). All
   // 32 lanes call it together.
-  __device__ __forceinline__ uint32_t bits(const Float4* pts, uint32_t base, uint32_t count, uint32_t* shared) const {
+  // `candidate`: pts[base + lane], loaded by the caller (ahead of time).
+  __device__ __forceinline__ uint32_t bits(Vec3f candidate, uint32_t count, uint32_t* shared) const {
     const uint32_t lane = threadIdx.x % 32;
     // This lane's candidate, q = lane, as one column of B (padding: |t|^2 far beyond reach).
     uint32_t w[6];
     if (lane < count) {
-      const Vec3f tv = (xyz(load(pts + base + lane)) - origin_) * inv_s_;
+      const Vec3f tv = (candidate - origin_) * inv_s_;
       float th[3], tl[3], t2h, t2l;
       split(tv.x, th[0], tl[0]);
       split(tv.y, th[1], tl[1]);
