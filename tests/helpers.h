@@ -22,4 +22,24 @@ inline void run_until(Solver& s, double t) {
   while (s.time() < t - 1e-12) s.step(t);
 }
 
+// The message of the SimulationError that one step(until) raises, or "" if
+// it raises none.
+inline std::string step_error(Solver& s, double until) {
+  try {
+    s.step(until);
+  } catch (const SimulationError& e) {
+    return e.what();
+  }
+  return {};
+}
+
+// Eight particles shot up at 20 m/s in a tank without a lid: all of them
+// leave through the top before t = 0.1 s.
+inline Scene open_top_jet_scene() {
+  const std::string text = R"({"tank": {"min": [0,0,0], "max": [0.1,0.1,0.1], "open_top": true},
+    "fluid": [{"min": [0.04,0.04,0.02], "max": [0.06,0.06,0.04], "velocity": [0,0,20]}],
+    "sph": {"spacing": 0.01}, "run": {"end_time": 0.1}})";
+  return parse_scene(text, "open.json");
+}
+
 }  // namespace sphray::test

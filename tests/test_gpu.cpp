@@ -150,20 +150,12 @@ TEST_CASE("cuda wall masks with near-cell flags visit the cpu's neighbours", "[g
 // step (integrate.h, ChooseStep): the guards must still stop the run with the
 // cpu's message, and particles leaving through an open top still be counted.
 TEST_CASE("cuda guards and open-top removal behave as on the cpu", "[gpu]") {
-  auto message = [](Solver& solver) {
-    try {
-      solver.step(1.0);
-    } catch (const SimulationError& e) {
-      return std::string(e.what());
-    }
-    return std::string();
-  };
   {
     const Scene s = load_scene(test::source_path("scenes/stress/jet.json"));
     SolverInput in = make_solver_input(s, PresenceMode::Off);
     in.fluid_vel[17].y = std::numeric_limits<float>::quiet_NaN();
     auto cpu = make_cpu_solver(in), gpu = make_cuda_solver(in);
-    const std::string a = message(*cpu), b = message(*gpu);
+    const std::string a = test::step_error(*cpu, 1.0), b = test::step_error(*gpu, 1.0);
     CHECK(b.find("particle 17 ") != std::string::npos);
     // The same state found at step 0, the same words up to the acceleration
     // (the pair loop's sums agree to float tolerance, not to the bit).
@@ -176,15 +168,12 @@ TEST_CASE("cuda guards and open-top removal behave as on the cpu", "[gpu]") {
   {
     const Scene s = load_scene(test::source_path("scenes/stress/stiff.json"), {"run.min_dt=0.001", "run.max_dt=0.01"});
     auto gpu = make_cuda_solver(make_solver_input(s, PresenceMode::Off));
-    const std::string b = message(*gpu);
+    const std::string b = test::step_error(*gpu, 1.0);
     CHECK(b.find("run.min_dt") != std::string::npos);
     CHECK(b.find("limit") != std::string::npos);
   }
   {
-    const std::string text = R"({"tank": {"min": [0,0,0], "max": [0.1,0.1,0.1], "open_top": true},
-      "fluid": [{"min": [0.04,0.04,0.02], "max": [0.06,0.06,0.04], "velocity": [0,0,20]}],
-      "sph": {"spacing": 0.01}, "run": {"end_time": 0.1}})";
-    const Scene s = parse_scene(text, "open.json");
+    const Scene s = test::open_top_jet_scene();
     auto gpu = make_cuda_solver(make_solver_input(s, PresenceMode::Off));
     REQUIRE(gpu->num_fluid() == 8);
     test::run_until(*gpu, 0.1);

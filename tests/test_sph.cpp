@@ -60,12 +60,7 @@ TEST_CASE("a non-finite value stops the run and names step, particle and quantit
   SolverInput in = make_solver_input(s, PresenceMode::Off);
   in.fluid_vel[17].y = std::numeric_limits<float>::quiet_NaN();
   auto solver = make_cpu_solver(in);
-  std::string msg;
-  try {
-    solver->step(1.0);
-  } catch (const SimulationError& e) {
-    msg = e.what();
-  }
+  const std::string msg = test::step_error(*solver, 1.0);
   CHECK(msg.find("velocity") != std::string::npos);
   CHECK(msg.find("particle 17 ") != std::string::npos);
   CHECK(msg.find("step 0") != std::string::npos);
@@ -86,21 +81,13 @@ TEST_CASE("a non-finite value stops the run and names step, particle and quantit
 TEST_CASE("a time step below the floor is an error with its reason", "[sph][cpu]") {
   const Scene s = load_scene(test::source_path("scenes/stress/stiff.json"), {"run.min_dt=0.001", "run.max_dt=0.01"});
   auto solver = make_cpu_solver(make_solver_input(s, PresenceMode::Off));
-  std::string msg;
-  try {
-    solver->step(1.0);
-  } catch (const SimulationError& e) {
-    msg = e.what();
-  }
+  const std::string msg = test::step_error(*solver, 1.0);
   CHECK(msg.find("run.min_dt") != std::string::npos);
   CHECK(msg.find("limit") != std::string::npos);
 }
 
 TEST_CASE("particles leaving through an open top are removed and counted", "[sph][cpu]") {
-  const std::string text = R"({"tank": {"min": [0,0,0], "max": [0.1,0.1,0.1], "open_top": true},
-    "fluid": [{"min": [0.04,0.04,0.02], "max": [0.06,0.06,0.04], "velocity": [0,0,20]}],
-    "sph": {"spacing": 0.01}, "run": {"end_time": 0.1}})";
-  const Scene s = parse_scene(text, "open.json");
+  const Scene s = test::open_top_jet_scene();
   auto solver = make_cpu_solver(make_solver_input(s, PresenceMode::Off));
   CHECK(solver->num_fluid() == 8);
   test::run_until(*solver, 0.1);
