@@ -43,12 +43,16 @@ struct StepStats {
   // The first particle with a non-finite value: its sorted index, plus
   // kBadDerived if only what the pair loop computed (acceleration, density
   // rate) is bad, so that a particle whose own state is bad, the cause, comes
-  // before the neighbours it spread to. UINT32_MAX when all are finite.
+  // before the neighbours it spread to. kNoBadParticle when all are finite.
   uint32_t first_bad;
   uint32_t clamped;
 };
 
 constexpr uint32_t kBadDerived = 0x80000000u;
+constexpr uint32_t kNoBadParticle = 0xffffffffu;
+
+// The reduction's start: no speed, no acceleration, no bad particle, no clamp.
+constexpr StepStats kEmptyStepStats{0.0f, 0.0f, kNoBadParticle, 0u};
 
 // The last step's size and what bounded it (Solver::last_limits).
 struct StepLimits {
@@ -104,7 +108,7 @@ struct ChooseStep {
   SPHRAY_HD void operator()(uint32_t) const {
     StepControl& c = *control;
     c.limits = rule.limits(c.stats);
-    if (c.stats.first_bad != 0xffffffffu) {
+    if (c.stats.first_bad != kNoBadParticle) {
       const uint32_t i = c.stats.first_bad & ~kBadDerived;
       c.outcome = kStepBadParticle;
       c.bad_id = id[i];
@@ -178,7 +182,7 @@ struct StepStatsOf {
     const Float4 p = pos_rho[i], v = vel[i], a = accel[i];
     const bool state = all_finite(xyz(p)) && std::isfinite(p.w) && all_finite(xyz(v)) && p.w > 0.0f;
     const bool derived = all_finite(xyz(a)) && std::isfinite(a.w);
-    const uint32_t bad = !state ? i : !derived ? i | kBadDerived : 0xffffffffu;
+    const uint32_t bad = !state ? i : !derived ? i | kBadDerived : kNoBadParticle;
     return {length2(xyz(v)), length2(xyz(a)), bad, status[i] == kStatusClamped ? 1u : 0u};
   }
 };

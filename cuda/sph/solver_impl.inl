@@ -240,7 +240,7 @@ class SolverImpl final : public Solver {
     // error then (a refused step moves no particle).
     StepControl* control = raw(control_);
     transform_reduce_into(n_, StepStatsOf{raw(pos_), raw(vel_), raw(accel_), raw(status_)}, CombineStepStats(),
-                          StepStats{0.0f, 0.0f, 0xffffffffu, 0u}, &control->stats);
+                          kEmptyStepStats, &control->stats);
     parallel_for(1, ChooseStep{step_rule(), min_dt_, std::max(until - t_, 0.0), control, raw(pos_), raw(vel_),
                                raw(accel_), raw(id_)});
     parallel_for(n_, Advance{prm_, control, raw(pos_), raw(vel_), raw(flow_), raw(accel_), raw(rate_grad_), raw(status_)});
@@ -362,9 +362,7 @@ class SolverImpl final : public Solver {
   }
 
   // An upper bound of the next dt: the step rule at zero speed and acceleration.
-  double dt_bound() const {
-    return std::min(double(max_dt_), cfl_ * std::min(double(prm_.kernel.h) / prm_.speed_of_sound, dt_viscous()));
-  }
+  double dt_bound() const { return step_rule().limits(kEmptyStepStats).dt; }
 
   StepRule step_rule() const {
     return {double(prm_.kernel.h), double(prm_.speed_of_sound), cfl_, max_dt_, dt_viscous()};
