@@ -181,7 +181,7 @@ Scene parse_scene(const std::string& text, const std::string& file, const std::v
 
   const Reader sph = root.child("sph");
   sph.only({"spacing", "rest_density", "speed_of_sound", "smoothing_ratio", "kernel", "viscosity_alpha",
-            "density_diffusion", "cfl", "boundary_layers", "presence"});
+            "wall_viscosity_alpha", "density_diffusion", "cfl", "boundary_layers", "presence"});
   s.sph.spacing = sph.number("spacing", 0, 0, 1e3, true, true);
   s.sph.rest_density = sph.number("rest_density", 1000, 0, 1e5, false, true);
   if (sph.has("speed_of_sound") && sph.at("speed_of_sound").is_string()) {
@@ -195,6 +195,7 @@ Scene parse_scene(const std::string& text, const std::string& file, const std::v
                      ? KernelType::CubicSpline
                      : KernelType::WendlandC2;
   s.sph.viscosity_alpha = sph.number("viscosity_alpha", 0.02, 0, 1);
+  s.sph.wall_viscosity_alpha = sph.number("wall_viscosity_alpha", -1, 0, 1);
   s.sph.density_diffusion = sph.number("density_diffusion", 0.1, 0, 1);
   s.sph.cfl = sph.number("cfl", 0.25, 0, 1, false, true);
   if (sph.has("boundary_layers") && !(sph.at("boundary_layers").is_string() && sph.at("boundary_layers") == "auto")) {

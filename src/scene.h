@@ -48,6 +48,7 @@ struct Scene {
     double smoothing_ratio = 2.0;  // h / dx (DualSPHysics uses 1.2 sqrt(3) = 2.08 in 3D)
     KernelType kernel = KernelType::WendlandC2;
     double viscosity_alpha = 0.02;
+    double wall_viscosity_alpha = -1;  // against viscous walls; < 0: viscosity_alpha
     double density_diffusion = 0.1;
     double cfl = 0.25;
     int boundary_layers = 0;  // 0 = auto: enough to cover the support radius

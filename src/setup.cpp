@@ -227,6 +227,7 @@ SolverInput make_solver_input(const Scene& s, PresenceMode presence) {
   in.boundary_alpha.reserve(z.boundary);
   // A wall particle is viscous unless every face it belongs to is free-slip
   // (an edge between a free-slip and a viscous face stays viscous).
+  const float wall_alpha = float(s.sph.wall_viscosity_alpha < 0 ? s.sph.viscosity_alpha : s.sph.wall_viscosity_alpha);
   auto face_of = [&](const AxisCoords& a, size_t k, int axis) { return k < a.wall_lo ? 2 * axis : 2 * axis + 1; };
   for (size_t k = 0; k < az.c.size(); ++k)
     for (size_t j = 0; j < ay.c.size(); ++j)
@@ -236,7 +237,7 @@ SolverInput make_solver_input(const Scene& s, PresenceMode presence) {
         const bool viscous = (wx && !s.free_slip[face_of(ax, i, 0)]) || (wy && !s.free_slip[face_of(ay, j, 1)]) ||
                              (wz && !s.free_slip[face_of(az, k, 2)]);
         in.boundary.push_back({float(ax.c[i]), float(ay.c[j]), float(az.c[k]), volume});
-        in.boundary_alpha.push_back(viscous ? float(s.sph.viscosity_alpha) : 0.0f);
+        in.boundary_alpha.push_back(viscous ? wall_alpha : 0.0f);
       }
   return in;
 }

@@ -1,5 +1,6 @@
 // Scene parsing and validation: every bad value gets one message naming the
 // file, the key and the value.
+#include <map>
 #include <string>
 
 #include "catch.h"
@@ -45,6 +46,31 @@ TEST_CASE("--set overrides any value by its dotted path", "[scene][cpu]") {
   CHECK(s.fluid[0].velocity.x == 1);
   CHECK(s.name == "x");
   CHECK(s.json["sph"]["spacing"] == 0.01);  // the scene as it ran
+}
+
+TEST_CASE("wall viscosity: sph.viscosity_alpha unless set apart, none on free-slip faces", "[scene][cpu]") {
+  // Counts the wall particles by their viscosity coefficient.
+  auto alphas = [](const Scene& s) {
+    std::map<float, size_t> n;
+    for (float a : make_solver_input(s, PresenceMode::Off).boundary_alpha) ++n[a];
+    return n;
+  };
+  const Scene same = parse_scene(kGood, "t.json", {"sph.viscosity_alpha=0.05"});
+  const auto a = alphas(same);
+  REQUIRE(a.size() == 1);
+  CHECK(a.begin()->first == 0.05f);
+  CHECK(a.begin()->second == make_solver_input(same, PresenceMode::Off).boundary.size());
+
+  const Scene apart = parse_scene(kGood, "t.json", {"sph.wall_viscosity_alpha=0.3", "tank.free_slip=[\"-y\",\"+y\"]"});
+  CHECK(make_params(apart).viscosity_alpha == 0.02f);  // the fluid's own stays
+  const auto b = alphas(apart);
+  REQUIRE(b.size() == 2);
+  CHECK(b.count(0.3f) == 1);
+  CHECK(b.count(0.0f) == 1);  // the side walls, but not their edges with the floor
+  CHECK(b.at(0.0f) > 0);
+  CHECK(b.at(0.3f) > b.at(0.0f));
+
+  CHECK(contains(error_of(kGood, {"sph.wall_viscosity_alpha=-0.1"}), "sph.wall_viscosity_alpha = -0.1"));
 }
 
 TEST_CASE("bad scenes get a message naming file, key and value", "[scene][cpu]") {
