@@ -71,6 +71,26 @@ struct WallNeighbour {
 // K: the scene's kernel (prm.kernel.type), fixed at compile time in the loop.
 template <bool WithPresence, bool Direct, KernelType K>
 struct Interaction {
+  // The loop's constants, computed once on the host: they reach the GPU as
+  // kernel parameters and cost the loop no registers (computed per thread,
+  // the three of hydro_g spilled the cubic spline's loop).
+  struct Constants {
+    float eta2;            // Monaghan's eta^2 = 0.01 h^2 keeps mu finite for close pairs
+    // mu / rho_mean = h vr / ((r^2 + eta^2) (rho_i + rho_j) / 2), written as
+    // 2h vr / ((r^2 + eta^2) (rho_i + rho_j)): one multiplication fewer.
+    float two_h;
+    // The diffusion coefficient 2 delta h c0 times the particle mass, for
+    // the weight V_j (-dW/dr / r) = m (-dW/dr / r) / rho_j.
+    float diffusion_mass;
+    // Linearised Tait: hydrostatic rho_j - rho_i = (rho0 / c0^2) g.(x_j - x_i).
+    Vec3f hydro_g;
+    static Constants of(const SphParams& p) {
+      const float h = p.kernel.h;
+      return {0.01f * h * h, 2.0f * h, 2.0f * p.density_diffusion * h * p.speed_of_sound * p.particle_mass,
+              (p.rest_density / (p.speed_of_sound * p.speed_of_sound)) * p.gravity};
+    }
+  };
+
   // Registers per thread on the GPU (cuda/backend/cuda.cuh): 48 without
   // presence and 56 with it, above the file-wide cap of 40 (CMakeLists.txt),
   // under which both variants spill (presence's three more accumulators; the
@@ -91,6 +111,7 @@ struct Interaction {
   Float4* rate_grad;   // out: G, -
   float* presence;     // out, [6][n] direction-major (+x,-x,+y,-y,+z,-z); null without presence
   uint32_t n;
+  Constants c = Constants::of(prm);  // from prm, when the launch is made
 
   SPHRAY_HD void operator()(uint32_t i) const {
     if (masks_complete(fluid_pairs, boundary_pairs, i) == Direct) return;  // the other launch's particle
@@ -98,14 +119,8 @@ struct Interaction {
     const Vec3f xi = xyz(pi);
     const Float4 flow_i = flow[i];
     const Vec3f ui = xyz(flow_i);
-    const float h = prm.kernel.h;
     const float support2 = prm.kernel.support() * prm.kernel.support();
     const float p_over_rho2_i = flow_i.w;  // pressure_term(rho_i), see params.h
-    // Monaghan's eta^2 = 0.01 h^2 keeps mu finite for close pairs.
-    const float eta2 = 0.01f * h * h;
-    const float diffusion = 2.0f * prm.density_diffusion * h * prm.speed_of_sound;
-    // Linearised Tait: hydrostatic rho_j - rho_i = rho0 g.(x_j - x_i) / c0^2.
-    const float hydro = prm.rest_density / (prm.speed_of_sound * prm.speed_of_sound);
     Vec3f a = {0.0f, 0.0f, 0.0f}, grad = {0.0f, 0.0f, 0.0f};
     float rest = 0.0f;
     // Presence's U_a in registers (named scalars, not an indexed array, so the
@@ -119,22 +134,24 @@ struct Interaction {
       const Vec3f r = xi - xyz(pj);
       const float r2 = length2(r);
       const float dwr = prm.kernel.template dW_over_r_for<K>(r2 * inv_sqrt(r2));
-      const Vec3f uj = xyz(fj);
       const float m_dwr = prm.particle_mass * dwr;
       float term = p_over_rho2_i + fj.w;
-      const float vr = dot(ui - uj, r);
+      // (u_i - u_j) . r as u_i . r - u_j . r: the second is the continuity
+      // term's own, so each pair pays two dot products, not three.
+      const float uj_r = dot(xyz(fj), r);
+      const float vr = dot(ui, r) - uj_r;
       // Artificial viscosity for approaching pairs: mu / rho_mean with
       // mu = h vr / (r^2 + eta^2), in one division. Computed for every pair
       // and selected: as a branch, a warp ran it whenever any lane's pair
       // approached, and paid the branch besides. The select sits inside the
       // product, so that the subtraction still fuses with it (the results are
       // those of the branch, bit for bit).
-      const float visc = fast_div(h * vr, (r2 + eta2) * (0.5f * (pi.w + pj.w)));
+      const float visc = fast_div(c.two_h * vr, (r2 + c.eta2) * (pi.w + pj.w));
       term -= prm.viscosity_alpha * prm.speed_of_sound * (vr < 0.0f ? visc : 0.0f);
       a -= (m_dwr * term) * r;
       grad += m_dwr * r;
-      const float weight = -dwr * fast_div(prm.particle_mass, pj.w);  // V_j (-dW/dr / r) >= 0
-      rest += diffusion * ((pj.w - pi.w) + hydro * dot(prm.gravity, r)) * weight - m_dwr * dot(uj, r);
+      const float weight = -dwr * fast_div(c.diffusion_mass, pj.w);  // diffusion V_j (-dW/dr / r) >= 0
+      rest += ((pj.w - pi.w) + dot(c.hydro_g, r)) * weight - m_dwr * uj_r;
       if (WithPresence) {
         ux += m_dwr * std::fabs(r.x);
         uy += m_dwr * std::fabs(r.y);
@@ -142,13 +159,13 @@ struct Interaction {
       }
     });
     if (WithPresence) {  // from the fluid sums only, before the walls add to G
-      const float c = prm.presence_scale / pi.w;  // 1 / (2 K rho_i)
-      presence[0 * n + i] = std::fmin(1.0f, std::fmax(0.0f, c * (grad.x - ux)));
-      presence[1 * n + i] = std::fmin(1.0f, std::fmax(0.0f, -c * (grad.x + ux)));
-      presence[2 * n + i] = std::fmin(1.0f, std::fmax(0.0f, c * (grad.y - uy)));
-      presence[3 * n + i] = std::fmin(1.0f, std::fmax(0.0f, -c * (grad.y + uy)));
-      presence[4 * n + i] = std::fmin(1.0f, std::fmax(0.0f, c * (grad.z - uz)));
-      presence[5 * n + i] = std::fmin(1.0f, std::fmax(0.0f, -c * (grad.z + uz)));
+      const float s = prm.presence_scale / pi.w;  // 1 / (2 K rho_i)
+      presence[0 * n + i] = std::fmin(1.0f, std::fmax(0.0f, s * (grad.x - ux)));
+      presence[1 * n + i] = std::fmin(1.0f, std::fmax(0.0f, -s * (grad.x + ux)));
+      presence[2 * n + i] = std::fmin(1.0f, std::fmax(0.0f, s * (grad.y - uy)));
+      presence[3 * n + i] = std::fmin(1.0f, std::fmax(0.0f, -s * (grad.y + uy)));
+      presence[4 * n + i] = std::fmin(1.0f, std::fmax(0.0f, s * (grad.z - uz)));
+      presence[5 * n + i] = std::fmin(1.0f, std::fmax(0.0f, -s * (grad.z + uz)));
     }
 
     // Static walls (boundary particles of volume V_b, at rest): the wall
@@ -166,7 +183,7 @@ struct Interaction {
       const float dwr = prm.kernel.template dW_over_r_for<K>(r2 * inv_sqrt(r2));
       float term = p_wall_i + w.p_over_rho2;
       const float vr = dot(ui, r);
-      const float visc = fast_div(h * vr, (r2 + eta2) * (0.5f * (pi.w + w.rho)));
+      const float visc = fast_div(c.two_h * vr, (r2 + c.eta2) * (pi.w + w.rho));
       term -= alpha * prm.speed_of_sound * (vr < 0.0f ? visc : 0.0f);  // selected, as for the fluid
       a -= (w.rho * pb.w * term * dwr) * r;
       grad += (pi.w * pb.w * dwr) * r;

@@ -300,7 +300,11 @@ SPHRAY_HD SPHRAY_FORCEINLINE void for_each_masked(const PairMask& m, uint32_t i,
   const uint32_t count = m.count[i];
   if (count > m.capacity) return;
   uint32_t w = 0, base = 0, bits = 0;
-  PairWord ahead = count > 0 ? m.words[i] : PairWord{0u, 0u};
+  // The next word's address, stepped by n (word w of query i is words[w n + i]):
+  // one add per word instead of the index arithmetic and the reload of
+  // `words` and n that the loop's register budget made of it.
+  const PairWord* word = m.words + i;
+  PairWord ahead = count > 0 ? *word : PairWord{0u, 0u};
   auto next = [&](uint32_t& j) {
     const bool take = bits == 0;  // no stored word is empty (BuildPairMask::put)
     if (take && w == count) return false;
@@ -308,7 +312,8 @@ SPHRAY_HD SPHRAY_FORCEINLINE void for_each_masked(const PairMask& m, uint32_t i,
     bits = take ? ahead.bits : bits;
     w += take ? 1u : 0u;
     const bool more = take && w < count;
-    ahead = more ? m.words[size_t(w) * m.n + i] : ahead;
+    word = more ? word + m.n : word;
+    ahead = more ? *word : ahead;
     j = base + lowest_bit(bits);
     bits &= bits - 1u;
     return true;
