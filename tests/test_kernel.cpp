@@ -66,3 +66,21 @@ TEST_CASE("the pair loop's compile-time kernel agrees with the double reference"
   check(std::integral_constant<KernelType, KernelType::WendlandC2>{});
   check(std::integral_constant<KernelType, KernelType::CubicSpline>{});
 }
+
+TEST_CASE("the wall pressure's compile-time kernel agrees with the double reference", "[kernel][cpu]") {
+  // W_for<K> (boundary.h's loop) against the double kernel inside the
+  // support and zero beyond it.
+  const auto check = [](auto tag) {
+    constexpr KernelType t = decltype(tag)::value;
+    const auto kd = SmoothingKernel<double>::make(t, 0.013);
+    const auto kf = SmoothingKernel<float>::make(t, 0.013f);
+    for (double q = 0.01; q < 2.0; q += 0.01) {
+      const double r = q * kd.h;
+      CHECK(std::abs(kf.template W_for<t>(float(r)) - kd.W(r)) <= 1e-5 * kd.W(0));
+    }
+    for (double q = 2.0; q < 2.2; q += 0.001) CHECK(kf.template W_for<t>(float(q * kd.h)) == 0.0f);
+    CHECK(kf.template W_for<t>(kf.support()) == 0.0f);
+  };
+  check(std::integral_constant<KernelType, KernelType::WendlandC2>{});
+  check(std::integral_constant<KernelType, KernelType::CubicSpline>{});
+}

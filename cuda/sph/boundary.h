@@ -26,6 +26,8 @@ struct alignas(8) WallState {
   float rho;
 };
 
+// K: the scene's kernel (prm.kernel.type), fixed at compile time in the loop.
+template <KernelType K>
 struct WallPressure {
   SphParams prm;
   GridGeom grid;
@@ -44,7 +46,9 @@ struct WallPressure {
     // A dry wall particle (no fluid in the 27 cells around it) skips its rows:
     // its sums are empty (p_w = 0) either way.
     if (cell_near(grid, fluid_near, xb)) for_each_neighbour(grid, fluid_offsets, pos_rho, xb, support2, kNoSkip, [&](uint32_t f, Float4 pf, Vec3f r, float r2) {
-      const float w = prm.kernel.W(std::sqrt(r2));
+      // r^2 >= (dx / 2)^2 here: the fluid stays inside the tank's faces, the
+      // wall particles lie half a spacing and more outside them.
+      const float w = prm.kernel.template W_for<K>(r2 * inv_sqrt(r2));
       sum_w += w;
       sum_pw += load(flow + f).w * pf.w * pf.w * w;
       sum_rho_r += (pf.w * w) * r;

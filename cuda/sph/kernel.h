@@ -57,6 +57,20 @@ struct SmoothingKernel {
     return q > T(0) ? grad_coef * T(-0.75) * b * b / q : T(0);
   }
 
+  // W for a kernel type fixed at compile time, for the wall pressure
+  // (boundary.h), as dW_over_r_for is for the pair loop. The same values as
+  // W to rounding (tests/test_kernel.cpp).
+  template <KernelType K>
+  SPHRAY_HD SPHRAY_FORCEINLINE T W_for(T r) const {
+    if constexpr (K == KernelType::WendlandC2) {
+      const T a = r < support() ? T(1) - r * half_inv_h : T(0);
+      const T a2 = a * a;
+      return sigma * a2 * a2 * (T(2) * (r * inv_h) + T(1));
+    } else {
+      return W(r);
+    }
+  }
+
   // dW_over_r for a kernel type fixed at compile time, for the pair loop
   // (interaction.h): no branch on the type, and for Wendland C2 the support
   // test a select rather than a branch (9 instructions on the GPU instead of

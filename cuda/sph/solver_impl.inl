@@ -228,8 +228,8 @@ class SolverImpl final : public Solver {
     const bool presence_now = presence_mode_ == PresenceMode::EveryStep ||
                               (presence_mode_ == PresenceMode::AtUntil && t_ + dt_bound() >= until - 1e-12);
     clock_.mark(1);
-    parallel_for(uint32_t(boundary_.size()),
-                 WallPressure{prm_, grid_, raw(fine_offsets_), raw(pos_), raw(flow_), raw(fluid_near_), raw(boundary_), raw(wall_)});
+    if (prm_.kernel.type == KernelType::WendlandC2) wall_pressure<KernelType::WendlandC2>();
+    else wall_pressure<KernelType::CubicSpline>();
     if (presence_now) pair_launches<true>();
     else pair_launches<false>();
     presence_valid_ = presence_now;
@@ -308,6 +308,12 @@ class SolverImpl final : public Solver {
     return {prm_, grid_, raw(fine_offsets_), raw(pos_), raw(flow_), raw(boundary_offsets_), raw(boundary_), raw(wall_),
             raw(boundary_alpha_), fluid_pairs(), boundary_pairs(), raw(accel_), raw(rate_grad_),
             P ? raw(presence_) : nullptr, n_};
+  }
+
+  template <KernelType K>
+  void wall_pressure() {
+    parallel_for(uint32_t(boundary_.size()), WallPressure<K>{prm_, grid_, raw(fine_offsets_), raw(pos_), raw(flow_),
+                                                             raw(fluid_near_), raw(boundary_), raw(wall_)});
   }
 
   // The pair loop is two launches: the pair masks, then the direct loop for
