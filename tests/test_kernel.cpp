@@ -47,10 +47,11 @@ TEST_CASE("float kernel agrees with the double reference", "[kernel][cpu]") {
   }
 }
 
-TEST_CASE("the pair loop's compile-time kernel agrees with the double reference", "[kernel][cpu]") {
-  // dW_over_r_for<K> (interaction.h's loop) against the double kernel inside
-  // the support, zero beyond it (the GPU masks keep pairs a hair beyond), and
-  // zero for the NaN distance that r2 * rsqrt(r2) gives a coincident pair.
+TEST_CASE("the loops' compile-time kernels agree with the double reference", "[kernel][cpu]") {
+  // dW_over_r_for<K> (interaction.h's pair loop) and W_for<K> (boundary.h's
+  // wall pressure) against the double kernel inside the support, zero beyond
+  // it (the GPU masks keep pairs a hair beyond), and dW_over_r_for zero for
+  // the NaN distance that r2 * rsqrt(r2) gives a coincident pair.
   const auto check = [](auto tag) {
     constexpr KernelType t = decltype(tag)::value;
     const auto kd = SmoothingKernel<double>::make(t, 0.013);
@@ -58,28 +59,15 @@ TEST_CASE("the pair loop's compile-time kernel agrees with the double reference"
     for (double q = 0; q < 2.0; q += 0.01) {
       const double r = q * kd.h;
       CHECK(std::abs(kf.template dW_over_r_for<t>(float(r)) - kd.dW_over_r(r)) <= 1e-5 * std::abs(kd.dW_over_r(0)));
-    }
-    for (double q = 2.0; q < 2.2; q += 0.001) CHECK(kf.template dW_over_r_for<t>(float(q * kd.h)) == 0.0f);
-    CHECK(kf.template dW_over_r_for<t>(kf.support()) == 0.0f);
-    CHECK(kf.template dW_over_r_for<t>(std::numeric_limits<float>::quiet_NaN()) == 0.0f);
-  };
-  check(std::integral_constant<KernelType, KernelType::WendlandC2>{});
-  check(std::integral_constant<KernelType, KernelType::CubicSpline>{});
-}
-
-TEST_CASE("the wall pressure's compile-time kernel agrees with the double reference", "[kernel][cpu]") {
-  // W_for<K> (boundary.h's loop) against the double kernel inside the
-  // support and zero beyond it.
-  const auto check = [](auto tag) {
-    constexpr KernelType t = decltype(tag)::value;
-    const auto kd = SmoothingKernel<double>::make(t, 0.013);
-    const auto kf = SmoothingKernel<float>::make(t, 0.013f);
-    for (double q = 0.01; q < 2.0; q += 0.01) {
-      const double r = q * kd.h;
       CHECK(std::abs(kf.template W_for<t>(float(r)) - kd.W(r)) <= 1e-5 * kd.W(0));
     }
-    for (double q = 2.0; q < 2.2; q += 0.001) CHECK(kf.template W_for<t>(float(q * kd.h)) == 0.0f);
+    for (double q = 2.0; q < 2.2; q += 0.001) {
+      CHECK(kf.template dW_over_r_for<t>(float(q * kd.h)) == 0.0f);
+      CHECK(kf.template W_for<t>(float(q * kd.h)) == 0.0f);
+    }
+    CHECK(kf.template dW_over_r_for<t>(kf.support()) == 0.0f);
     CHECK(kf.template W_for<t>(kf.support()) == 0.0f);
+    CHECK(kf.template dW_over_r_for<t>(std::numeric_limits<float>::quiet_NaN()) == 0.0f);
   };
   check(std::integral_constant<KernelType, KernelType::WendlandC2>{});
   check(std::integral_constant<KernelType, KernelType::CubicSpline>{});
