@@ -19,7 +19,7 @@ struct SmoothingKernel {
   // IEEE division is a multi-instruction sequence on the GPU).
   T inv_h;     // 1 / h
   T grad_coef; // sigma / h^2 (times -5 for Wendland C2)
-  T half_inv_h;  // 1 / (2h): Wendland's 1 - q/2 as one FMA in the pair loop
+  T half_inv_h;  // 1 / (2h): Wendland's 1 - q/2 as one FMA (W_for, dW_over_r_for)
 
   static SmoothingKernel make(KernelType type, T h) {
     const T pi = T(3.14159265358979323846);

@@ -228,10 +228,8 @@ class SolverImpl final : public Solver {
     const bool presence_now = presence_mode_ == PresenceMode::EveryStep ||
                               (presence_mode_ == PresenceMode::AtUntil && t_ + dt_bound() >= until - 1e-12);
     clock_.mark(1);
-    if (prm_.kernel.type == KernelType::WendlandC2) wall_pressure<KernelType::WendlandC2>();
-    else wall_pressure<KernelType::CubicSpline>();
-    if (presence_now) pair_launches<true>();
-    else pair_launches<false>();
+    if (prm_.kernel.type == KernelType::WendlandC2) pairs<KernelType::WendlandC2>(presence_now);
+    else pairs<KernelType::CubicSpline>(presence_now);
     presence_valid_ = presence_now;
     clock_.mark(2);
     // The step's size is chosen on the device (integrate.h, ChooseStep), so
@@ -310,20 +308,18 @@ class SolverImpl final : public Solver {
             P ? raw(presence_) : nullptr, n_};
   }
 
+  // The pairs stage: the wall pressure, then the pair loop. The kernel type K
+  // is a template parameter of both loops (kernel.h, W_for and dW_over_r_for).
   template <KernelType K>
-  void wall_pressure() {
+  void pairs(bool presence) {
     parallel_for(uint32_t(boundary_.size()), WallPressure<K>{prm_, grid_, raw(fine_offsets_), raw(pos_), raw(flow_),
                                                              raw(fluid_near_), raw(boundary_), raw(wall_)});
+    if (presence) pair_launches<true, K>();
+    else pair_launches<false, K>();
   }
 
   // The pair loop is two launches: the pair masks, then the direct loop for
   // the particles whose masks overflowed (neighbours.h; usually none).
-  // The kernel type is a template parameter of the loop (kernel.h, dW_over_r_for).
-  template <bool P>
-  void pair_launches() {
-    if (prm_.kernel.type == KernelType::WendlandC2) pair_launches<P, KernelType::WendlandC2>();
-    else pair_launches<P, KernelType::CubicSpline>();
-  }
   template <bool P, KernelType K>
   void pair_launches() {
     parallel_for(n_, pair_stage<P, false, K>());
