@@ -138,6 +138,34 @@ Box read_box(const Reader& r, const char* lo_key, const char* hi_key) {
 
 }  // namespace
 
+Vec3d up_of(const Scene& s) {
+  const double g = length(s.gravity);
+  return g > 0 ? s.gravity * (-1.0 / g) : Vec3d{0, 0, 1};
+}
+
+double box_top(const Box& b, Vec3d up) {
+  double top = -1e300;
+  for (int c = 0; c < 8; ++c) {
+    const Vec3d p{c & 1 ? b.max.x : b.min.x, c & 2 ? b.max.y : b.min.y, c & 4 ? b.max.z : b.min.z};
+    top = std::max(top, dot(p, up));
+  }
+  return top;
+}
+
+double expected_flow_speed(const Scene& s) {
+  const Vec3d up = up_of(s);
+  const double floor = -box_top(s.tank, up * -1.0);
+  double top = -1e300, vmax = 0;
+  for (const auto& b : s.fluid) {
+    top = std::max(top, box_top(b.box, up));
+    vmax = std::max(vmax, length(b.velocity));
+  }
+  const double dx = s.sph.spacing;
+  const double height = s.fluid.empty() ? dx : std::max(top - floor, dx);
+  const double g = length(s.gravity) > 0 ? length(s.gravity) : 9.81;
+  return std::max(std::sqrt(g * height), vmax);
+}
+
 Scene parse_scene(const std::string& text, const std::string& file, const std::vector<std::string>& overrides) {
   json j;
   try {
@@ -283,6 +311,21 @@ Scene parse_scene(const std::string& text, const std::string& file, const std::v
       if (length(fb.velocity) > 1e4) blk.fail("velocity", blk.at("velocity"), "speed must be at most 1e4 m/s");
       s.fluid.push_back(fb);
     }
+  }
+
+  // A weakly compressible fluid is meaningful only well below its speed of
+  // sound (density varies as Mach^2): a c0 under the flow speed the scene can
+  // be expected to reach would make the run supersonic, and at c0 -> 0 the
+  // hydrostatic density-diffusion correction (rho0 g / c0^2) blows up. The run
+  // also stops if a particle outruns c0 (integrate.h, ChooseStep).
+  const double v_expected = expected_flow_speed(s);
+  if (s.sph.speed_of_sound > 0 && s.sph.speed_of_sound < v_expected) {
+    std::ostringstream os;
+    os.precision(3);
+    os << "is below the flow speed this scene can reach, " << v_expected
+       << " m/s (sqrt(g H), H the height of its liquid's top above the tank floor, or its fastest initial velocity): the flow would be supersonic. "
+       << "Weakly compressible SPH wants about 10x that (\"auto\": " << 10 * v_expected << " m/s)";
+    sph.fail("speed_of_sound", sph.at("speed_of_sound"), os.str());
   }
   return s;
 }

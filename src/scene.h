@@ -89,4 +89,18 @@ struct Scene {
 Scene parse_scene(const std::string& text, const std::string& file, const std::vector<std::string>& overrides = {});
 Scene load_scene(const std::string& path, const std::vector<std::string>& overrides = {});
 
+// Unit vector "up" (against gravity); +z when there is no gravity.
+Vec3d up_of(const Scene& s);
+
+// The highest point of a box along `up`.
+double box_top(const Box& b, Vec3d up);
+
+// The flow speed a scene can be expected to reach: sqrt(g H), H the height of
+// its liquid's top above the tank floor along gravity (standard gravity when
+// there is none; a dropped block counts its fall), or its fastest initial
+// velocity if that is more. The automatic speed of sound is 10x it
+// (Monaghan 1994); an explicit one below it is an error (parse_scene): the
+// flow would be supersonic and a weakly compressible fluid meaningless.
+double expected_flow_speed(const Scene& s);
+
 }  // namespace sphray

@@ -19,21 +19,6 @@ Vec3f to_f(Vec3d v) { return {float(v.x), float(v.y), float(v.z)}; }
 
 int lattice_count(double size, double dx) { return std::max(1, int(std::floor(size / dx + 1e-6))); }
 
-// Unit vector "up" (against gravity); +z when there is no gravity.
-Vec3d up_of(const Scene& s) {
-  const double g = length(s.gravity);
-  return g > 0 ? s.gravity * (-1.0 / g) : Vec3d{0, 0, 1};
-}
-
-double box_top(const Box& b, Vec3d up) {
-  double top = -1e300;
-  for (int c = 0; c < 8; ++c) {
-    const Vec3d p{c & 1 ? b.max.x : b.min.x, c & 2 ? b.max.y : b.min.y, c & 4 ? b.max.z : b.min.z};
-    top = std::max(top, dot(p, up));
-  }
-  return top;
-}
-
 struct AxisCoords {
   std::vector<double> c;
   size_t wall_lo, inner;  // c = [wall_lo lower-wall coords][inner coords][upper-wall coords]
@@ -66,19 +51,9 @@ SphParams make_params(const Scene& s) {
   double c0 = s.sph.speed_of_sound;
   if (c0 <= 0) {
     // Weakly compressible: c0 = 10 x the largest expected speed keeps density
-    // variations near 1% (Monaghan 1994). Expected speed: sqrt(g H) of the
-    // tallest fluid column, or the fastest initial velocity. A still fluid
-    // without gravity still needs a stiffness: standard gravity is assumed then.
-    const Vec3d up = up_of(s);
-    double lo = 1e300, hi = -1e300, vmax = 0;
-    for (const auto& b : s.fluid) {
-      hi = std::max(hi, box_top(b.box, up));
-      lo = std::min(lo, -box_top(b.box, up * -1.0));
-      vmax = std::max(vmax, length(b.velocity));
-    }
-    const double height = s.fluid.empty() ? dx : std::max(hi - lo, dx);
-    const double g = length(s.gravity) > 0 ? length(s.gravity) : 9.81;
-    c0 = 10.0 * std::max(std::sqrt(g * height), vmax);
+    // variations near 1% (Monaghan 1994). A still fluid without gravity still
+    // needs a stiffness: standard gravity is assumed then (expected_flow_speed).
+    c0 = 10.0 * expected_flow_speed(s);
   }
   p.speed_of_sound = float(c0);
   p.tait_b = float(c0 * c0 * s.sph.rest_density / 7.0);

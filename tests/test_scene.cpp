@@ -119,6 +119,27 @@ TEST_CASE("bad scenes get a message naming file, key and value", "[scene][cpu]")
   CHECK(contains(error_of("{}"), "tank"));
 }
 
+TEST_CASE("the speed of sound: auto is 10x the flow speed the scene can reach, an explicit one below it is refused",
+          "[scene][cpu]") {
+  // kGood: a 0.3 m column standing on the floor under standard gravity.
+  const double v_column = std::sqrt(9.81 * 0.3);
+  CHECK(expected_flow_speed(parse_scene(kGood, "t.json")) == Approx(v_column).epsilon(1e-12));
+  CHECK(make_params(parse_scene(kGood, "t.json")).speed_of_sound == Approx(10 * v_column).epsilon(1e-6));
+  // A block held above the floor counts its fall: its top is 0.45 m up.
+  CHECK(expected_flow_speed(parse_scene(kGood, "t.json", {"fluid.0.min=[0,0,0.4]", "fluid.0.max=[0.2,0.5,0.45]"})) ==
+        Approx(std::sqrt(9.81 * 0.45)).epsilon(1e-12));
+  // Without gravity, standard gravity stands in; a faster initial velocity wins.
+  CHECK(expected_flow_speed(parse_scene(kGood, "t.json", {"gravity=[0,0,0]"})) == Approx(v_column).epsilon(1e-12));
+  CHECK(expected_flow_speed(parse_scene(kGood, "t.json", {"fluid.0.velocity=[3,4,0]"})) == Approx(5.0).epsilon(1e-12));
+
+  const std::string e = error_of(kGood, {"sph.speed_of_sound=1.5"});  // sqrt(g H) = 1.72 m/s
+  CHECK(contains(e, "sph.speed_of_sound = 1.5"));
+  CHECK(contains(e, "supersonic"));
+  CHECK(contains(e, "1.72 m/s"));
+  CHECK(error_of(kGood, {"sph.speed_of_sound=1.75"}).empty());
+  CHECK(contains(error_of(kGood, {"sph.speed_of_sound=5", "fluid.0.velocity=[6,0,0]"}), "supersonic"));
+}
+
 TEST_CASE("a missing scene file is a clear error", "[scene][cpu]") {
   CHECK_THROWS_AS(load_scene("/nonexistent/scene.json"), SceneError);
 }

@@ -46,13 +46,14 @@ struct StepStats {
   // before the neighbours it spread to. kNoBadParticle when all are finite.
   uint32_t first_bad;
   uint32_t clamped;
+  uint32_t fastest;  // sorted index of the fastest particle (the lowest of equals)
 };
 
 constexpr uint32_t kBadDerived = 0x80000000u;
 constexpr uint32_t kNoBadParticle = 0xffffffffu;
 
 // The reduction's start: no speed, no acceleration, no bad particle, no clamp.
-constexpr StepStats kEmptyStepStats{0.0f, 0.0f, kNoBadParticle, 0u};
+constexpr StepStats kEmptyStepStats{0.0f, 0.0f, kNoBadParticle, 0u, kNoBadParticle};
 
 // The last step's size and what bounded it (Solver::last_limits).
 struct StepLimits {
@@ -79,7 +80,7 @@ struct StepRule {
   }
 };
 
-enum StepOutcome : uint32_t { kStepOk = 0, kStepBadParticle = 1, kStepBelowFloor = 2 };
+enum StepOutcome : uint32_t { kStepOk = 0, kStepBadParticle = 1, kStepBelowFloor = 2, kStepSupersonic = 3 };
 
 // One step's decision, made on the device so that the kick follows the
 // reduction without the host reading the extremes first (a round trip that
@@ -95,8 +96,13 @@ struct StepControl {
 };
 
 // Fills control->limits and ->outcome from control->stats (one thread):
-// refused for a bad particle or a dt below min_dt, else dt capped at
-// `remaining` (the time left to the caller's `until`, >= 0).
+// refused for a bad particle, a particle faster than the speed of sound, or a
+// dt below min_dt, else dt capped at `remaining` (the time left to the
+// caller's `until`, >= 0). A weakly compressible fluid holds only well below
+// Mach 1 (its density varies as Mach^2): past it the run goes on stably (the
+// CFL limit counts the flow speed) but means nothing, as a scene whose c0 is
+// far too low shows (tests/test_sph.cpp). The particle that broke the rule
+// is kept for the message.
 struct ChooseStep {
   StepRule rule;
   double min_dt, remaining;
@@ -108,9 +114,10 @@ struct ChooseStep {
   SPHRAY_HD void operator()(uint32_t) const {
     StepControl& c = *control;
     c.limits = rule.limits(c.stats);
-    if (c.stats.first_bad != kNoBadParticle) {
-      const uint32_t i = c.stats.first_bad & ~kBadDerived;
-      c.outcome = kStepBadParticle;
+    const bool bad = c.stats.first_bad != kNoBadParticle;
+    if (bad || c.limits.max_speed > rule.speed_of_sound) {
+      const uint32_t i = bad ? c.stats.first_bad & ~kBadDerived : c.stats.fastest;
+      c.outcome = bad ? kStepBadParticle : kStepSupersonic;
       c.bad_id = id[i];
       c.bad_pos = pos_rho[i];
       c.bad_vel = vel[i];
@@ -183,15 +190,16 @@ struct StepStatsOf {
     const bool state = all_finite(xyz(p)) && std::isfinite(p.w) && all_finite(xyz(v)) && p.w > 0.0f;
     const bool derived = all_finite(xyz(a)) && std::isfinite(a.w);
     const uint32_t bad = !state ? i : !derived ? i | kBadDerived : kNoBadParticle;
-    return {length2(xyz(v)), length2(xyz(a)), bad, status[i] == kStatusClamped ? 1u : 0u};
+    return {length2(xyz(v)), length2(xyz(a)), bad, status[i] == kStatusClamped ? 1u : 0u, i};
   }
 };
 
 struct CombineStepStats {
   SPHRAY_HD StepStats operator()(const StepStats& a, const StepStats& b) const {
-    return {a.max_speed2 > b.max_speed2 ? a.max_speed2 : b.max_speed2,
-            a.max_accel2 > b.max_accel2 ? a.max_accel2 : b.max_accel2,
-            a.first_bad < b.first_bad ? a.first_bad : b.first_bad, a.clamped + b.clamped};
+    const bool a_faster = a.max_speed2 > b.max_speed2 || (a.max_speed2 == b.max_speed2 && a.fastest < b.fastest);
+    return {a_faster ? a.max_speed2 : b.max_speed2, a.max_accel2 > b.max_accel2 ? a.max_accel2 : b.max_accel2,
+            a.first_bad < b.first_bad ? a.first_bad : b.first_bad, a.clamped + b.clamped,
+            a_faster ? a.fastest : b.fastest};
   }
 };
 

@@ -249,6 +249,7 @@ class SolverImpl final : public Solver {
     clock_.finish(4);
     const StepControl& c = control_read_.value();
     if (c.outcome == kStepBadParticle) throw SimulationError(describe_bad_particle(c));
+    if (c.outcome == kStepSupersonic) throw SimulationError(describe_supersonic(c));
     clamped_total_ += c.stats.clamped;
     limits_ = c.limits;
     if (c.outcome == kStepBelowFloor) throw SimulationError(describe_dt_floor());
@@ -380,6 +381,18 @@ class SolverImpl final : public Solver {
        << " s (step " << steps_ << "), bounded by " << by << ": max speed " << l.max_speed
        << " m/s, max acceleration " << l.max_accel << " m/s^2. The scene is too stiff or unstable at this "
        << "resolution; raise sph.spacing, lower the speed of sound or check the initial state.";
+    return os.str();
+  }
+
+  std::string describe_supersonic(const StepControl& c) const {
+    const Float4 p = c.bad_pos, v = c.bad_vel;
+    std::ostringstream os;
+    os << "particle " << c.bad_id << " (initial index) moves at " << c.limits.max_speed
+       << " m/s, faster than the speed of sound c0 = " << prm_.speed_of_sound << " m/s, at step " << steps_
+       << " (t = " << t_ << " s), position (" << p.x << ", " << p.y << ", " << p.z << "), velocity (" << v.x << ", "
+       << v.y << ", " << v.z << "), density " << p.w << ". A weakly compressible fluid holds only well below its "
+       << "speed of sound; the run is stopped rather than continued with meaningless results. Raise "
+       << "sph.speed_of_sound (\"auto\" takes 10x the flow speed the scene can be expected to reach).";
     return os.str();
   }
 
