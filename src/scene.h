@@ -23,6 +23,7 @@ struct Box {
   Vec3d min, max;
 };
 
+// Blocks may overlap: their union is filled once (setup.cpp).
 struct FluidBlock {
   Box box;
   Vec3d velocity{0, 0, 0};

@@ -19,6 +19,63 @@ Vec3f to_f(Vec3d v) { return {float(v.x), float(v.y), float(v.z)}; }
 
 int lattice_count(double size, double dx) { return std::max(1, int(std::floor(size / dx + 1e-6))); }
 
+// Overlapping fluid blocks fill their union once: a particle of block b is
+// left out where an earlier block already has liquid, i.e. when it lies
+// inside an earlier block's box or less than half a spacing outside it (the
+// earlier block's outermost particles sit half a spacing to one spacing inside
+// its faces, so what is kept stays at least 3/4 of a spacing from them).
+// Blocks whose corners share one dx lattice join with no seam.
+bool covered_before(const std::vector<FluidBlock>& blocks, size_t b, Vec3d p, double dx) {
+  const double m = 0.49 * dx;
+  for (size_t a = 0; a < b; ++a) {
+    const Box& q = blocks[a].box;
+    if (p.x > q.min.x - m && p.x < q.max.x + m && p.y > q.min.y - m && p.y < q.max.y + m && p.z > q.min.z - m &&
+        p.z < q.max.z + m)
+      return true;
+  }
+  return false;
+}
+
+// Where the line p + t up (t real) runs through box q: [t_in, t_out], or false.
+bool line_through_box(const Box& q, Vec3d p, Vec3d up, double& t_in, double& t_out) {
+  const double lo[3] = {q.min.x, q.min.y, q.min.z}, hi[3] = {q.max.x, q.max.y, q.max.z};
+  const double o[3] = {p.x, p.y, p.z}, d[3] = {up.x, up.y, up.z};
+  t_in = -1e300;
+  t_out = 1e300;
+  for (int k = 0; k < 3; ++k) {
+    if (std::fabs(d[k]) < 1e-12) {
+      if (o[k] < lo[k] || o[k] > hi[k]) return false;
+      continue;
+    }
+    const double t1 = (lo[k] - o[k]) / d[k], t2 = (hi[k] - o[k]) / d[k];
+    t_in = std::max(t_in, std::min(t1, t2));
+    t_out = std::min(t_out, std::max(t1, t2));
+  }
+  return t_in <= t_out;
+}
+
+// The free surface above a particle of block `own` at p, as a height along
+// `up`: the top of its own block, raised through every block stacked on it
+// (one that the vertical line through p enters at or below the surface found
+// so far, within half a spacing), so that a column standing on a bed of
+// liquid starts with the bed's particles under it at the column's full depth.
+double surface_above(const std::vector<FluidBlock>& blocks, size_t own, Vec3d p, Vec3d up, double dx) {
+  const double base = dot(p, up);
+  double surface = box_top(blocks[own].box, up);
+  for (bool raised = true; raised;) {
+    raised = false;
+    for (const auto& blk : blocks) {
+      double t_in, t_out;
+      if (!line_through_box(blk.box, p, up, t_in, t_out)) continue;
+      if (base + t_in <= surface + 0.5 * dx && base + t_out > surface + 1e-12 * dx) {
+        surface = base + t_out;
+        raised = true;
+      }
+    }
+  }
+  return surface;
+}
+
 struct AxisCoords {
   std::vector<double> c;
   size_t wall_lo, inner;  // c = [wall_lo lower-wall coords][inner coords][upper-wall coords]
@@ -170,24 +227,25 @@ SolverInput make_solver_input(const Scene& s, PresenceMode presence) {
   in.max_dt = float(s.run.max_dt);
   in.presence = presence;
   const double dx = s.sph.spacing;
-  const double rho0 = s.sph.rest_density, b = in.params.tait_b, g = length(s.gravity);
+  const double rho0 = s.sph.rest_density, b_tait = in.params.tait_b, g = length(s.gravity);
   const Vec3d up = up_of(s);
 
   in.fluid_pos_rho.reserve(z.fluid);
   in.fluid_vel.reserve(z.fluid);
-  for (const auto& blk : s.fluid) {
+  for (size_t b = 0; b < s.fluid.size(); ++b) {
+    const FluidBlock& blk = s.fluid[b];
     const Vec3d e = blk.box.max - blk.box.min;
     const int n[3] = {lattice_count(e.x, dx), lattice_count(e.y, dx), lattice_count(e.z, dx)};
     const Vec3d start = blk.box.min + Vec3d{(e.x - n[0] * dx) / 2 + dx / 2, (e.y - n[1] * dx) / 2 + dx / 2,
                                             (e.z - n[2] * dx) / 2 + dx / 2};
-    const double top = box_top(blk.box, up);
     for (int k = 0; k < n[2]; ++k)
       for (int j = 0; j < n[1]; ++j)
         for (int i = 0; i < n[0]; ++i) {
           const Vec3d p = start + Vec3d{i * dx, j * dx, k * dx};
+          if (covered_before(s.fluid, b, p, dx)) continue;
           // Hydrostatic start (inverse Tait): no pressure wave from a fluid released at uniform density.
-          const double depth = std::max(0.0, top - dot(p, up));
-          const double rho = rho0 * std::pow(1.0 + rho0 * g * depth / b, 1.0 / 7.0);
+          const double depth = std::max(0.0, surface_above(s.fluid, b, p, up, dx) - dot(p, up));
+          const double rho = rho0 * std::pow(1.0 + rho0 * g * depth / b_tait, 1.0 / 7.0);
           in.fluid_pos_rho.push_back({float(p.x), float(p.y), float(p.z), float(rho)});
           in.fluid_vel.push_back({float(blk.velocity.x), float(blk.velocity.y), float(blk.velocity.z), 0.0f});
         }

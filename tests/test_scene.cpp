@@ -140,6 +140,47 @@ TEST_CASE("the speed of sound: auto is 10x the flow speed the scene can reach, a
   CHECK(contains(error_of(kGood, {"sph.speed_of_sound=5", "fluid.0.velocity=[6,0,0]"}), "supersonic"));
 }
 
+TEST_CASE("overlapping fluid blocks fill their union once, at its hydrostatic depth", "[scene][cpu]") {
+  // Brute force over the generated particles: none closer than 3/4 spacing.
+  auto closest = [](const std::vector<Float4>& p) {
+    double d2 = 1e300;
+    for (size_t a = 0; a < p.size(); ++a)
+      for (size_t b = a + 1; b < p.size(); ++b) d2 = std::min(d2, double(length2(xyz(p[a]) - xyz(p[b]))));
+    return std::sqrt(d2);
+  };
+  const double dx = 0.02;
+  // The same block twice: the particles of one.
+  const Scene twice = parse_scene(kGood, "t.json", {"fluid=[{\"min\":[0,0,0],\"max\":[0.2,0.5,0.3]},"
+                                                    "{\"min\":[0,0,0],\"max\":[0.2,0.5,0.3]}]"});
+  const SolverInput one = make_solver_input(parse_scene(kGood, "t.json"), PresenceMode::Off);
+  const SolverInput two = make_solver_input(twice, PresenceMode::Off);
+  REQUIRE(two.fluid_pos_rho.size() == one.fluid_pos_rho.size());
+  for (size_t k = 0; k < one.fluid_pos_rho.size(); ++k) CHECK(length2(xyz(two.fluid_pos_rho[k]) - xyz(one.fluid_pos_rho[k])) == 0);
+
+  // A column standing in a bed (an L in x-z), on one lattice: the union's
+  // cells exactly, and the bed under the column at the column's depth.
+  const Scene l = parse_scene(kGood, "t.json", {"fluid=[{\"min\":[0,0,0],\"max\":[1,0.5,0.1]},"
+                                                "{\"min\":[0,0,0],\"max\":[0.2,0.5,0.4]}]"});
+  const SolverInput in = make_solver_input(l, PresenceMode::Off);
+  CHECK(in.fluid_pos_rho.size() == 50 * 25 * 5 + 10 * 25 * 15);
+  CHECK(closest(in.fluid_pos_rho) == Approx(dx).epsilon(1e-4));
+  const double b = make_params(l).tait_b;
+  for (const Float4& p : in.fluid_pos_rho) {
+    const double top = p.x < 0.2 ? 0.4 : 0.1;
+    const double rho = 1000 * std::pow(1 + 1000 * 9.81 * (top - p.z) / b, 1 / 7.0);
+    REQUIRE(p.w == Approx(rho).epsilon(1e-6));
+  }
+
+  // Blocks on different lattices: nothing closer than 3/4 spacing, and the
+  // union's volume filled to within a layer of particles along the seam.
+  const Scene off = parse_scene(kGood, "t.json", {"fluid=[{\"min\":[0,0,0],\"max\":[0.2,0.5,0.3]},"
+                                                  "{\"min\":[0.133,0,0],\"max\":[0.4,0.5,0.3]}]"});
+  const SolverInput o = make_solver_input(off, PresenceMode::Off);
+  CHECK(closest(o.fluid_pos_rho) >= 0.75 * dx);
+  const double union_cells = 0.4 * 0.5 * 0.3 / (dx * dx * dx);
+  CHECK(std::abs(double(o.fluid_pos_rho.size()) - union_cells) <= 25 * 15);
+}
+
 TEST_CASE("a missing scene file is a clear error", "[scene][cpu]") {
   CHECK_THROWS_AS(load_scene("/nonexistent/scene.json"), SceneError);
 }
