@@ -33,6 +33,23 @@ inline std::string step_error(Solver& s, double until) {
   return {};
 }
 
+// Steps to `until`; the error that stopped the run, if any.
+inline std::string run_to_error(Solver& s, double until) {
+  std::string e;
+  while (e.empty() && s.time() < until - 1e-12) e = step_error(s, until);
+  return e;
+}
+
+// One particle dropped from 0.3 m in a 0.4 m tall tank, to t = 0.4 s, with
+// the speed of sound c0 [m/s]: the scene check takes sqrt(g H) = 1.73 m/s
+// (H = 0.305 m, its top above the floor) as the speed it can reach.
+inline Scene dropped_particle_scene(double c0) {
+  const std::string text = R"({"tank": {"min": [0,0,0], "max": [0.1,0.1,0.4]},
+    "fluid": [{"min": [0.045,0.045,0.295], "max": [0.055,0.055,0.305]}],
+    "sph": {"spacing": 0.01}, "run": {"end_time": 0.4}})";
+  return parse_scene(text, "drop.json", {"sph.speed_of_sound=" + std::to_string(c0)});
+}
+
 // Eight particles shot up at 20 m/s in a tank without a lid: all of them
 // leave through the top before t = 0.1 s.
 inline Scene open_top_jet_scene() {

@@ -173,6 +173,15 @@ TEST_CASE("cuda guards and open-top removal behave as on the cpu", "[gpu]") {
     CHECK(b.find("limit") != std::string::npos);
   }
   {
+    const SolverInput in = make_solver_input(test::dropped_particle_scene(2.0), PresenceMode::Off);
+    auto cpu = make_cpu_solver(in), gpu = make_cuda_solver(in);
+    const std::string a = test::run_to_error(*cpu, 0.4), b = test::run_to_error(*gpu, 0.4);
+    INFO(b);
+    CHECK(b.find("faster than the speed of sound c0 = 2 m/s") != std::string::npos);
+    CHECK(gpu->steps() == cpu->steps());  // a free fall: the same steps to rounding
+    CHECK(gpu->time() == Approx(cpu->time()).epsilon(1e-6));
+  }
+  {
     const Scene s = test::open_top_jet_scene();
     auto gpu = make_cuda_solver(make_solver_input(s, PresenceMode::Off));
     REQUIRE(gpu->num_fluid() == 8);

@@ -87,21 +87,11 @@ TEST_CASE("a time step below the floor is an error with its reason", "[sph][cpu]
 }
 
 TEST_CASE("a particle outrunning the speed of sound stops the run and is named", "[sph][cpu]") {
-  // A particle dropped from 0.3 m: the scene check takes sqrt(g H) = 1.73 m/s
-  // (H = 0.305 m, its top above the floor) as the speed it can reach, and
-  // c0 = 2 m/s passes it; free fall reaches 2 m/s after 0.204 m (t = 0.204 s),
-  // 0.06 m above the floor's reach. With c0 = 3 m/s it lands, bounces and ends.
-  const std::string text = R"({"tank": {"min": [0,0,0], "max": [0.1,0.1,0.4]},
-    "fluid": [{"min": [0.045,0.045,0.295], "max": [0.055,0.055,0.305]}],
-    "sph": {"spacing": 0.01, "speed_of_sound": 2}, "run": {"end_time": 0.4}})";
-  const Scene s = parse_scene(text, "drop.json");
-  auto run = [](Solver& solver) {  // steps to the end; the error that stopped it, if any
-    std::string e;
-    while (e.empty() && solver.time() < 0.4 - 1e-12) e = test::step_error(solver, 0.4);
-    return e;
-  };
-  auto solver = make_cpu_solver(make_solver_input(s, PresenceMode::Off));
-  const std::string msg = run(*solver);
+  // c0 = 2 m/s passes the scene check (1.73 m/s, tests/helpers.h); free fall
+  // reaches 2 m/s after 0.204 m (t = 0.204 s), 0.06 m above the floor's reach.
+  // With c0 = 3 m/s the particle lands, bounces and the run ends.
+  auto solver = make_cpu_solver(make_solver_input(test::dropped_particle_scene(2.0), PresenceMode::Off));
+  const std::string msg = test::run_to_error(*solver, 0.4);
   INFO(msg);
   CHECK(msg.find("particle 0 ") != std::string::npos);
   CHECK(msg.find("faster than the speed of sound c0 = 2 m/s") != std::string::npos);
@@ -114,9 +104,8 @@ TEST_CASE("a particle outrunning the speed of sound stops the run and is named",
   CHECK(length(p.vel[0]) > 2.0f);
   CHECK(p.pos[0].z > 0.04f);  // still falling freely: no wall has touched it
 
-  const Scene stiffer = parse_scene(text, "drop.json", {"sph.speed_of_sound=3"});
-  auto ok = make_cpu_solver(make_solver_input(stiffer, PresenceMode::Off));
-  CHECK(run(*ok).empty());
+  auto ok = make_cpu_solver(make_solver_input(test::dropped_particle_scene(3.0), PresenceMode::Off));
+  CHECK(test::run_to_error(*ok, 0.4).empty());
   CHECK(ok->time() == Approx(0.4));
 }
 
