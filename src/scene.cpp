@@ -113,11 +113,33 @@ void apply_override(json& j, const std::string& file, const std::string& assignm
   const std::string key = assignment.substr(0, eq), text = assignment.substr(eq + 1);
   json value = json::parse(text, nullptr, /*allow_exceptions=*/false);
   if (value.is_discarded()) value = text;  // a bare word is a string
-  std::string pointer;
+  std::string pointer, walked;
+  const json* at = &j;  // the value the path has reached, while it exists
   std::stringstream ss(key);
   for (std::string part; std::getline(ss, part, '.');) {
     if (part.empty()) throw SceneError("--set '" + assignment + "': empty component in key path '" + key + "'");
+    // An array index may name an element or append one (index = size); past
+    // that, JSON pointers pad the array with nulls, and validation would then
+    // blame an element the user never named.
+    if (at && at->is_array()) {
+      const bool digits = part.find_first_not_of("0123456789") == std::string::npos && part.size() < 10;
+      if (!digits || std::stoul(part) > at->size()) {
+        std::ostringstream os;
+        os << file << ": --set " << key << ": " << walked << " has " << at->size() << " element(s), indexed from 0; '"
+           << part << "' is " << (digits ? "past its end (" + walked + "." + std::to_string(at->size()) + " appends one)"
+                                         : "not an index");
+        throw SceneError(os.str());
+      }
+      const size_t k = std::stoul(part);
+      at = k < at->size() ? &(*at)[k] : nullptr;
+    } else if (at && at->is_object()) {
+      const auto it = at->find(part);
+      at = it != at->end() ? &*it : nullptr;
+    } else {
+      at = nullptr;
+    }
     pointer += "/" + part;
+    walked += (walked.empty() ? "" : ".") + part;
   }
   try {
     // A missing section is created (so `--set run.end_time=1` works on a scene

@@ -111,6 +111,17 @@ TEST_CASE("bad scenes get a message naming file, key and value", "[scene][cpu]")
 
   CHECK(error_of(R"({"tank": {"min": [0,0,0], "max": [1,1,1]}, "sph": {"spacing": 0.1}})", {"run.end_time=2"}).empty());
 
+  e = error_of(kGood, {"fluid.5.min=[0,0,0]"});  // one block: index 5 is past the end, not "fluid.1"
+  CHECK(contains(e, "--set fluid.5.min"));
+  CHECK(contains(e, "fluid has 1 element(s)"));
+  CHECK(contains(e, "fluid.1 appends one"));
+  CHECK(contains(error_of(kGood, {"fluid.x.min=[0,0,0]"}), "'x' is not an index"));
+  e = error_of(kGood, {"fluid.1.min=[0.5,0,0]"});  // appending a block asks for the rest of it
+  CHECK(contains(e, "fluid.1"));
+  CHECK(contains(e, "max"));
+  CHECK(contains(e, "is required"));
+  CHECK(parse_scene(kGood, "t.json", {"fluid.1={\"min\":[0.5,0,0],\"max\":[0.6,0.5,0.1]}"}).fluid.size() == 2);
+
   e = error_of(kGood, {"gravity"});
   CHECK(contains(e, "key.path=value"));
 
