@@ -369,7 +369,7 @@ int main(int argc, char** argv) {
   auto* render = app.add_subcommand("render", "render one frame or a sequence to PNG, from a scene or an HDF5 export");
   RenderArgs render_args;
   FrameArgs render_frame_args;
-  render->add_option("scene", render_args.scene, "scene JSON file (or --from FILE)");
+  render->add_option("scene", render_args.scene, "scene JSON file, or an HDF5 export (as --from FILE)");
   render->add_option("--from", render_args.from, "an HDF5 file written by sphray run --export");
   render->add_option("--out", render_args.out, "x.png: one image; otherwise a directory for frame_NNNNNN.png")
       ->required();
@@ -484,6 +484,11 @@ int main(int argc, char** argv) {
       return run_viewer(view_opt, std::cout);
     }
     if (render->parsed()) {
+      if (!render_args.scene.empty() && render_args.from.empty()) {  // an export given where a scene goes
+        std::ifstream f(render_args.scene, std::ios::binary);
+        std::string head(8, '\0');
+        if (f.read(&head[0], 8) && is_hdf5_signature(head)) std::swap(render_args.scene, render_args.from);
+      }
       if (render_args.scene.empty() == render_args.from.empty())
         throw std::runtime_error("render: give either a scene file or --from FILE.h5");
       if (!render_args.from.empty() && render_args.time >= 0) throw std::runtime_error("--time applies to a scene, not --from");

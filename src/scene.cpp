@@ -160,6 +160,11 @@ Box read_box(const Reader& r, const char* lo_key, const char* hi_key) {
 
 }  // namespace
 
+bool is_hdf5_signature(const std::string& head) {
+  static const char kSignature[8] = {'\x89', 'H', 'D', 'F', '\r', '\n', '\x1a', '\n'};
+  return head.size() >= 8 && head.compare(0, 8, std::string(kSignature, 8)) == 0;
+}
+
 Vec3d up_of(const Scene& s) {
   const double g = length(s.gravity);
   return g > 0 ? s.gravity * (-1.0 / g) : Vec3d{0, 0, 1};
@@ -357,7 +362,11 @@ Scene load_scene(const std::string& path, const std::vector<std::string>& overri
   if (!f) throw SceneError("cannot open scene file '" + path + "'");
   std::stringstream ss;
   ss << f.rdbuf();
-  return parse_scene(ss.str(), path, overrides);
+  const std::string text = ss.str();
+  if (is_hdf5_signature(text))
+    throw SceneError(path + ": is an HDF5 file, not a scene (JSON): render it with `sphray render --from " + path +
+                     "`, or list its frames with `sphray inspect " + path + "`");
+  return parse_scene(text, path, overrides);
 }
 
 }  // namespace sphray

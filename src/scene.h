@@ -90,6 +90,10 @@ struct Scene {
 Scene parse_scene(const std::string& text, const std::string& file, const std::vector<std::string>& overrides = {});
 Scene load_scene(const std::string& path, const std::vector<std::string>& overrides = {});
 
+// Whether `head` (a file's first bytes) starts with the HDF5 signature (a
+// file of sphray run --export at offset 0, where sphray writes it).
+bool is_hdf5_signature(const std::string& head);
+
 // Unit vector "up" (against gravity); +z when there is no gravity.
 Vec3d up_of(const Scene& s);
 

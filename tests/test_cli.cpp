@@ -160,6 +160,11 @@ TEST_CASE("sphray run --export and sphray inspect: bad paths and bad files exit 
   CHECK(has(r.output, "frames 2"));
   CHECK(has(r.output, "000001  t = 0.02 s"));
   CHECK(has(r.output, "density ["));
+  // an export where a scene goes: told what it is and what to run instead
+  r = run_cli("run /tmp/sphray_cli.h5 --backend cpu");
+  CHECK(r.code == 2);
+  CHECK(has(r.output, "/tmp/sphray_cli.h5: is an HDF5 file, not a scene"));
+  CHECK(has(r.output, "sphray render --from /tmp/sphray_cli.h5"));
 }
 
 TEST_CASE("sphray run --frames-dir and sphray render write PNGs of the liquid; render --from an export matches",
@@ -193,6 +198,10 @@ TEST_CASE("sphray run --frames-dir and sphray render write PNGs of the liquid; r
   const sphray::Image from = sphray::read_png("/tmp/sphray_render_from.png");
   const sphray::Image live = sphray::read_png("/tmp/sphray_frames/frame_000004.png");
   CHECK(sphray::psnr(from, live) > 40.0);
+  // the export given where the scene goes renders as with --from
+  r = run_cli("render /tmp/sphray_render.h5 --frame 4 --out /tmp/sphray_render_positional.png" + small);
+  REQUIRE(r.code == 0);
+  CHECK(sphray::pixels_differing(sphray::read_png("/tmp/sphray_render_positional.png"), from, 0) == 0);
   r = run_cli("render --from /tmp/sphray_render.h5 --out /tmp/sphray_render_dir" + small);
   CHECK(r.code == 0);
   CHECK(has(r.output, "rendered 5 frames"));
