@@ -350,7 +350,8 @@ Scene parse_scene(const std::string& text, const std::string& file, const std::v
     std::ostringstream os;
     os.precision(3);
     os << "is below the flow speed this scene can reach, " << v_expected
-       << " m/s (sqrt(g H), H the height of its liquid's top above the tank floor, or its fastest initial velocity): the flow would be supersonic. "
+       << " m/s (sqrt(g H), H the height of its liquid's top above the tank floor, or its fastest initial "
+       << "velocity): the flow would be supersonic. "
        << "Weakly compressible SPH wants about 10x that (\"auto\": " << 10 * v_expected << " m/s)";
     sph.fail("speed_of_sound", sph.at("speed_of_sound"), os.str());
   }

@@ -166,7 +166,8 @@ TEST_CASE("overlapping fluid blocks fill their union once, at its hydrostatic de
   const SolverInput one = make_solver_input(parse_scene(kGood, "t.json"), PresenceMode::Off);
   const SolverInput two = make_solver_input(twice, PresenceMode::Off);
   REQUIRE(two.fluid_pos_rho.size() == one.fluid_pos_rho.size());
-  for (size_t k = 0; k < one.fluid_pos_rho.size(); ++k) CHECK(length2(xyz(two.fluid_pos_rho[k]) - xyz(one.fluid_pos_rho[k])) == 0);
+  for (size_t k = 0; k < one.fluid_pos_rho.size(); ++k)
+    CHECK(length2(xyz(two.fluid_pos_rho[k]) - xyz(one.fluid_pos_rho[k])) == 0);
 
   // A column standing in a bed (an L in x-z), on one lattice: the union's
   // cells exactly, and the bed under the column at the column's depth.
