@@ -36,24 +36,6 @@ bool covered_before(const std::vector<FluidBlock>& blocks, size_t b, Vec3d p, do
   return false;
 }
 
-// Where the line p + t up (t real) runs through box q: [t_in, t_out], or false.
-bool line_through_box(const Box& q, Vec3d p, Vec3d up, double& t_in, double& t_out) {
-  const double lo[3] = {q.min.x, q.min.y, q.min.z}, hi[3] = {q.max.x, q.max.y, q.max.z};
-  const double o[3] = {p.x, p.y, p.z}, d[3] = {up.x, up.y, up.z};
-  t_in = -1e300;
-  t_out = 1e300;
-  for (int k = 0; k < 3; ++k) {
-    if (std::fabs(d[k]) < 1e-12) {
-      if (o[k] < lo[k] || o[k] > hi[k]) return false;
-      continue;
-    }
-    const double t1 = (lo[k] - o[k]) / d[k], t2 = (hi[k] - o[k]) / d[k];
-    t_in = std::max(t_in, std::min(t1, t2));
-    t_out = std::min(t_out, std::max(t1, t2));
-  }
-  return t_in <= t_out;
-}
-
 // The free surface above a particle of block `own` at p, as a height along
 // `up`: the top of its own block, raised through every block stacked on it
 // (one that the vertical line through p enters at or below the surface found
@@ -65,8 +47,8 @@ double surface_above(const std::vector<FluidBlock>& blocks, size_t own, Vec3d p,
   for (bool raised = true; raised;) {
     raised = false;
     for (const auto& blk : blocks) {
-      double t_in, t_out;
-      if (!line_through_box(blk.box, p, up, t_in, t_out)) continue;
+      double t_in, t_out;  // along the vertical through p (ray_box: a box wholly below p is no hit)
+      if (!ray_box(p, up, blk.box.min, blk.box.max, t_in, t_out)) continue;
       if (base + t_in <= surface + 0.5 * dx && base + t_out > surface + 1e-12 * dx) {
         surface = base + t_out;
         raised = true;

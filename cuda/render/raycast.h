@@ -82,28 +82,6 @@ SPHRAY_HD SPHRAY_FORCEINLINE int nearest_face(Vec3f p, Vec3f lo, Vec3f hi, int f
   return best;
 }
 
-// Ray against the box [lo, hi]: entry and exit distances, false when missed.
-SPHRAY_HD SPHRAY_FORCEINLINE bool ray_box(Vec3f o, Vec3f d, Vec3f lo, Vec3f hi, float& t0, float& t1) {
-  float a = -1e30f, b = 1e30f;
-  t0 = 0.0f;
-  t1 = -1.0f;
-  const float oo[3] = {o.x, o.y, o.z}, dd[3] = {d.x, d.y, d.z}, l[3] = {lo.x, lo.y, lo.z}, h[3] = {hi.x, hi.y, hi.z};
-  for (int k = 0; k < 3; ++k) {
-    if (dd[k] == 0.0f) {
-      if (oo[k] < l[k] || oo[k] > h[k]) return false;
-      continue;
-    }
-    const float inv = 1.0f / dd[k];
-    float ta = (l[k] - oo[k]) * inv, tb = (h[k] - oo[k]) * inv;
-    if (ta > tb) { const float s = ta; ta = tb; tb = s; }
-    a = ta > a ? ta : a;
-    b = tb < b ? tb : b;
-  }
-  t0 = a;
-  t1 = b;
-  return b >= a && b > 0.0f;
-}
-
 // Pinhole camera: pixel (x, y), row 0 at the top, to a unit world direction.
 struct Camera {
   Vec3f eye, forward, right, up;  // orthonormal; up is the image's up
