@@ -133,8 +133,9 @@ int cmd_run(const std::string& scene_path, const std::string& backend_name_arg, 
   std::cout << "scene " << scene.name << " (" << scene_path << "): " << solver->num_fluid() << " fluid particles, "
             << size.boundary << " wall particles, grid " << size.grid.nx << "x" << size.grid.ny << "x" << size.grid.nz
             << ", c0 = " << prm.speed_of_sound << " m/s, to t = " << scene.run.end_time << " s\n";
-  if (const double v = expected_flow_speed(scene); scene.sph.speed_of_sound > 0 && scene.sph.speed_of_sound < 10 * v)
-    std::cout << std::setprecision(3) << "  note: sph.speed_of_sound is below the automatic " << 10 * v
+  if (const double c_auto = auto_speed_of_sound(scene), v = expected_flow_speed(scene);
+      scene.sph.speed_of_sound > 0 && scene.sph.speed_of_sound < c_auto)
+    std::cout << std::setprecision(3) << "  note: sph.speed_of_sound is below the automatic " << c_auto
               << " m/s (10x the flow speed " << v << " m/s the scene can reach): density varies as (v / c0)^2, about "
               << 100 * (v / scene.sph.speed_of_sound) * (v / scene.sph.speed_of_sound)
               << "% here, and the run stops if a particle outruns c0\n" << std::setprecision(6);

@@ -193,6 +193,8 @@ double expected_flow_speed(const Scene& s) {
   return std::max(std::sqrt(g * height), vmax);
 }
 
+double auto_speed_of_sound(const Scene& s) { return 10.0 * expected_flow_speed(s); }
+
 Scene parse_scene(const std::string& text, const std::string& file, const std::vector<std::string>& overrides) {
   json j;
   try {
@@ -352,7 +354,7 @@ Scene parse_scene(const std::string& text, const std::string& file, const std::v
     os << "is below the flow speed this scene can reach, " << v_expected
        << " m/s (sqrt(g H), H the height of its liquid's top above the tank floor, or its fastest initial "
        << "velocity): the flow would be supersonic. "
-       << "Weakly compressible SPH wants about 10x that (\"auto\": " << 10 * v_expected << " m/s)";
+       << "Weakly compressible SPH wants about 10x that (\"auto\": " << auto_speed_of_sound(s) << " m/s)";
     sph.fail("speed_of_sound", sph.at("speed_of_sound"), os.str());
   }
   return s;

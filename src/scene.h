@@ -103,9 +103,13 @@ double box_top(const Box& b, Vec3d up);
 // The flow speed a scene can be expected to reach: sqrt(g H), H the height of
 // its liquid's top above the tank floor along gravity (standard gravity when
 // there is none; a dropped block counts its fall), or its fastest initial
-// velocity if that is more. The automatic speed of sound is 10x it
-// (Monaghan 1994); an explicit one below it is an error (parse_scene): the
-// flow would be supersonic and a weakly compressible fluid meaningless.
+// velocity if that is more. An explicit speed of sound below it is an error
+// (parse_scene): the flow would be supersonic and a weakly compressible fluid
+// meaningless.
 double expected_flow_speed(const Scene& s);
+
+// The automatic speed of sound: 10x expected_flow_speed, which keeps density
+// variations near 1% (Monaghan 1994).
+double auto_speed_of_sound(const Scene& s);
 
 }  // namespace sphray

@@ -88,12 +88,7 @@ SphParams make_params(const Scene& s) {
   p.rest_density = float(s.sph.rest_density);
   p.particle_mass = float(s.sph.rest_density * dx * dx * dx);
   double c0 = s.sph.speed_of_sound;
-  if (c0 <= 0) {
-    // Weakly compressible: c0 = 10 x the largest expected speed keeps density
-    // variations near 1% (Monaghan 1994). A still fluid without gravity still
-    // needs a stiffness: standard gravity is assumed then (expected_flow_speed).
-    c0 = 10.0 * expected_flow_speed(s);
-  }
+  if (c0 <= 0) c0 = auto_speed_of_sound(s);  // weakly compressible: 10x the expected flow speed (scene.h)
   p.speed_of_sound = float(c0);
   p.tait_b = float(c0 * c0 * s.sph.rest_density / 7.0);
   p.viscosity_alpha = float(s.sph.viscosity_alpha);
