@@ -123,14 +123,14 @@ void apply_override(json& j, const std::string& file, const std::string& assignm
     // blame an element the user never named.
     if (at && at->is_array()) {
       const bool digits = part.find_first_not_of("0123456789") == std::string::npos && part.size() < 10;
-      if (!digits || std::stoul(part) > at->size()) {
+      const size_t k = digits ? std::stoul(part) : 0;
+      if (!digits || k > at->size()) {
         std::ostringstream os;
         os << file << ": --set " << key << ": " << walked << " has " << at->size() << " element(s), indexed from 0; '"
            << part << "' is " << (digits ? "past its end (" + walked + "." + std::to_string(at->size()) + " appends one)"
                                          : "not an index");
         throw SceneError(os.str());
       }
-      const size_t k = std::stoul(part);
       at = k < at->size() ? &(*at)[k] : nullptr;
     } else if (at && at->is_object()) {
       const auto it = at->find(part);
