@@ -91,8 +91,11 @@ RunSummary run_scene(const Scene& s, Solver& solver, const RunOptions& opt, std:
   };
   output();
   StageTimes sum;
+  // Step sizes over the steps the solver chose freely: the last step before an
+  // output time is shortened to land on it, and counted in the mean it made
+  // the mean read below the min.
   double dt_sum = 0;
-  uint64_t particle_steps = 0;
+  uint64_t free_steps = 0, particle_steps = 0;
 
   while (solver.time() < end - 1e-12) {
     const double next_output = std::min(end, (frame + 1) * every);
@@ -102,8 +105,11 @@ RunSummary run_scene(const Scene& s, Solver& solver, const RunOptions& opt, std:
       const StageTimes& st = solver.last_stage_times();
       sum.grid += st.grid; sum.pairs += st.pairs; sum.integrate += st.integrate;
       const StepLimits& l = solver.last_limits();
-      dt_sum += l.dt;
-      if (l.dt < r.min_dt && solver.time() < next_output - 1e-12) r.min_dt = l.dt;  // not the clipped last step
+      if (solver.time() < next_output - 1e-12) {  // not the shortened last step
+        dt_sum += l.dt;
+        ++free_steps;
+        r.min_dt = std::min(r.min_dt, double(l.dt));
+      }
       r.max_speed = std::max(r.max_speed, l.max_speed);
       particle_steps += solver.num_fluid();
     }
@@ -130,9 +136,11 @@ RunSummary run_scene(const Scene& s, Solver& solver, const RunOptions& opt, std:
   if (r.steps) {
     const double k = 1.0 / double(r.steps);
     r.mean_stage_ms = {sum.grid * k, sum.pairs * k, sum.integrate * k};
-    r.mean_dt = dt_sum * k;
   }
-  if (r.min_dt > 1e299) r.min_dt = r.mean_dt;
+  // No free step (every step shortened, an output interval below dt): the
+  // mean and min of all steps.
+  r.mean_dt = free_steps ? dt_sum / double(free_steps) : (r.steps ? r.sim_time / double(r.steps) : 0.0);
+  if (!free_steps) r.min_dt = r.mean_dt;
   if (opt.field) {
     r.field_builder = field_kind_name(opt.field_kind);
     r.field_ms_mean = r.field_builds ? field_ms / double(r.field_builds) : 0.0;
@@ -146,7 +154,7 @@ void print_summary(const RunSummary& r, std::ostream& log) {
   log << std::defaultfloat << std::setprecision(4);
   log << "summary (" << backend_name(r.backend) << "):\n"
       << "  simulated      " << r.sim_time << " s in " << r.steps << " steps (dt mean " << r.mean_dt << " s, min "
-      << r.min_dt << " s)\n"
+      << r.min_dt << " s, of the steps not shortened to meet an output time)\n"
       << "  wall time      " << r.wall_seconds << " s ("
       << (r.wall_seconds > 0 ? double(r.steps) * double(r.fluid_start) / r.wall_seconds : 0.0)
       << " particle-steps/s)\n"
