@@ -34,9 +34,19 @@ struct QuietHdf5 {
 };
 const QuietHdf5 quiet_hdf5;
 
+// An entry's description up to its details: "unable to open file: time = <a
+// ctime string with its newline>, name = ..., tent_flags = 13" reads
+// "unable to open file" (the path and errno are in the message already).
+std::string error_summary(const char* desc) {
+  std::string d(desc);
+  d = d.substr(0, d.find('\n'));
+  const size_t details = d.find(": time = ");
+  return details == std::string::npos ? d : d.substr(0, details);
+}
+
 herr_t collect_error(unsigned n, const H5E_error2_t* e, void* out) {
   auto* s = static_cast<std::string*>(out);
-  if (n < 2 && e->desc && *e->desc) *s += std::string(s->empty() ? "" : "; ") + e->desc;
+  if (n < 2 && e->desc && *e->desc) *s += std::string(s->empty() ? "" : "; ") + error_summary(e->desc);
   return 0;
 }
 

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <filesystem>
 #include <fstream>
 #include <set>
 #include <sstream>
@@ -361,6 +362,9 @@ Scene parse_scene(const std::string& text, const std::string& file, const std::v
 }
 
 Scene load_scene(const std::string& path, const std::vector<std::string>& overrides) {
+  // A directory opens as an empty stream on Linux, which read as "not valid JSON".
+  std::error_code ec;
+  if (std::filesystem::is_directory(path, ec)) throw SceneError(path + ": is a directory, not a scene file");
   std::ifstream f(path, std::ios::binary);
   if (!f) throw SceneError("cannot open scene file '" + path + "'");
   std::stringstream ss;
