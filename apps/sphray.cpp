@@ -139,6 +139,10 @@ int cmd_run(const std::string& scene_path, const std::string& backend_name_arg, 
               << " m/s (10x the flow speed " << v << " m/s the scene can reach): density varies as (v / c0)^2, about "
               << 100 * (v / scene.sph.speed_of_sound) * (v / scene.sph.speed_of_sound)
               << "% here, and the run stops if a particle outruns c0\n" << std::setprecision(6);
+  if (const int layers = auto_boundary_layers(scene); scene.sph.boundary_layers > 0 && scene.sph.boundary_layers < layers)
+    std::cout << "  note: sph.boundary_layers = " << scene.sph.boundary_layers << " is thinner than the kernel support ("
+              << layers << " layers, \"auto\"): near a wall part of a particle's kernel is empty and the walls may "
+              << "not hold the liquid (the summary counts the particle-steps put back on a wall face)\n";
 
   const double mass = prm.particle_mass;
   RunOptions opt;
@@ -182,7 +186,7 @@ int cmd_run(const std::string& scene_path, const std::string& backend_name_arg, 
     nlohmann::json j = {{"scene", scene_path}, {"backend", backend_name(r.backend)}, {"steps", r.steps},
                         {"sim_time_s", r.sim_time}, {"wall_s", r.wall_seconds}, {"fluid_start", r.fluid_start},
                         {"fluid_end", r.fluid_end}, {"removed", r.removed}, {"clamped", r.clamped},
-                        {"spacing_m", scene.sph.spacing}, {"mean_dt_s", r.mean_dt}, {"max_speed_m_s", r.max_speed}};
+                        {"particle_steps", r.particle_steps}, {"spacing_m", scene.sph.spacing}, {"mean_dt_s", r.mean_dt}, {"max_speed_m_s", r.max_speed}};
     if (r.field_builds)
       j["field"] = {{"builder", r.field_builder}, {"volume", r.field_dims}, {"builds", r.field_builds},
                     {"ms_per_build", r.field_ms_mean}, {"builds_without_presence", r.field_without_presence}};

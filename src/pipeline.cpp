@@ -133,6 +133,7 @@ RunSummary run_scene(const Scene& s, Solver& solver, const RunOptions& opt, std:
   r.fluid_end = solver.num_fluid();
   r.removed = solver.num_removed();
   r.clamped = solver.num_clamped();
+  r.particle_steps = particle_steps;
   if (r.steps) {
     const double k = 1.0 / double(r.steps);
     r.mean_stage_ms = {sum.grid * k, sum.pairs * k, sum.integrate * k};
@@ -160,8 +161,15 @@ void print_summary(const RunSummary& r, std::ostream& log) {
       << " particle-steps/s)\n"
       << "  particles      " << r.fluid_start << " fluid at start, " << r.fluid_end << " at end; "
       << r.removed << " left through the open top and were removed\n"
-      << "  wall clamps    " << r.clamped << " particle-steps put back on a wall face\n"
-      << "  max speed      " << r.max_speed << " m/s\n"
+      << "  wall clamps    " << r.clamped << " particle-steps put back on a wall face";
+  const double clamp_share = r.particle_steps ? double(r.clamped) / double(r.particle_steps) : 0.0;
+  if (r.clamped) log << " (" << 100 * clamp_share << "% of " << r.particle_steps << ")";
+  log << "\n";
+  if (clamp_share > kWallClampShareBound)
+    log << "  warning        the wall guard, not the walls' pressure, held the liquid on more than "
+        << 100 * kWallClampShareBound << "% of particle-steps: wall layers thinner than the kernel support "
+        << "(sph.boundary_layers below \"auto\"), or steps too large for the flow (lower sph.cfl)\n";
+  log << "  max speed      " << r.max_speed << " m/s\n"
       << "  ms per step    grid (with the pair masks) " << r.mean_stage_ms.grid
       << ", pairs (forces, density rate, presence where needed) " << r.mean_stage_ms.pairs << ", integrate "
       << r.mean_stage_ms.integrate << "\n";

@@ -196,6 +196,8 @@ double expected_flow_speed(const Scene& s) {
 
 double auto_speed_of_sound(const Scene& s) { return 10.0 * expected_flow_speed(s); }
 
+int auto_boundary_layers(const Scene& s) { return int(std::ceil(2.0 * s.sph.smoothing_ratio - 1e-9)); }
+
 Scene parse_scene(const std::string& text, const std::string& file, const std::vector<std::string>& overrides) {
   json j;
   try {

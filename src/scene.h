@@ -112,4 +112,9 @@ double expected_flow_speed(const Scene& s);
 // variations near 1% (Monaghan 1994).
 double auto_speed_of_sound(const Scene& s);
 
+// The automatic number of wall particle layers: enough to cover the kernel's
+// support (2h / dx, rounded up), so that a particle at a wall face finds its
+// kernel full. Fewer (sph.boundary_layers) leave part of it empty near walls.
+int auto_boundary_layers(const Scene& s);
+
 }  // namespace sphray

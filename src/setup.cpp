@@ -118,7 +118,7 @@ SceneSize measure_scene(const Scene& s) {
   SceneSize z;
   const double dx = s.sph.spacing;
   const double support = 2.0 * s.sph.smoothing_ratio * dx;
-  z.boundary_layers = s.sph.boundary_layers > 0 ? s.sph.boundary_layers : int(std::ceil(support / dx - 1e-9));
+  z.boundary_layers = s.sph.boundary_layers > 0 ? s.sph.boundary_layers : auto_boundary_layers(s);
   for (const auto& b : s.fluid) {
     const Vec3d e = b.box.max - b.box.min;
     z.fluid += size_t(lattice_count(e.x, dx)) * lattice_count(e.y, dx) * lattice_count(e.z, dx);

@@ -87,6 +87,27 @@ TEST_CASE("sphray run simulates a small scene and prints a summary", "[cli][cpu]
   CHECK(rows == 6);  // t = 0 and five output intervals of 0.01 s
 }
 
+TEST_CASE("sphray run warns when the wall guard, not the walls, held the liquid", "[cli][cpu]") {
+  // One wall layer where the support needs four: 28% of the particle-steps of
+  // this coarse dam break end on a wall face (0.03% with four). The summary
+  // JSON's counts are checked against the bound independently of the text.
+  const std::string run = "run " + sphray::test::source_path("scenes/dam_break.json") +
+                          " --backend cpu --quiet --set sph.spacing=0.04 --set run.end_time=0.3"
+                          " --summary-json /tmp/sphray_clamps.json";
+  for (const bool thin : {true, false}) {
+    INFO((thin ? "one layer" : "auto layers"));
+    const Result r = run_cli(run + (thin ? " --set sph.boundary_layers=1" : ""));
+    REQUIRE(r.code == 0);
+    std::ifstream f("/tmp/sphray_clamps.json");
+    const nlohmann::json j = nlohmann::json::parse(f);
+    const double share = j.at("clamped").get<double>() / j.at("particle_steps").get<double>();
+    CHECK(j.at("particle_steps").get<double>() == j.at("steps").get<double>() * j.at("fluid_start").get<double>());
+    CHECK((share > sphray::kWallClampShareBound) == thin);
+    CHECK(has(r.output, "note: sph.boundary_layers = 1 is thinner than the kernel support (4 layers") == thin);
+    CHECK(has(r.output, "warning        the wall guard, not the walls' pressure, held the liquid") == thin);
+  }
+}
+
 TEST_CASE("sphray run builds the field at every frame when the scene has one", "[cli][cpu]") {
   const std::string scene = sphray::test::source_path("scenes/stress/one_cell.json");
   const Result r = run_cli("run " + scene + " --backend cpu --quiet --set run.end_time=0.02 --set run.output_interval=0.01 "
