@@ -343,6 +343,29 @@ int render_file(const RenderArgs& ra, const std::string& backend_arg, const std:
   return 0;
 }
 
+// CLI11 answers a mistyped command ("sphray rnu x.json", "sphray bench simm")
+// with "A subcommand is required". Names the word it did not know and the
+// commands there are; empty when the command words are all known.
+std::string unknown_command(CLI::App& app, int argc, char** argv) {
+  CLI::App* level = &app;
+  for (int i = 1; i < argc; ++i) {
+    const std::string word = argv[i];
+    const std::vector<CLI::App*> subs = level->get_subcommands([](CLI::App*) { return true; });
+    if (word.empty() || word[0] == '-' || subs.empty()) return "";  // options, or a command's own arguments
+    CLI::App* next = nullptr;
+    std::string names;
+    for (CLI::App* s : subs) {
+      names += (names.empty() ? "" : ", ") + s->get_name();
+      if (s->check_name(word)) next = s;
+    }
+    if (!next)
+      return "unknown command '" + word + "'" + (level == &app ? "" : " after '" + level->get_name() + "'") +
+             ": one of " + names;
+    level = next;
+  }
+  return "";
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -466,6 +489,10 @@ int main(int argc, char** argv) {
   brender->add_option("--json", render_json_out, "write results as JSON");
   brender->add_option("--set", bro.overrides, "override a value of the generated scene");
 
+  if (const std::string unknown = unknown_command(app, argc, argv); !unknown.empty()) {
+    std::fprintf(stderr, "sphray: error: %s\n", unknown.c_str());
+    return 2;
+  }
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {

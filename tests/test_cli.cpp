@@ -41,6 +41,12 @@ TEST_CASE("sphray run reports bad input with exit code 2", "[cli][cpu]") {
   Result r = run_cli("run /nonexistent.json --backend cpu");
   CHECK(r.code == 2);
   CHECK(has(r.output, "cannot open scene file"));
+  r = run_cli("rnu " + scene);  // CLI11 alone said "A subcommand is required"
+  CHECK(r.code == 2);
+  CHECK(has(r.output, "unknown command 'rnu': one of run, render, view, inspect, bench"));
+  r = run_cli("bench simm");
+  CHECK(r.code == 2);
+  CHECK(has(r.output, "unknown command 'simm' after 'bench': one of sim, field, frame, render"));
   r = run_cli("run " + sphray::test::source_path("scenes") + " --backend cpu");
   CHECK(r.code == 2);
   CHECK(has(r.output, "scenes: is a directory, not a scene file"));
