@@ -4,6 +4,7 @@
 #include <sys/statvfs.h>
 
 #include <cerrno>
+#include <cmath>
 #include <cstdio>
 #include <cstring>
 #include <fstream>
@@ -346,7 +347,7 @@ std::vector<std::string> members(hid_t g) {
 
 }  // namespace
 
-FrameReader::FrameReader(const std::string& path) {
+FrameReader::FrameReader(const std::string& path) : path_(path) {
   errno = 0;
   if (!std::ifstream(path, std::ios::binary)) throw FrameFileError(path + ": cannot open (missing or unreadable)");
   const htri_t is = H5Fis_hdf5(path.c_str());
@@ -398,8 +399,8 @@ FrameReader::~FrameReader() {
 
 Frame FrameReader::read(size_t k) const {
   const FrameInfo& fi = frames_.at(k);
-  const std::string path = "/frames/" + fi.name;
-  Handle g{check(H5Gopen2(file_, path.c_str(), H5P_DEFAULT), path, "opening"), H5Gclose};
+  const std::string group = "/frames/" + fi.name, path = path_ + ": " + group;
+  Handle g{check(H5Gopen2(file_, group.c_str(), H5P_DEFAULT), path, "opening"), H5Gclose};
   Frame f;
   f.time = fi.time;
   f.dt = fi.dt;
@@ -414,18 +415,38 @@ Frame FrameReader::read(size_t k) const {
   if (has("field")) {
     std::vector<hsize_t> dims;
     f.field = read_dataset<float>(g.id, "field", H5T_NATIVE_FLOAT, path, &dims);
-    if (dims.size() == 3) {
-      f.field_dims[0] = int(dims[2]);
-      f.field_dims[1] = int(dims[1]);
-      f.field_dims[2] = int(dims[0]);
-    }
+    if (dims.size() != 3) throw FrameFileError(path + "/field: not a 3D grid (nz x ny x nx)");
+    f.field_dims[0] = int(dims[2]);
+    f.field_dims[1] = int(dims[1]);
+    f.field_dims[2] = int(dims[0]);
     Handle d{check(H5Dopen2(g.id, "field", H5P_DEFAULT), path, "opening field"), H5Dclose};
     Handle a{check(H5Aopen(d.id, "origin", H5P_DEFAULT), path, "field origin"), H5Aclose};
-    H5Aread(a.id, H5T_NATIVE_FLOAT, f.field_origin);
+    if (H5Aread(a.id, H5T_NATIVE_FLOAT, f.field_origin) < 0) fail(path, "reading attribute origin");
     f.field_voxel = read_attr<float>(d.id, "voxel_size", H5T_NATIVE_FLOAT, path);
     f.field_iso = read_attr<float>(d.id, "iso", H5T_NATIVE_FLOAT, path);
   }
-  if (f.id.size() != f.position.size() / 3) f.id.resize(f.position.size() / 3);
+  // Every per-particle dataset of the frame holds its particles (position is
+  // N x 3, checked on opening; the field is a 3D grid, above): a reader
+  // indexes them by particle.
+  const size_t n = f.position.size() / 3;
+  auto expect = [&](size_t values, size_t per_particle, const char* name) {
+    if (values != 0 && values != n * per_particle)
+      throw FrameFileError(path + "/" + name + ": " + std::to_string(values) + " values, expected " +
+                           std::to_string(n * per_particle) + " (" + std::to_string(n) + " particles x " +
+                           std::to_string(per_particle) + ")");
+  };
+  expect(f.id.size(), 1, "id");
+  expect(f.velocity.size(), 3, "velocity");
+  expect(f.density.size(), 1, "density");
+  expect(f.pressure.size(), 1, "pressure");
+  expect(f.presence.size(), 6, "presence");
+  // Positions place particles in grids (render --from sorts them into one):
+  // sphray never writes a non-finite one (a run stops first), so one is damage.
+  for (size_t i = 0; i < f.position.size(); ++i)
+    if (!std::isfinite(f.position[i]))
+      throw FrameFileError(path + "/position: particle " + std::to_string(i / 3) + " has a non-finite " +
+                           "xyz"[i % 3] + " (" + std::to_string(f.position[i]) + ")");
+  if (f.id.size() != n) f.id.resize(n);
   return f;
 }
 

@@ -103,6 +103,7 @@ class FrameReader {
   Frame read(size_t k) const;  // every dataset the frame holds
 
  private:
+  std::string path_;
   int64_t file_ = -1;
   int version_ = 0;
   FileHeader header_;

@@ -4,6 +4,7 @@
 #include <hdf5.h>
 
 #include <chrono>
+#include <cmath>
 #include <csignal>
 #include <cstdio>
 #include <cstdlib>
@@ -186,6 +187,67 @@ TEST_CASE("bad frame files: missing, not HDF5, truncated, foreign HDF5", "[expor
   CHECK(has(error_of("/tmp/sphray_foreign.h5"), "not a sphray frames file"));
 
   CHECK_THROWS_AS(parse_export_fields("velocity,colour"), std::runtime_error);
+}
+
+namespace {
+
+// Replaces (or adds) a float dataset in an existing file, as another tool might.
+void put_dataset(const std::string& path, const std::string& name, const std::vector<float>& v,
+                 std::vector<hsize_t> dims) {
+  const hid_t f = H5Fopen(path.c_str(), H5F_ACC_RDWR, H5P_DEFAULT);
+  REQUIRE(f >= 0);
+  if (H5Lexists(f, name.c_str(), H5P_DEFAULT) > 0) H5Ldelete(f, name.c_str(), H5P_DEFAULT);
+  const hid_t s = H5Screate_simple(int(dims.size()), dims.data(), nullptr);
+  const hid_t d = H5Dcreate2(f, name.c_str(), H5T_IEEE_F32LE, s, H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT);
+  REQUIRE(d >= 0);
+  REQUIRE(H5Dwrite(d, H5T_NATIVE_FLOAT, H5S_ALL, H5S_ALL, H5P_DEFAULT, v.data()) >= 0);
+  H5Dclose(d);
+  H5Sclose(s);
+  H5Fclose(f);
+}
+
+std::string read_error(const std::string& path) {
+  try {
+    FrameReader(path).read(0);
+  } catch (const FrameFileError& e) {
+    return e.what();
+  }
+  return "";
+}
+
+}  // namespace
+
+TEST_CASE("a frame whose datasets disagree with its particles, or has a non-finite position, is refused by name",
+          "[export]") {
+  const std::string path = "/tmp/sphray_damaged.h5";
+  auto write_valid = [&] {
+    FrameWriter w(path, FileHeader{"{}", "test", "cpu", {}}, 0);
+    Frame f;
+    f.id = {0, 1, 2, 3};
+    f.position.assign(12, 0.5f);
+    f.velocity.assign(12, 0.0f);
+    f.density.assign(4, 1000.0f);
+    w.submit(std::move(f));
+    w.finish();
+  };
+  write_valid();
+  CHECK(read_error(path).empty());  // as written, it reads
+
+  put_dataset(path, "/frames/000000/velocity", std::vector<float>(9, 0.0f), {3, 3});  // 3 particles' worth
+  CHECK(read_error(path) == path + ": /frames/000000/velocity: 9 values, expected 12 (4 particles x 3)");
+
+  write_valid();
+  put_dataset(path, "/frames/000000/presence", std::vector<float>(12, 1.0f), {4, 3});
+  CHECK(has(read_error(path), "/frames/000000/presence: 12 values, expected 24 (4 particles x 6)"));
+
+  write_valid();
+  put_dataset(path, "/frames/000000/position", {0.5f, 0.5f, 0.5f, 0.5f, NAN, 0.5f, 0.5f, 0.5f, 0.5f, 0.5f, 0.5f, 0.5f},
+              {4, 3});
+  CHECK(read_error(path) == path + ": /frames/000000/position: particle 1 has a non-finite y (nan)");
+
+  write_valid();
+  put_dataset(path, "/frames/000000/field", std::vector<float>(8, 1.0f), {8});  // a flat array, not nz x ny x nx
+  CHECK(has(read_error(path), "/frames/000000/field: not a 3D grid"));
 }
 
 TEST_CASE("a full disk stops the run with a message and keeps the frames written before", "[export]") {
