@@ -205,14 +205,22 @@ int cmd_inspect(const std::string& path) {
   std::cout << path << ": sphray frames, format_version " << r.format_version() << ", written by sphray "
             << r.header().version << " (" << r.header().backend << " backend), scene \"" << name << "\"\n"
             << "  boundary particles " << r.header().boundary.size() / 3 << ", frames " << r.frames().size() << "\n";
+  // [lo, hi] of the finite values; non-finite ones counted after it.
   auto range = [](const std::vector<float>& v, size_t stride, size_t c) {
     float lo = 0, hi = 0;
+    size_t finite = 0, other = 0;
     for (size_t k = c; k < v.size(); k += stride) {
-      lo = k == c ? v[k] : std::min(lo, v[k]);
-      hi = k == c ? v[k] : std::max(hi, v[k]);
+      if (!std::isfinite(v[k])) {
+        ++other;
+        continue;
+      }
+      lo = finite == 0 ? v[k] : std::min(lo, v[k]);
+      hi = finite == 0 ? v[k] : std::max(hi, v[k]);
+      ++finite;
     }
     std::ostringstream os;
     os << "[" << lo << ", " << hi << "]";
+    if (other) os << " (" << other << " non-finite)";
     return os.str();
   };
   for (size_t k = 0; k < r.frames().size(); ++k) {
@@ -225,10 +233,15 @@ int cmd_inspect(const std::string& path) {
     if (!f.pressure.empty()) std::cout << "  pressure " << range(f.pressure, 1, 0);
     if (!f.velocity.empty()) {
       float vmax = 0;
-      for (size_t i = 0; i + 2 < f.velocity.size(); i += 3)
-        vmax = std::max(vmax, std::sqrt(f.velocity[i] * f.velocity[i] + f.velocity[i + 1] * f.velocity[i + 1] +
-                                        f.velocity[i + 2] * f.velocity[i + 2]));
+      size_t other = 0;
+      for (size_t i = 0; i + 2 < f.velocity.size(); i += 3) {
+        const float v = std::sqrt(f.velocity[i] * f.velocity[i] + f.velocity[i + 1] * f.velocity[i + 1] +
+                                  f.velocity[i + 2] * f.velocity[i + 2]);
+        if (std::isfinite(v)) vmax = std::max(vmax, v);
+        else ++other;
+      }
       std::cout << "  |v| max " << vmax;
+      if (other) std::cout << " (" << other << " non-finite)";
     }
     if (!f.presence.empty()) std::cout << "  presence " << range(f.presence, 1, 0);
     if (!f.field.empty())

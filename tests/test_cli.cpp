@@ -13,6 +13,7 @@
 
 #include "catch.h"
 #include "helpers.h"
+#include "../src/frames_h5.h"
 #include "../src/render.h"
 
 namespace {
@@ -194,6 +195,20 @@ TEST_CASE("sphray run --export and sphray inspect: bad paths and bad files exit 
   CHECK(has(r.output, "frames 2"));
   CHECK(has(r.output, "000001  t = 0.02 s"));
   CHECK(has(r.output, "density ["));
+  {  // non-finite values other than positions: counted beside the ranges (min/max alone skipped them)
+    sphray::FrameWriter w("/tmp/sphray_cli_nan.h5", sphray::FileHeader{"{}", "test", "cpu", {}}, 0);
+    sphray::Frame f;
+    f.id = {0, 1, 2};
+    f.position.assign(9, 0.5f);
+    f.density = {1000.0f, NAN, 1002.0f};
+    f.velocity = {0, 0, 1, INFINITY, 0, 0, 0, 2, 0};
+    w.submit(std::move(f));
+    w.finish();
+  }
+  r = run_cli("inspect /tmp/sphray_cli_nan.h5");
+  CHECK(r.code == 0);
+  CHECK(has(r.output, "density [1000, 1002] (1 non-finite)"));
+  CHECK(has(r.output, "|v| max 2 (1 non-finite)"));
   // an export where a scene goes: told what it is and what to run instead
   r = run_cli("run /tmp/sphray_cli.h5 --backend cpu");
   CHECK(r.code == 2);
