@@ -96,6 +96,7 @@ RunSummary run_scene(const Scene& s, Solver& solver, const RunOptions& opt, std:
   // the mean read below the min.
   double dt_sum = 0;
   uint64_t free_steps = 0, particle_steps = 0;
+  double last_free_dt = 0;  // the progress line's dt
 
   while (solver.time() < end - 1e-12) {
     const double next_output = std::min(end, (frame + 1) * every);
@@ -107,6 +108,7 @@ RunSummary run_scene(const Scene& s, Solver& solver, const RunOptions& opt, std:
       const StepLimits& l = solver.last_limits();
       if (solver.time() < next_output - 1e-12) {  // not the shortened last step
         dt_sum += l.dt;
+        last_free_dt = l.dt;
         ++free_steps;
         r.min_dt = std::min(r.min_dt, double(l.dt));
       }
@@ -121,7 +123,8 @@ RunSummary run_scene(const Scene& s, Solver& solver, const RunOptions& opt, std:
       const double wall = std::chrono::duration<double>(now - t0).count();
       const double eta = solver.time() > 0 ? wall * (end - solver.time()) / solver.time() : 0.0;
       log << "  t = " << std::fixed << std::setprecision(4) << solver.time() << " / " << end << " s  step "
-          << solver.steps() << "  dt " << std::scientific << std::setprecision(2) << solver.last_limits().dt
+          << solver.steps() << "  dt " << std::scientific << std::setprecision(2)
+          << (last_free_dt > 0 ? last_free_dt : double(solver.last_limits().dt))
           << " s  " << (wall > 0 ? particle_steps / wall : 0.0) << " particle-steps/s  ETA "
           << format_seconds(eta) << std::defaultfloat << "\n";
       log.flush();
