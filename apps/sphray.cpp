@@ -3,6 +3,7 @@
 #include <CLI/CLI.hpp>
 
 #include <algorithm>
+#include <cctype>
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
@@ -256,6 +257,17 @@ bool is_png_path(const std::string& p) {
   return p.size() > 4 && (p.compare(p.size() - 4, 4, ".png") == 0 || p.compare(p.size() - 4, 4, ".PNG") == 0);
 }
 
+// sphray writes PNG only: an image name of another format would have become a
+// directory of PNGs (--out) or PNG bytes under a .jpg name (--screenshot).
+void check_not_other_image(const std::string& path, const char* flag) {
+  std::string ext = std::filesystem::path(path).extension().string();
+  for (char& c : ext) c = char(std::tolower(static_cast<unsigned char>(c)));
+  for (const char* other : {".jpg", ".jpeg", ".bmp", ".tga", ".gif", ".tif", ".tiff", ".exr", ".hdr", ".ppm", ".webp"})
+    if (ext == other)
+      throw std::runtime_error(std::string(flag) + " '" + path + "': sphray writes PNG images; give a .png name" +
+                               (std::string(flag) == "--out" ? ", or a directory for a sequence" : ""));
+}
+
 // A file we are about to write after a long computation: fail now if we cannot.
 void check_writable(const std::string& path, const char* flag = "--out") {
   const bool existed = std::filesystem::exists(path);
@@ -274,6 +286,7 @@ struct RenderArgs {
 // `sphray render SCENE --out x.png [--time T]`: one frame at time T;
 // `sphray render SCENE --out DIR`: every output frame (as run --frames-dir).
 int render_scene(const RenderArgs& ra, const std::string& backend_arg, std::vector<std::string> sets) {
+  check_not_other_image(ra.out, "--out");
   const bool single = is_png_path(ra.out);
   if (single && ra.time >= 0) {
     std::ostringstream t;
@@ -322,6 +335,7 @@ int render_file(const RenderArgs& ra, const std::string& backend_arg, const std:
   if (ra.frame >= 0 && size_t(ra.frame) >= n)
     throw std::runtime_error("--frame " + std::to_string(ra.frame) + ": '" + ra.from + "' holds frames 0 .. " +
                              std::to_string(n - 1));
+  check_not_other_image(ra.out, "--out");
   const bool single = is_png_path(ra.out);
   if (single && ra.frame < 0 && n > 1)
     throw std::runtime_error("--out '" + ra.out + "' is one image but '" + ra.from + "' holds " + std::to_string(n) +
@@ -519,7 +533,10 @@ int main(int argc, char** argv) {
     if (view->parsed()) {
       if (!view_opt.screenshot.empty() && view_opt.frames == 0)
         throw std::runtime_error("--screenshot needs --frames N");
-      if (!view_opt.screenshot.empty()) check_writable(view_opt.screenshot, "--screenshot");
+      if (!view_opt.screenshot.empty()) {
+        check_not_other_image(view_opt.screenshot, "--screenshot");
+        check_writable(view_opt.screenshot, "--screenshot");
+      }
       add_frame_overrides(view_frame_args, view_opt.sets);
       if (!view_resize.empty()) {
         std::tie(view_opt.resize_w, view_opt.resize_h) = parse_wxh(view_resize, "--resize");

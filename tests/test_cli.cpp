@@ -3,6 +3,7 @@
 #include <cstdio>
 #include <cstdlib>
 #include <cmath>
+#include <filesystem>
 #include <fstream>
 #include <sstream>
 #include <set>
@@ -280,6 +281,15 @@ TEST_CASE("sphray render and --frames-dir report bad input with exit code 2", "[
   r = run_cli("render --from /nonexistent.h5 --backend cpu --out /tmp/x.png");
   CHECK(r.code == 2);
   CHECK(has(r.output, "missing or unreadable"));
+  // An image name of another format: refused before the run (it became a directory of PNGs).
+  std::filesystem::remove_all("/tmp/sphray_x.jpg");
+  r = run_cli("render " + scene + " --backend cpu --out /tmp/sphray_x.jpg");
+  CHECK(r.code == 2);
+  CHECK(has(r.output, "--out '/tmp/sphray_x.jpg': sphray writes PNG images"));
+  CHECK_FALSE(std::filesystem::exists("/tmp/sphray_x.jpg"));
+  r = run_cli("view --frames 2 --screenshot /tmp/sphray_x.JPEG");
+  CHECK(r.code == 2);
+  CHECK(has(r.output, "--screenshot '/tmp/sphray_x.JPEG': sphray writes PNG images; give a .png name"));
   r = run_cli("render " + scene + " --backend cpu --out /tmp/x.png --set render.interfaces=12");
   CHECK(r.code == 2);
   CHECK(has(r.output, "render.interfaces"));
