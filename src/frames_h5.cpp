@@ -1,7 +1,10 @@
 #include "frames_h5.h"
 
+#include <fcntl.h>
 #include <hdf5.h>
+#include <sys/file.h>
 #include <sys/statvfs.h>
+#include <unistd.h>
 
 #include <cerrno>
 #include <cmath>
@@ -142,11 +145,28 @@ std::string frame_name(size_t k) {
   return buf;
 }
 
+// HDF5 truncates an existing file before it takes its lock (H5Fcreate with
+// H5F_ACC_TRUNC opens it with O_TRUNC, then flock fails): a second run
+// exporting to the file of a run still writing it emptied that file and
+// failed, and the first run went on to finish a corrupt one. So the lock that
+// HDF5 would take (flock, exclusive) is tried first on a descriptor of our
+// own, and given back at once.
+void refuse_if_in_use(const std::string& path) {
+  const int fd = ::open(path.c_str(), O_RDONLY | O_CLOEXEC);
+  if (fd < 0) return;  // no such file yet (or unreadable: H5Fcreate says so)
+  const bool busy = ::flock(fd, LOCK_EX | LOCK_NB) != 0 && errno == EWOULDBLOCK;
+  ::close(fd);
+  if (busy)
+    throw FrameFileError(path + ": in use by another process (a run still writing it, or a program reading it); "
+                         "not overwritten");
+}
+
 }  // namespace
 
 // ---------------- writer ----------------
 
 FrameWriter::FrameWriter(const std::string& path, const FileHeader& header, int gzip) : path_(path), gzip_(gzip) {
+  refuse_if_in_use(path);
   errno = 0;
   Handle fapl{check(H5Pcreate(H5P_FILE_ACCESS), path, "property list"), H5Pclose};
   // The 1.8 file format: readable by every HDF5 >= 1.8 (h5py, ParaView).
@@ -353,6 +373,13 @@ FrameReader::FrameReader(const std::string& path) : path_(path) {
   const htri_t is = H5Fis_hdf5(path.c_str());
   if (is == 0) throw FrameFileError(path + ": not an HDF5 file");
   file_ = is > 0 ? H5Fopen(path.c_str(), H5F_ACC_RDONLY, H5P_DEFAULT) : -1;
+  // HDF5 locks a file while a writer has it open: a run still exporting.
+  if (file_ < 0 && (errno == EAGAIN || errno == EWOULDBLOCK)) {
+    H5Eclear2(H5E_DEFAULT);
+    throw FrameFileError(path + ": locked by another process (a run still writing it?). Wait for it to finish, or "
+                         "read the frames flushed so far with HDF5_USE_FILE_LOCKING=FALSE set (a frame being written "
+                         "at that moment may read as damaged)");
+  }
   if (file_ < 0) fail(path, "cannot open as HDF5 (truncated or damaged file?)");
   try {
     const std::string format = read_attr_string(file_, "format", path);

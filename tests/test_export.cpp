@@ -113,7 +113,8 @@ TEST_CASE("export round trip: every dataset and attribute reads back exactly", "
   CHECK(has(ss.str(), "CollectionType=\"Temporal\""));
 }
 
-TEST_CASE("a run killed with SIGKILL mid-export leaves a file that opens with its frames", "[export]") {
+TEST_CASE("a run killed with SIGKILL mid-export leaves a file that opens with its frames; while it ran, the file "
+          "was refused to another writer and explained to a reader", "[export]") {
   const std::string path = "/tmp/sphray_killed.h5";
   std::remove(path.c_str());
   std::remove("/tmp/sphray_killed.xmf");
@@ -136,6 +137,21 @@ TEST_CASE("a run killed with SIGKILL mid-export leaves a file that opens with it
     std::stringstream ss;
     ss << x.rdbuf();
     ready = has(ss.str(), "/frames/000003/");
+  }
+  // While the run writes the file: another writer is refused without touching
+  // it (HDF5's create truncated it before failing on the lock, and the run
+  // then finished a corrupt file), and a reader is told what holds it.
+  if (ready) {
+    const auto size = std::filesystem::file_size(path);
+    try {
+      FrameWriter w(path, FileHeader{"{}", "test", "cpu", {}}, 0);
+      FAIL("a second writer opened a file being written");
+    } catch (const FrameFileError& e) {
+      CHECK(std::string(e.what()) == path + ": in use by another process (a run still writing it, or a program "
+                                            "reading it); not overwritten");
+    }
+    CHECK(std::filesystem::file_size(path) >= size);  // not emptied (the run may have added a frame)
+    CHECK(has(error_of(path), path + ": locked by another process (a run still writing it?)"));
   }
   kill(pid, SIGKILL);
   int status = 0;
