@@ -87,6 +87,28 @@ void add_frame_overrides(const FrameArgs& fa, std::vector<std::string>& sets) {
   if (fa.every > 0) sets.push_back("render.frames_every=" + std::to_string(fa.every));
 }
 
+// The files a command writes must be neither its input nor each other: `run
+// dam.json --export dam.json` replaced the scene with the export, and two
+// outputs on one path would interleave. Each pair is {flag, path}; the first
+// is the input. Paths compare after resolving symbolic links and `..`, and
+// existing files also by identity (hard links).
+void check_distinct_files(const std::vector<std::pair<std::string, std::string>>& files) {
+  namespace fs = std::filesystem;
+  auto same = [](const std::string& a, const std::string& b) {
+    std::error_code e1, e2, e3;
+    if (fs::weakly_canonical(a, e1) == fs::weakly_canonical(b, e2) && !e1 && !e2) return true;
+    return fs::exists(a, e1) && fs::exists(b, e2) && fs::equivalent(a, b, e3) && !e3;
+  };
+  for (size_t i = 1; i < files.size(); ++i) {
+    if (files[i].second.empty()) continue;
+    for (size_t k = 0; k < i; ++k)
+      if (!files[k].second.empty() && same(files[i].second, files[k].second))
+        throw std::runtime_error(files[i].first + ": '" + files[i].second + "' is " +
+                                 (k == 0 ? "the " + files[0].first + " itself" : "also " + files[k].first) +
+                                 "; not overwritten");
+  }
+}
+
 int cmd_run(const std::string& scene_path, const std::string& backend_name_arg, std::vector<std::string> sets,
             const std::string& metrics_csv, const std::string& summary_json, bool quiet, const ExportArgs& ex,
             const FrameArgs& fa) {
@@ -96,6 +118,8 @@ int cmd_run(const std::string& scene_path, const std::string& backend_name_arg, 
   const Scene scene = load_scene(scene_path, sets);
   const std::set<std::string> export_fields = parse_export_fields(ex.fields);
   if (ex.path.empty() && !ex.fields.empty()) throw std::runtime_error("--export-fields needs --export FILE");
+  check_distinct_files({{"scene file", scene_path}, {"--export", ex.path}, {"--metrics-csv", metrics_csv},
+                        {"--summary-json", summary_json}, {"--frames-dir", fa.dir}});
   // Outputs are opened before the run, so an unwritable path fails in a
   // second, not after the simulation.
   std::ofstream csv, summary;

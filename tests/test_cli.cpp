@@ -24,17 +24,22 @@ struct Result {
   std::string output;
 };
 
+std::string slurp(const std::string& path) {
+  std::ifstream f(path, std::ios::binary);
+  std::stringstream ss;
+  ss << f.rdbuf();
+  return ss.str();
+}
+
 Result run_cli(const std::string& args) {
   const std::string out = "/tmp/sphray_cli_test.txt";
   const std::string cmd = std::string(SPHRAY_EXE) + " " + args + " > " + out + " 2>&1";
   const int status = std::system(cmd.c_str());
-  std::ifstream f(out);
-  std::stringstream ss;
-  ss << f.rdbuf();
-  return {WIFEXITED(status) ? WEXITSTATUS(status) : -1, ss.str()};
+  return {WIFEXITED(status) ? WEXITSTATUS(status) : -1, slurp(out)};
 }
 
 bool has(const std::string& s, const std::string& part) { return s.find(part) != std::string::npos; }
+
 
 }  // namespace
 
@@ -43,6 +48,18 @@ TEST_CASE("sphray run reports bad input with exit code 2", "[cli][cpu]") {
   Result r = run_cli("run /nonexistent.json --backend cpu");
   CHECK(r.code == 2);
   CHECK(has(r.output, "cannot open scene file"));
+  {  // an output on the scene file, or two outputs on one path: refused, the scene left as it was
+    std::filesystem::copy_file(scene, "/tmp/sphray_own.json", std::filesystem::copy_options::overwrite_existing);
+    const std::string before = slurp("/tmp/sphray_own.json");
+    r = run_cli("run /tmp/sphray_own.json --backend cpu --quiet --export /tmp/../tmp/sphray_own.json");
+    CHECK(r.code == 2);
+    CHECK(has(r.output, "--export: '/tmp/../tmp/sphray_own.json' is the scene file itself; not overwritten"));
+    r = run_cli("run /tmp/sphray_own.json --backend cpu --quiet --metrics-csv /tmp/sphray_o.csv "
+                "--summary-json /tmp/sphray_o.csv");
+    CHECK(r.code == 2);
+    CHECK(has(r.output, "--summary-json: '/tmp/sphray_o.csv' is also --metrics-csv"));
+    CHECK(slurp("/tmp/sphray_own.json") == before);
+  }
   r = run_cli("rnu " + scene);  // CLI11 alone said "A subcommand is required"
   CHECK(r.code == 2);
   CHECK(has(r.output, "unknown command 'rnu': one of run, render, view, inspect, bench"));
