@@ -311,6 +311,7 @@ struct RenderArgs {
 // `sphray render SCENE --out DIR`: every output frame (as run --frames-dir).
 int render_scene(const RenderArgs& ra, const std::string& backend_arg, std::vector<std::string> sets) {
   check_not_other_image(ra.out, "--out");
+  check_distinct_files({{"scene file", ra.scene}, {"--out", ra.out}});
   const bool single = is_png_path(ra.out);
   if (single && ra.time >= 0) {
     std::ostringstream t;
@@ -327,7 +328,7 @@ int render_scene(const RenderArgs& ra, const std::string& backend_arg, std::vect
   const StageNeeds needs = needs_of(scene, true, false);
   auto solver = make_solver(scene, b, needs);
   auto field = make_field(scene, b, needs);
-  FrameRenderer frames(scene, b, field->setup(), single ? "" : ra.out);
+  FrameRenderer frames(scene, b, field->setup(), single ? "" : ra.out, "--out");
   const int last = scene.run.end_time > 0 ? 1 : 0;
   const int every = scene.render.frames_every;
   RunOptions opt;
@@ -352,6 +353,8 @@ int render_scene(const RenderArgs& ra, const std::string& backend_arg, std::vect
 // `sphray render --from out.h5 --out DIR|x.png [--frame K]`: the exported
 // particles, their field rebuilt on the chosen backend, rendered.
 int render_file(const RenderArgs& ra, const std::string& backend_arg, const std::vector<std::string>& sets) {
+  check_not_other_image(ra.out, "--out");
+  check_distinct_files({{"--from file", ra.from}, {"--out", ra.out}});
   const FrameReader reader(ra.from);
   const Scene scene = parse_scene(reader.header().scene_json, ra.from + " (its scene)", sets);
   const size_t n = reader.frames().size();
@@ -359,7 +362,6 @@ int render_file(const RenderArgs& ra, const std::string& backend_arg, const std:
   if (ra.frame >= 0 && size_t(ra.frame) >= n)
     throw std::runtime_error("--frame " + std::to_string(ra.frame) + ": '" + ra.from + "' holds frames 0 .. " +
                              std::to_string(n - 1));
-  check_not_other_image(ra.out, "--out");
   const bool single = is_png_path(ra.out);
   if (single && ra.frame < 0 && n > 1)
     throw std::runtime_error("--out '" + ra.out + "' is one image but '" + ra.from + "' holds " + std::to_string(n) +
@@ -368,7 +370,7 @@ int render_file(const RenderArgs& ra, const std::string& backend_arg, const std:
   const Backend b = choose_backend(backend_arg, std::cout);
   const FieldSetup fs = make_field_setup(scene);
   auto field = make_field_builder(b, fs);
-  FrameRenderer frames(scene, b, fs, single ? "" : ra.out);
+  FrameRenderer frames(scene, b, fs, single ? "" : ra.out, "--out");
   const FieldKind kind = parse_field_kind(scene.field.builder);
   const size_t first = ra.frame >= 0 ? size_t(ra.frame) : 0, end = ra.frame >= 0 ? first + 1 : n;
   for (size_t k = first; k < end; ++k) {

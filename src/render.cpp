@@ -91,7 +91,8 @@ std::unique_ptr<Renderer> make_renderer(Backend b) {
   return b == Backend::Cuda ? make_cuda_renderer() : make_cpu_renderer();
 }
 
-FrameRenderer::FrameRenderer(const Scene& s, Backend b, const FieldSetup& fs, const std::string& dir)
+FrameRenderer::FrameRenderer(const Scene& s, Backend b, const FieldSetup& fs, const std::string& dir,
+                             const std::string& flag)
     : renderer_(make_renderer(b)), rs_(s.render), cam_(make_camera(s, s.render)),
       dir_(dir) {
   env_ = make_environment(s, fs.geom, cam_);
@@ -99,10 +100,10 @@ FrameRenderer::FrameRenderer(const Scene& s, Backend b, const FieldSetup& fs, co
   std::error_code ec;
   std::filesystem::create_directories(dir_, ec);
   if (ec || !std::filesystem::is_directory(dir_))
-    throw std::runtime_error("--frames-dir: cannot create directory '" + dir_ + "'" + (ec ? ": " + ec.message() : ""));
+    throw std::runtime_error(flag + ": cannot create directory '" + dir_ + "'" + (ec ? ": " + ec.message() : ""));
   const std::string probe = (std::filesystem::path(dir_) / ".sphray_write_test").string();
   std::FILE* f = std::fopen(probe.c_str(), "wb");
-  if (!f) throw std::runtime_error("--frames-dir: cannot write into '" + dir_ + "'");
+  if (!f) throw std::runtime_error(flag + ": cannot write into '" + dir_ + "'");
   std::fclose(f);
   std::remove(probe.c_str());
   png_ = std::make_unique<BackgroundQueue>();

@@ -64,8 +64,10 @@ TraceSettings make_trace_settings(const RenderSettings& r, const FieldSetup& fs)
 class FrameRenderer {
  public:
   // `dir` (may be empty when only render_to is used) is created; a directory
-  // that cannot be written is an error here, before any simulation.
-  FrameRenderer(const Scene& s, Backend b, const FieldSetup& fs, const std::string& dir);
+  // that cannot be written is an error here, before any simulation, naming
+  // the option that gave it (`flag`).
+  FrameRenderer(const Scene& s, Backend b, const FieldSetup& fs, const std::string& dir,
+                const std::string& flag = "--frames-dir");
   ~FrameRenderer();  // writes what is queued; a failure is reported by finish()
   // Renders dir/frame_NNNNNN.png; the PNG is encoded and written on a
   // background thread (BackgroundQueue), so the run does not wait for it.

@@ -307,6 +307,9 @@ TEST_CASE("sphray render and --frames-dir report bad input with exit code 2", "[
   r = run_cli("view --frames 2 --screenshot /tmp/sphray_x.JPEG");
   CHECK(r.code == 2);
   CHECK(has(r.output, "--screenshot '/tmp/sphray_x.JPEG': sphray writes PNG images; give a .png name"));
+  r = run_cli("render " + scene + " --backend cpu --out /proc/sphray_frames");  // named as render's option
+  CHECK(r.code == 2);
+  CHECK(has(r.output, "--out: cannot create directory '/proc/sphray_frames'"));
   r = run_cli("render " + scene + " --backend cpu --out /tmp/x.png --set render.interfaces=12");
   CHECK(r.code == 2);
   CHECK(has(r.output, "render.interfaces"));
@@ -317,6 +320,9 @@ TEST_CASE("sphray render and --frames-dir report bad input with exit code 2", "[
   r = run_cli("render --from /tmp/sphray_render2.h5 --backend cpu --frame 5 --out /tmp/x.png");
   CHECK(r.code == 2);
   CHECK(has(r.output, "holds frames 0 .. 1"));
+  r = run_cli("render --from /tmp/sphray_render2.h5 --backend cpu --out /tmp/sphray_render2.h5");
+  CHECK(r.code == 2);
+  CHECK(has(r.output, "--out: '/tmp/sphray_render2.h5' is the --from file itself; not overwritten"));
   r = run_cli("render --from /tmp/sphray_render2.h5 --backend cpu --out /tmp/x.png");
   CHECK(r.code == 2);
   CHECK(has(r.output, "give --frame K, or a directory"));
