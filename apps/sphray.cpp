@@ -195,7 +195,20 @@ int cmd_run(const std::string& scene_path, const std::string& backend_name_arg, 
     }
     if (writer && frame % ex.every == 0) writer->submit(capture_frame(s, prm, export_fields, field.get()));
   };
-  const RunSummary r = run_scene(scene, *solver, opt, std::cout);
+  RunSummary r;
+  try {
+    r = run_scene(scene, *solver, opt, std::cout);
+  } catch (const std::exception& e) {
+    // A run stopped by a guard (or a failed write) still leaves a summary
+    // that says so, where the file opened before the run was left empty.
+    if (summary.is_open())
+      summary << nlohmann::json{{"status", "stopped"}, {"error", e.what()}, {"scene", scene_path},
+                                {"backend", backend_name(b)}, {"steps", solver->steps()},
+                                {"sim_time_s", solver->time()}, {"spacing_m", scene.sph.spacing}}
+                     .dump(2)
+              << "\n";
+    throw;
+  }
   if (frames) frames->finish();  // the last PNGs are still being written
   print_summary(r, std::cout);
   if (frames)
@@ -208,10 +221,13 @@ int cmd_run(const std::string& scene_path, const std::string& backend_name_arg, 
               << " next to it); the run waited " << writer->seconds_waited() << " s on the writer\n";
   }
   if (!summary_json.empty()) {
-    nlohmann::json j = {{"scene", scene_path}, {"backend", backend_name(r.backend)}, {"steps", r.steps},
-                        {"sim_time_s", r.sim_time}, {"wall_s", r.wall_seconds}, {"fluid_start", r.fluid_start},
-                        {"fluid_end", r.fluid_end}, {"removed", r.removed}, {"clamped", r.clamped},
-                        {"particle_steps", r.particle_steps}, {"spacing_m", scene.sph.spacing}, {"mean_dt_s", r.mean_dt}, {"max_speed_m_s", r.max_speed}};
+    nlohmann::json j = {{"status", "completed"},       {"scene", scene_path},
+                        {"backend", backend_name(r.backend)}, {"steps", r.steps},
+                        {"sim_time_s", r.sim_time},        {"wall_s", r.wall_seconds},
+                        {"fluid_start", r.fluid_start},    {"fluid_end", r.fluid_end},
+                        {"removed", r.removed},            {"clamped", r.clamped},
+                        {"particle_steps", r.particle_steps}, {"spacing_m", scene.sph.spacing},
+                        {"mean_dt_s", r.mean_dt},          {"max_speed_m_s", r.max_speed}};
     if (r.field_builds)
       j["field"] = {{"builder", r.field_builder}, {"volume", r.field_dims}, {"builds", r.field_builds},
                     {"ms_per_build", r.field_ms_mean}, {"builds_without_presence", r.field_without_presence}};

@@ -125,12 +125,31 @@ TEST_CASE("sphray run warns when the wall guard, not the walls, held the liquid"
     REQUIRE(r.code == 0);
     std::ifstream f("/tmp/sphray_clamps.json");
     const nlohmann::json j = nlohmann::json::parse(f);
+    CHECK(j.at("status") == "completed");
     const double share = j.at("clamped").get<double>() / j.at("particle_steps").get<double>();
     CHECK(j.at("particle_steps").get<double>() == j.at("steps").get<double>() * j.at("fluid_start").get<double>());
     CHECK((share > sphray::kWallClampShareBound) == thin);
     CHECK(has(r.output, "note: sph.boundary_layers = 1 is thinner than the kernel support (4 layers") == thin);
     CHECK(has(r.output, "warning        the wall guard, not the walls' pressure, held the liquid") == thin);
   }
+}
+
+TEST_CASE("a run stopped by a guard exits 1 and leaves a summary JSON that says so", "[cli][cpu]") {
+  // The particle dropped 0.3 m with c0 = 2 m/s outruns c0 at t = 0.204 s
+  // (free fall, tests/test_sph.cpp); the summary file, opened before the run,
+  // was left empty.
+  std::ofstream("/tmp/sphray_drop.json") << R"({"tank": {"min": [0,0,0], "max": [0.1,0.1,0.4]},
+    "fluid": [{"min": [0.045,0.045,0.295], "max": [0.055,0.055,0.305]}],
+    "sph": {"spacing": 0.01, "speed_of_sound": 2}, "run": {"end_time": 0.4}})";
+  const Result r = run_cli("run /tmp/sphray_drop.json --backend cpu --quiet --summary-json /tmp/sphray_drop_summary.json");
+  CHECK(r.code == 1);
+  CHECK(has(r.output, "faster than the speed of sound"));
+  std::ifstream f("/tmp/sphray_drop_summary.json");
+  const nlohmann::json j = nlohmann::json::parse(f);
+  CHECK(j.at("status") == "stopped");
+  CHECK(has(j.at("error").get<std::string>(), "faster than the speed of sound c0 = 2 m/s"));
+  CHECK(j.at("steps").get<int>() > 0);
+  CHECK(j.at("sim_time_s").get<double>() == Approx(0.204).margin(0.002));
 }
 
 TEST_CASE("sphray run builds the field at every frame when the scene has one", "[cli][cpu]") {
