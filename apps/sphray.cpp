@@ -164,10 +164,10 @@ int cmd_run(const std::string& scene_path, const std::string& backend_name_arg, 
               << " m/s (10x the flow speed " << v << " m/s the scene can reach): density varies as (v / c0)^2, about "
               << 100 * (v / scene.sph.speed_of_sound) * (v / scene.sph.speed_of_sound)
               << "% here, and the run stops if a particle outruns c0\n" << std::setprecision(6);
-  if (const int layers = auto_boundary_layers(scene); scene.sph.boundary_layers > 0 && scene.sph.boundary_layers < layers)
-    std::cout << "  note: sph.boundary_layers = " << scene.sph.boundary_layers << " is thinner than the kernel support ("
-              << layers << " layers, \"auto\"): near a wall part of a particle's kernel is empty and the walls may "
-              << "not hold the liquid (the summary counts the particle-steps put back on a wall face)\n";
+  if (const int layers = auto_boundary_layers(scene), given = scene.sph.boundary_layers; given > 0 && given < layers)
+    std::cout << "  note: sph.boundary_layers = " << given << " is thinner than the kernel support (" << layers
+              << " layers, \"auto\"): near a wall part of a particle's kernel is empty and the walls may not hold "
+              << "the liquid (the summary counts the particle-steps put back on a wall face)\n";
 
   const double mass = prm.particle_mass;
   RunOptions opt;

@@ -141,7 +141,8 @@ TEST_CASE("a run stopped by a guard exits 1 and leaves a summary JSON that says 
   std::ofstream("/tmp/sphray_drop.json") << R"({"tank": {"min": [0,0,0], "max": [0.1,0.1,0.4]},
     "fluid": [{"min": [0.045,0.045,0.295], "max": [0.055,0.055,0.305]}],
     "sph": {"spacing": 0.01, "speed_of_sound": 2}, "run": {"end_time": 0.4}})";
-  const Result r = run_cli("run /tmp/sphray_drop.json --backend cpu --quiet --summary-json /tmp/sphray_drop_summary.json");
+  const Result r =
+      run_cli("run /tmp/sphray_drop.json --backend cpu --quiet --summary-json /tmp/sphray_drop_summary.json");
   CHECK(r.code == 1);
   CHECK(has(r.output, "faster than the speed of sound"));
   std::ifstream f("/tmp/sphray_drop_summary.json");
