@@ -1,5 +1,6 @@
 #include "render.h"
 
+#include <cerrno>
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
@@ -139,11 +140,33 @@ void FrameRenderer::write_frame(const ParticleView& pv, const FieldBuilder& fiel
   if (!png_->submit([img, path] { write_png(path, *img); })) throw std::runtime_error("--frames-dir: " + png_->error());
 }
 
+// stb's stbi_write_png ignores the errors of fwrite and fclose: on a full disk
+// it left empty and truncated frames and reported success. So stb encodes to
+// memory, and the bytes go to path.tmp with every error checked and are then
+// renamed over path: a frame_NNNNNN.png is always whole (a failed or killed
+// write leaves at most a .tmp).
 void write_png(const std::string& path, const Image& img) {
   if (img.width <= 0 || img.height <= 0 || img.rgba.size() != size_t(img.width) * size_t(img.height))
     throw std::runtime_error("write_png: '" + path + "': image has no pixels or the wrong size");
-  if (!stbi_write_png(path.c_str(), img.width, img.height, 4, img.rgba.data(), img.width * 4))
-    throw std::runtime_error("cannot write PNG '" + path + "'");
+  std::vector<unsigned char> png;
+  auto append = [](void* out, void* data, int size) {
+    auto* v = static_cast<std::vector<unsigned char>*>(out);
+    v->insert(v->end(), static_cast<unsigned char*>(data), static_cast<unsigned char*>(data) + size);
+  };
+  if (!stbi_write_png_to_func(append, &png, img.width, img.height, 4, img.rgba.data(), img.width * 4))
+    throw std::runtime_error("cannot encode PNG '" + path + "'");
+  const std::string tmp = path + ".tmp";
+  auto fail = [&](int err) {
+    std::remove(tmp.c_str());
+    throw std::runtime_error("cannot write PNG '" + path + "': " + std::strerror(err));
+  };
+  errno = 0;
+  std::FILE* f = std::fopen(tmp.c_str(), "wb");
+  if (!f) fail(errno);
+  const bool written = std::fwrite(png.data(), 1, png.size(), f) == png.size();
+  const int write_err = errno;
+  if (std::fclose(f) != 0 || !written) fail(written ? errno : write_err);
+  if (std::rename(tmp.c_str(), path.c_str()) != 0) fail(errno);
 }
 
 Image read_png(const std::string& path) {

@@ -294,6 +294,44 @@ TEST_CASE("a full disk stops the run with a message and keeps the frames written
   std::system(("umount " + dir).c_str());
 }
 
+TEST_CASE("PNG frames on a full disk: the run stops naming the frame, and every PNG left is whole", "[export]") {
+  // stb's own file writer ignored write errors: on a full disk the run
+  // reported "11 PNGs" and left empty and truncated frames. Needs a small
+  // tmpfs (root), as the HDF5 case above.
+  const std::string dir = "/tmp/sphray_tiny_png";
+  std::system(("mkdir -p " + dir).c_str());
+  if (std::system(("mount -t tmpfs -o size=200k tmpfs " + dir + " 2>/dev/null").c_str()) != 0) {
+    WARN("cannot mount a small tmpfs here (not root?): the full-disk PNG case was not exercised");
+    return;
+  }
+  struct Unmount {
+    std::string dir;
+    ~Unmount() { std::system(("umount " + dir).c_str()); }
+  } unmount{dir};  // also when a check below throws
+  const std::string cmd = std::string(SPHRAY_EXE) + " run " + test::source_path("scenes/dam_break.json") +
+                          " --backend cpu --quiet --set sph.spacing=0.05 --set run.end_time=0.2 --frames-dir " + dir +
+                          " > /tmp/sphray_png_full.log 2>&1";
+  const int status = std::system(cmd.c_str());
+  std::ifstream log("/tmp/sphray_png_full.log");
+  std::stringstream ss;
+  ss << log.rdbuf();
+  INFO(ss.str());
+  CHECK(WIFEXITED(status));
+  CHECK(WEXITSTATUS(status) != 0);
+  CHECK(has(ss.str(), "cannot write PNG '" + dir + "/frame_"));
+  CHECK(has(ss.str(), "No space left on device"));
+  int whole = 0;
+  for (const auto& e : std::filesystem::directory_iterator(dir)) {
+    const std::string name = e.path().filename().string();
+    INFO(name);
+    CHECK(e.path().extension() == ".png");  // no .tmp left behind
+    const Image img = read_png(e.path().string());  // throws on a truncated file
+    CHECK(img.width == 640);
+    ++whole;
+  }
+  CHECK(whole >= 1);
+}
+
 TEST_CASE("the background queue runs jobs in order and stops at the first failure", "[export]") {
   std::vector<int> ran;
   BackgroundQueue q;
