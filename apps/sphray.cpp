@@ -4,7 +4,9 @@
 
 #include <algorithm>
 #include <cctype>
+#include <cerrno>
 #include <cmath>
+#include <cstring>
 #include <cstdio>
 #include <filesystem>
 #include <set>
@@ -85,6 +87,11 @@ void add_frame_overrides(const FrameArgs& fa, std::vector<std::string>& sets) {
     sets.push_back("render.height=" + std::to_string(h));
   }
   if (fa.every > 0) sets.push_back("render.frames_every=" + std::to_string(fa.every));
+}
+
+// "FLAG: cannot write 'PATH': reason", the reason from errno when a write set it.
+std::string write_failure(const std::string& flag, const std::string& path) {
+  return flag + ": cannot write '" + path + "'" + (errno ? std::string(": ") + std::strerror(errno) : "");
 }
 
 // The files a command writes must be neither its input nor each other: `run
@@ -189,9 +196,13 @@ int cmd_run(const std::string& scene_path, const std::string& backend_name_arg, 
     if (frames && frame % frames_every == 0) frames->write_frame(s.view(), *field, frame);
     if (csv.is_open()) {
       const HostParticles p = s.download();
+      errno = 0;
       csv << s.time() << "," << s.steps() << "," << s.num_fluid() << ","
           << surge_front(p, scene.tank.min.x, scene.sph.spacing) << "," << kinetic_energy(p, mass) << ","
           << s.last_limits().max_speed << "\n";
+      // Seen when the stream's buffer reaches the file, a few rows later:
+      // the run stops there rather than end with a cut-off CSV and exit 0.
+      if (!csv) throw OutputError(write_failure("--metrics-csv", metrics_csv));
     }
     if (writer && frame % ex.every == 0) writer->submit(capture_frame(s, prm, export_fields, field.get()));
   };
@@ -210,6 +221,11 @@ int cmd_run(const std::string& scene_path, const std::string& backend_name_arg, 
     throw;
   }
   if (frames) frames->finish();  // the last PNGs are still being written
+  if (csv.is_open()) {
+    errno = 0;
+    csv.close();
+    if (!csv) throw OutputError(write_failure("--metrics-csv", metrics_csv));
+  }
   print_summary(r, std::cout);
   if (frames)
     std::cout << "  frames         " << frames->frames_written() << " PNGs (" << scene.render.width << "x"
@@ -231,7 +247,10 @@ int cmd_run(const std::string& scene_path, const std::string& backend_name_arg, 
     if (r.field_builds)
       j["field"] = {{"builder", r.field_builder}, {"volume", r.field_dims}, {"builds", r.field_builds},
                     {"ms_per_build", r.field_ms_mean}, {"builds_without_presence", r.field_without_presence}};
-    if (!(summary << j.dump(2) << "\n")) throw std::runtime_error("--summary-json: cannot write '" + summary_json + "'");
+    errno = 0;
+    summary << j.dump(2) << "\n";
+    summary.close();
+    if (!summary) throw OutputError(write_failure("--summary-json", summary_json));
   }
   return 0;
 }
@@ -657,6 +676,9 @@ int main(int argc, char** argv) {
   } catch (const FrameFileError& e) {
     std::fprintf(stderr, "sphray: error: %s\n", e.what());
     return run->parsed() ? 1 : 2;  // a failed write during a run; a bad file given to read (run, render --from)
+  } catch (const OutputError& e) {  // PNG, CSV or JSON not written after the run began (a full disk)
+    std::fprintf(stderr, "sphray: error: %s\n", e.what());
+    return 1;
   } catch (const SceneError& e) {
     std::fprintf(stderr, "sphray: error: %s\n", e.what());
     return 2;

@@ -9,10 +9,19 @@
 #include <cstddef>
 #include <functional>
 #include <mutex>
+#include <stdexcept>
 #include <string>
 #include <thread>
 
 namespace sphray {
+
+// A file that a run writes as it goes (PNG frames, metrics CSV, summary JSON)
+// could not be written after the run began, e.g. a full disk: the run stops
+// (exit 1, as for the HDF5 export). A path that cannot be written at all is
+// found before the run and is bad input (exit 2).
+struct OutputError : std::runtime_error {
+  using std::runtime_error::runtime_error;
+};
 
 class BackgroundQueue {
  public:

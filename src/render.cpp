@@ -95,7 +95,7 @@ std::unique_ptr<Renderer> make_renderer(Backend b) {
 FrameRenderer::FrameRenderer(const Scene& s, Backend b, const FieldSetup& fs, const std::string& dir,
                              const std::string& flag)
     : renderer_(make_renderer(b)), rs_(s.render), cam_(make_camera(s, s.render)),
-      dir_(dir) {
+      dir_(dir), flag_(flag) {
   env_ = make_environment(s, fs.geom, cam_);
   if (dir_.empty()) return;
   std::error_code ec;
@@ -115,7 +115,7 @@ FrameRenderer::~FrameRenderer() {
 }
 
 void FrameRenderer::finish() {
-  if (png_ && !png_->finish()) throw std::runtime_error("--frames-dir: " + png_->error());
+  if (png_ && !png_->finish()) throw OutputError(flag_ + ": " + png_->error());
 }
 
 Image FrameRenderer::render(const ParticleView& pv, const FieldBuilder& field) {
@@ -126,7 +126,11 @@ Image FrameRenderer::render(const ParticleView& pv, const FieldBuilder& field) {
 }
 
 void FrameRenderer::render_to(const ParticleView& pv, const FieldBuilder& field, const std::string& png_path) {
-  write_png(png_path, render(pv, field));
+  try {
+    write_png(png_path, render(pv, field));
+  } catch (const std::runtime_error& e) {  // after the run that made the image
+    throw OutputError(e.what());
+  }
   ++written_;
 }
 
@@ -137,7 +141,7 @@ void FrameRenderer::write_frame(const ParticleView& pv, const FieldBuilder& fiel
   // The image leaves the renderer now (the next render reuses its buffer); stb encodes it on the writer thread.
   auto img = std::make_shared<Image>(render(pv, field));
   const std::string path = (std::filesystem::path(dir_) / name).string();
-  if (!png_->submit([img, path] { write_png(path, *img); })) throw std::runtime_error("--frames-dir: " + png_->error());
+  if (!png_->submit([img, path] { write_png(path, *img); })) throw OutputError(flag_ + ": " + png_->error());
 }
 
 // stb's stbi_write_png ignores the errors of fwrite and fclose: on a full disk

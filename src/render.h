@@ -87,7 +87,7 @@ class FrameRenderer {
   RenderSettings rs_;
   Camera cam_;
   Environment env_;
-  std::string dir_;
+  std::string dir_, flag_;  // flag_: the option that named dir_, for messages
   int written_ = 0, renders_ = 0;
   double render_ms_ = 0;
   std::unique_ptr<BackgroundQueue> png_;  // with a directory: the PNG writer

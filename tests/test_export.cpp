@@ -222,6 +222,33 @@ void put_dataset(const std::string& path, const std::string& name, const std::ve
   H5Fclose(f);
 }
 
+// A small tmpfs mounted at `dir` for the full-disk cases, unmounted when the
+// case ends (also when a check throws). Only root may mount one: elsewhere
+// mounted() is false and the case warns and passes.
+struct TinyFs {
+  std::string dir;
+  bool ok;
+  TinyFs(const std::string& d, const char* size) : dir(d) {
+    std::system(("mkdir -p " + dir).c_str());
+    ok = std::system(("mount -t tmpfs -o size=" + std::string(size) + " tmpfs " + dir + " 2>/dev/null").c_str()) == 0;
+    if (!ok) WARN("cannot mount a small tmpfs here (not root?): the full-disk case was not exercised");
+  }
+  ~TinyFs() {
+    if (ok) std::system(("umount " + dir).c_str());
+  }
+  bool mounted() const { return ok; }
+};
+
+// Runs the sphray command line `args`; exit code and output.
+std::pair<int, std::string> run_sphray(const std::string& args) {
+  const std::string log = "/tmp/sphray_export_cli.log";
+  const int status = std::system((std::string(SPHRAY_EXE) + " " + args + " > " + log + " 2>&1").c_str());
+  std::ifstream f(log);
+  std::stringstream ss;
+  ss << f.rdbuf();
+  return {WIFEXITED(status) ? WEXITSTATUS(status) : -1, ss.str()};
+}
+
 std::string read_error(const std::string& path) {
   try {
     FrameReader(path).read(0);
@@ -267,61 +294,33 @@ TEST_CASE("a frame whose datasets disagree with its particles, or has a non-fini
 }
 
 TEST_CASE("a full disk stops the run with a message and keeps the frames written before", "[export]") {
-  // Needs a small filesystem: a 2 MiB tmpfs, which only root may mount. Elsewhere the case says so and passes.
-  const std::string dir = "/tmp/sphray_tiny_fs";
-  std::system(("mkdir -p " + dir).c_str());
-  if (std::system(("mount -t tmpfs -o size=2m tmpfs " + dir + " 2>/dev/null").c_str()) != 0) {
-    WARN("cannot mount a small tmpfs here (not root?): the full-disk case was not exercised");
-    return;
-  }
-  const std::string scene = test::source_path("scenes/stress/one_cell.json");
-  const std::string cmd = std::string(SPHRAY_EXE) + " run " + scene +
-                          " --backend cpu --quiet --set run.end_time=0.2 --set run.output_interval=0.001 --export " +
-                          dir + "/x.h5 --export-fields velocity,density,field > /tmp/sphray_full.log 2>&1";
-  const int status = std::system(cmd.c_str());
-  std::ifstream log("/tmp/sphray_full.log");
-  std::stringstream ss;
-  ss << log.rdbuf();
-  INFO(ss.str());
-  CHECK(WIFEXITED(status));
-  CHECK(WEXITSTATUS(status) == 1);
-  CHECK(has(ss.str(), "not enough free space for frame"));
-  {
-    const FrameReader r(dir + "/x.h5");
-    CHECK(r.frames().size() > 10);
-    for (size_t k = 0; k < r.frames().size(); ++k) CHECK(r.read(k).count() == 8);
-  }
-  std::system(("umount " + dir).c_str());
+  const TinyFs fs("/tmp/sphray_tiny_fs", "2m");
+  if (!fs.mounted()) return;
+  const auto [code, out] = run_sphray("run " + test::source_path("scenes/stress/one_cell.json") +
+                                      " --backend cpu --quiet --set run.end_time=0.2 --set run.output_interval=0.001"
+                                      " --export " + fs.dir + "/x.h5 --export-fields velocity,density,field");
+  INFO(out);
+  CHECK(code == 1);
+  CHECK(has(out, "not enough free space for frame"));
+  const FrameReader r(fs.dir + "/x.h5");
+  CHECK(r.frames().size() > 10);
+  for (size_t k = 0; k < r.frames().size(); ++k) CHECK(r.read(k).count() == 8);
 }
 
 TEST_CASE("PNG frames on a full disk: the run stops naming the frame, and every PNG left is whole", "[export]") {
   // stb's own file writer ignored write errors: on a full disk the run
-  // reported "11 PNGs" and left empty and truncated frames. Needs a small
-  // tmpfs (root), as the HDF5 case above.
-  const std::string dir = "/tmp/sphray_tiny_png";
-  std::system(("mkdir -p " + dir).c_str());
-  if (std::system(("mount -t tmpfs -o size=200k tmpfs " + dir + " 2>/dev/null").c_str()) != 0) {
-    WARN("cannot mount a small tmpfs here (not root?): the full-disk PNG case was not exercised");
-    return;
-  }
-  struct Unmount {
-    std::string dir;
-    ~Unmount() { std::system(("umount " + dir).c_str()); }
-  } unmount{dir};  // also when a check below throws
-  const std::string cmd = std::string(SPHRAY_EXE) + " run " + test::source_path("scenes/dam_break.json") +
-                          " --backend cpu --quiet --set sph.spacing=0.05 --set run.end_time=0.2 --frames-dir " + dir +
-                          " > /tmp/sphray_png_full.log 2>&1";
-  const int status = std::system(cmd.c_str());
-  std::ifstream log("/tmp/sphray_png_full.log");
-  std::stringstream ss;
-  ss << log.rdbuf();
-  INFO(ss.str());
-  CHECK(WIFEXITED(status));
-  CHECK(WEXITSTATUS(status) != 0);
-  CHECK(has(ss.str(), "cannot write PNG '" + dir + "/frame_"));
-  CHECK(has(ss.str(), "No space left on device"));
+  // reported "11 PNGs" and left empty and truncated frames.
+  const TinyFs fs("/tmp/sphray_tiny_png", "200k");
+  if (!fs.mounted()) return;
+  const auto [code, out] = run_sphray("run " + test::source_path("scenes/dam_break.json") +
+                                      " --backend cpu --quiet --set sph.spacing=0.05 --set run.end_time=0.2"
+                                      " --frames-dir " + fs.dir);
+  INFO(out);
+  CHECK(code == 1);  // a failed write during the run, as for the export
+  CHECK(has(out, "--frames-dir: cannot write PNG '" + fs.dir + "/frame_"));
+  CHECK(has(out, "No space left on device"));
   int whole = 0;
-  for (const auto& e : std::filesystem::directory_iterator(dir)) {
+  for (const auto& e : std::filesystem::directory_iterator(fs.dir)) {
     const std::string name = e.path().filename().string();
     INFO(name);
     CHECK(e.path().extension() == ".png");  // no .tmp left behind
@@ -330,6 +329,23 @@ TEST_CASE("PNG frames on a full disk: the run stops naming the frame, and every 
     ++whole;
   }
   CHECK(whole >= 1);
+}
+
+TEST_CASE("metrics CSV and summary JSON on a full disk stop the run with the file named", "[export]") {
+  // Unchecked, the CSV ended mid-run at 4 KiB and the summary was empty, exit 0.
+  const TinyFs fs("/tmp/sphray_tiny_csv", "8k");
+  if (!fs.mounted()) return;
+  const std::string run = "run " + test::source_path("scenes/dam_break.json") +
+                          " --backend cpu --quiet --set sph.spacing=0.05 --set run.output_interval=0.001";
+  auto [code, out] = run_sphray(run + " --set run.end_time=0.5 --metrics-csv " + fs.dir + "/m.csv");
+  INFO(out);
+  CHECK(code == 1);
+  CHECK(has(out, "--metrics-csv: cannot write '" + fs.dir + "/m.csv': No space left on device"));
+  std::filesystem::remove(fs.dir + "/m.csv");
+  std::ofstream(fs.dir + "/fill") << std::string(7 * 1024, 'x');  // room for less than the summary
+  std::tie(code, out) = run_sphray(run + " --set run.end_time=0.01 --summary-json " + fs.dir + "/s.json");
+  CHECK(code == 1);
+  CHECK(has(out, "--summary-json: cannot write '" + fs.dir + "/s.json': No space left on device"));
 }
 
 TEST_CASE("the background queue runs jobs in order and stops at the first failure", "[export]") {
