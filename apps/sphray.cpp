@@ -94,6 +94,23 @@ std::string write_failure(const std::string& flag, const std::string& path) {
   return flag + ": cannot write '" + path + "'" + (errno ? std::string(": ") + std::strerror(errno) : "");
 }
 
+// Opens an output file before the work that fills it, so that a bad path
+// fails at once (bad input, exit 2).
+std::ofstream open_output(const std::string& flag, const std::string& path) {
+  std::ofstream f(path);
+  if (!f) throw std::runtime_error(flag + ": cannot write '" + path + "'");
+  return f;
+}
+
+// Writes j and closes the file, checking both: an ofstream's write error
+// shows only when its buffer reaches the disk, here at close.
+void write_json(std::ofstream& f, const nlohmann::json& j, const std::string& flag, const std::string& path) {
+  errno = 0;
+  f << j.dump(2) << "\n";
+  f.close();
+  if (!f) throw OutputError(write_failure(flag, path));
+}
+
 // The files a command writes must be neither its input nor each other: `run
 // dam.json --export dam.json` replaced the scene with the export, and two
 // outputs on one path would interleave. Each pair is {flag, path}; the first
@@ -131,14 +148,10 @@ int cmd_run(const std::string& scene_path, const std::string& backend_name_arg, 
   // second, not after the simulation.
   std::ofstream csv, summary;
   if (!metrics_csv.empty()) {
-    csv.open(metrics_csv);
-    if (!csv) throw std::runtime_error("--metrics-csv: cannot write '" + metrics_csv + "'");
+    csv = open_output("--metrics-csv", metrics_csv);
     csv << "time_s,steps,fluid_particles,front_m,kinetic_energy_J,max_speed_m_s\n" << std::setprecision(9);
   }
-  if (!summary_json.empty()) {
-    summary.open(summary_json);
-    if (!summary) throw std::runtime_error("--summary-json: cannot write '" + summary_json + "'");
-  }
+  if (!summary_json.empty()) summary = open_output("--summary-json", summary_json);
   const Backend b = choose_backend(backend_name_arg, std::cout);
   const bool exporting = !ex.path.empty(), export_field = exporting && export_fields.count("field") > 0;
   const bool rendering = !fa.dir.empty();
@@ -218,7 +231,7 @@ int cmd_run(const std::string& scene_path, const std::string& backend_name_arg, 
                                 {"sim_time_s", solver->time()}, {"spacing_m", scene.sph.spacing}}
                      .dump(2)
               << "\n";
-    throw;
+    throw;  // the error being reported; a summary that could not be written is not checked
   }
   if (frames) frames->finish();  // the last PNGs are still being written
   if (csv.is_open()) {
@@ -247,10 +260,7 @@ int cmd_run(const std::string& scene_path, const std::string& backend_name_arg, 
     if (r.field_builds)
       j["field"] = {{"builder", r.field_builder}, {"volume", r.field_dims}, {"builds", r.field_builds},
                     {"ms_per_build", r.field_ms_mean}, {"builds_without_presence", r.field_without_presence}};
-    errno = 0;
-    summary << j.dump(2) << "\n";
-    summary.close();
-    if (!summary) throw OutputError(write_failure("--summary-json", summary_json));
+    write_json(summary, j, "--summary-json", summary_json);
   }
   return 0;
 }
@@ -622,10 +632,7 @@ int main(int argc, char** argv) {
     if (bframe->parsed() || brender->parsed()) {
       const std::string& jpath = bframe->parsed() ? frame_json_out : render_json_out;
       std::ofstream jf;
-      if (!jpath.empty()) {
-        jf.open(jpath);
-        if (!jf) throw std::runtime_error("--json: cannot write '" + jpath + "'");
-      }
+      if (!jpath.empty()) jf = open_output("--json", jpath);
       const Backend b = choose_backend(backend, std::cout);
       nlohmann::json j;
       if (bframe->parsed()) {
@@ -642,35 +649,30 @@ int main(int argc, char** argv) {
         print_table(rows, std::cout);
         j = to_json(rows, b, bro);
       }
-      if (jf.is_open() && !(jf << j.dump(2) << "\n")) throw std::runtime_error("--json: cannot write '" + jpath + "'");
+      if (jf.is_open()) write_json(jf, j, "--json", jpath);
       return 0;
     }
     if (inspect->parsed()) return cmd_inspect(inspect_path);
     if (bfield->parsed()) {
       std::ofstream jf;
-      if (!field_json_out.empty()) {  // opened first: a bad path fails before the benchmark runs
-        jf.open(field_json_out);
-        if (!jf) throw std::runtime_error("--json: cannot write '" + field_json_out + "'");
-      }
+      if (!field_json_out.empty()) jf = open_output("--json", field_json_out);
       const Backend b = choose_backend(backend, std::cout);
       fopt.sizes = parse_sizes(!field_sizes_text.empty() ? field_sizes_text
                                : b == Backend::Cuda   ? "8k,27k,64k,125k,1M,4M"
                                                       : "8k,27k");
       const auto rows = bench_field(b, fopt, std::cout);
       print_table(rows, std::cout);
-      if (jf.is_open() && !(jf << to_json(rows, b, fopt).dump(2) << "\n"))
-        throw std::runtime_error("--json: cannot write '" + field_json_out + "'");
+      if (jf.is_open()) write_json(jf, to_json(rows, b, fopt), "--json", field_json_out);
       return 0;
     }
     if (bsim->parsed()) {
+      std::ofstream jf;
+      if (!json_out.empty()) jf = open_output("--json", json_out);
       const Backend b = choose_backend(backend, std::cout);
       bopt.sizes = parse_sizes(!sizes_text.empty() ? sizes_text : b == Backend::Cuda ? "125k,1M,4M" : "8k,27k");
       const auto rows = bench_sim(bench_scene, b, bopt, std::cout);
       print_table(rows, std::cout);
-      if (!json_out.empty()) {
-        std::ofstream f(json_out);
-        if (!(f << to_json(rows, b, bopt).dump(2) << "\n")) throw std::runtime_error("--json: cannot write '" + json_out + "'");
-      }
+      if (jf.is_open()) write_json(jf, to_json(rows, b, bopt), "--json", json_out);
       return 0;
     }
   } catch (const FrameFileError& e) {

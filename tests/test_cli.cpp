@@ -190,6 +190,11 @@ TEST_CASE("sphray bench sim writes every row with its stages and its wall time",
     // the medians.
     CHECK(wall >= total);
   }
+  // An unwritable --json fails before the benchmark runs, not after it.
+  const Result bad = run_cli("bench sim --backend cpu --scene " + scene + " --sizes 2k --json /nonexistent/dir/b.json");
+  CHECK(bad.code == 2);
+  CHECK(has(bad.output, "--json: cannot write '/nonexistent/dir/b.json'"));
+  CHECK_FALSE(has(bad.output, "presence"));  // no table row printed
 }
 
 TEST_CASE("sphray bench field reports bad input with exit code 2", "[cli][cpu]") {
