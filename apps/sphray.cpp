@@ -212,9 +212,10 @@ int cmd_run(const std::string& scene_path, const std::string& backend_name_arg, 
       errno = 0;
       csv << s.time() << "," << s.steps() << "," << s.num_fluid() << ","
           << surge_front(p, scene.tank.min.x, scene.sph.spacing) << "," << kinetic_energy(p, mass) << ","
-          << s.last_limits().max_speed << "\n";
-      // Seen when the stream's buffer reaches the file, a few rows later:
-      // the run stops there rather than end with a cut-off CSV and exit 0.
+          << s.last_limits().max_speed << "\n" << std::flush;
+      // Flushed per row: a run followed live (tail -f) or killed leaves whole
+      // rows, and a write error (a full disk) stops the run here rather than
+      // end with a cut-off CSV and exit 0.
       if (!csv) throw OutputError(write_failure("--metrics-csv", metrics_csv));
     }
     if (writer && frame % ex.every == 0) writer->submit(capture_frame(s, prm, export_fields, field.get()));
