@@ -143,7 +143,10 @@ int cmd_run(const std::string& scene_path, const std::string& backend_name_arg, 
   const std::set<std::string> export_fields = parse_export_fields(ex.fields);
   if (ex.path.empty() && !ex.fields.empty()) throw std::runtime_error("--export-fields needs --export FILE");
   check_distinct_files({{"scene file", scene_path}, {"--export", ex.path}, {"--metrics-csv", metrics_csv},
-                        {"--summary-json", summary_json}, {"--frames-dir", fa.dir}});
+                        {"--summary-json", summary_json}, {"--frames-dir", fa.dir},
+                        {"the export's XDMF sidecar", ex.path.empty() || xdmf_path(ex.path) == ex.path
+                                                          ? std::string()  // refused by FrameWriter, by name
+                                                          : xdmf_path(ex.path)}});
   // Outputs are opened before the run, so an unwritable path fails in a
   // second, not after the simulation.
   std::ofstream csv, summary;

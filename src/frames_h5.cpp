@@ -17,6 +17,12 @@ namespace sphray {
 
 const char* sphray_version() { return SPHRAY_VERSION; }
 
+std::string xdmf_path(const std::string& h5) {
+  const size_t dot = h5.rfind('.'), slash = h5.rfind('/');
+  const bool has_ext = dot != std::string::npos && (slash == std::string::npos || dot > slash);
+  return (has_ext ? h5.substr(0, dot) : h5) + ".xmf";
+}
+
 const std::vector<std::string>& exportable_fields() {
   static const std::vector<std::string> f = {"velocity", "density", "pressure", "presence", "field"};
   return f;
@@ -133,12 +139,6 @@ void dataset(hid_t loc, const char* name, hid_t mem_type, hid_t file_type, const
     fail(path, std::string("writing dataset ") + name);
 }
 
-std::string xdmf_path(const std::string& h5) {
-  const size_t dot = h5.rfind('.'), slash = h5.rfind('/');
-  const bool has_ext = dot != std::string::npos && (slash == std::string::npos || dot > slash);
-  return (has_ext ? h5.substr(0, dot) : h5) + ".xmf";
-}
-
 std::string frame_name(size_t k) {
   char buf[32];
   std::snprintf(buf, sizeof buf, "%06zu", k);
@@ -166,6 +166,9 @@ void refuse_if_in_use(const std::string& path) {
 // ---------------- writer ----------------
 
 FrameWriter::FrameWriter(const std::string& path, const FileHeader& header, int gzip) : path_(path), gzip_(gzip) {
+  if (xdmf_path(path) == path)  // the sidecar would be renamed over the export, its frames lost
+    throw FrameFileError(path + ": that is the name of the XDMF sidecar written next to the export (NAME.xmf "
+                         "beside NAME.h5); give the export another extension, e.g. .h5");
   refuse_if_in_use(path);
   errno = 0;
   Handle fapl{check(H5Pcreate(H5P_FILE_ACCESS), path, "property list"), H5Pclose};

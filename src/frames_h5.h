@@ -33,6 +33,10 @@ const char* sphray_version();
 // Names accepted by --export-fields (position is always written).
 const std::vector<std::string>& exportable_fields();
 
+// The XDMF sidecar of an export: its path with the extension replaced by
+// .xmf (out.h5 -> out.xmf).
+std::string xdmf_path(const std::string& h5);
+
 struct Frame {
   double time = 0, dt = 0;
   uint64_t step = 0;

@@ -218,6 +218,16 @@ TEST_CASE("sphray run --export and sphray inspect: bad paths and bad files exit 
   // with a line break in it ("unable to open file: time = ..."), cut off.
   CHECK(!has(r.output, "time = "));
   CHECK(r.output.find('\n', r.output.find("cannot create the export file")) + 1 == r.output.size());
+  // The XDMF sidecar (NAME.xmf) renamed over an export named NAME.xmf left only the XML.
+  std::filesystem::remove("/tmp/sphray_side.xmf");
+  r = run_cli("run " + scene + " --backend cpu --quiet --export /tmp/sphray_side.xmf");
+  CHECK(r.code == 2);
+  CHECK(has(r.output, "/tmp/sphray_side.xmf: that is the name of the XDMF sidecar written next to the export"));
+  CHECK_FALSE(std::filesystem::exists("/tmp/sphray_side.xmf"));
+  std::filesystem::copy_file(scene, "/tmp/sphray_scene.xmf", std::filesystem::copy_options::overwrite_existing);
+  r = run_cli("run /tmp/sphray_scene.xmf --backend cpu --quiet --export /tmp/sphray_scene.h5");
+  CHECK(r.code == 2);
+  CHECK(has(r.output, "the export's XDMF sidecar: '/tmp/sphray_scene.xmf' is the scene file itself"));
   r = run_cli("run " + scene + " --backend cpu --quiet --export /tmp/x.h5 --export-fields velocity,colour");
   CHECK(r.code == 2);
   CHECK(has(r.output, "unknown field 'colour'"));
