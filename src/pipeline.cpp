@@ -95,7 +95,7 @@ RunSummary run_scene(const Scene& s, Solver& solver, const RunOptions& opt, std:
   // output time is shortened to land on it, and counted in the mean it made
   // the mean read below the min.
   double dt_sum = 0;
-  uint64_t free_steps = 0, particle_steps = 0;
+  uint64_t free_steps = 0;
   double last_free_dt = 0;  // the progress line's dt
 
   while (solver.time() < end - 1e-12) {
@@ -113,7 +113,7 @@ RunSummary run_scene(const Scene& s, Solver& solver, const RunOptions& opt, std:
         r.min_dt = std::min(r.min_dt, double(l.dt));
       }
       r.max_speed = std::max(r.max_speed, l.max_speed);
-      particle_steps += solver.num_fluid();
+      r.particle_steps += solver.num_fluid();
     }
     ++frame;
     output();
@@ -125,7 +125,7 @@ RunSummary run_scene(const Scene& s, Solver& solver, const RunOptions& opt, std:
       log << "  t = " << std::fixed << std::setprecision(4) << solver.time() << " / " << end << " s  step "
           << solver.steps() << "  dt " << std::scientific << std::setprecision(2)
           << (last_free_dt > 0 ? last_free_dt : double(solver.last_limits().dt))
-          << " s  " << (wall > 0 ? particle_steps / wall : 0.0) << " particle-steps/s  ETA "
+          << " s  " << (wall > 0 ? r.particle_steps / wall : 0.0) << " particle-steps/s  ETA "
           << format_seconds(eta) << std::defaultfloat << "\n";
       log.flush();
     }
@@ -136,7 +136,6 @@ RunSummary run_scene(const Scene& s, Solver& solver, const RunOptions& opt, std:
   r.fluid_end = solver.num_fluid();
   r.removed = solver.num_removed();
   r.clamped = solver.num_clamped();
-  r.particle_steps = particle_steps;
   if (r.steps) {
     const double k = 1.0 / double(r.steps);
     r.mean_stage_ms = {sum.grid * k, sum.pairs * k, sum.integrate * k};
