@@ -332,13 +332,14 @@ bool is_png_path(const std::string& p) {
 
 // sphray writes PNG only: an image name of another format would have become a
 // directory of PNGs (--out) or PNG bytes under a .jpg name (--screenshot).
-void check_not_other_image(const std::string& path, const char* flag) {
+// `or_else`: what else the option accepts, for the message.
+void check_not_other_image(const std::string& path, const char* flag, const char* or_else = "") {
   std::string ext = std::filesystem::path(path).extension().string();
   for (char& c : ext) c = char(std::tolower(static_cast<unsigned char>(c)));
   for (const char* other : {".jpg", ".jpeg", ".bmp", ".tga", ".gif", ".tif", ".tiff", ".exr", ".hdr", ".ppm", ".webp"})
     if (ext == other)
       throw std::runtime_error(std::string(flag) + " '" + path + "': sphray writes PNG images; give a .png name" +
-                               (std::string(flag) == "--out" ? ", or a directory for a sequence" : ""));
+                               or_else);
 }
 
 // A file we are about to write after a long computation: fail now if we cannot.
@@ -359,7 +360,7 @@ struct RenderArgs {
 // `sphray render SCENE --out x.png [--time T]`: one frame at time T;
 // `sphray render SCENE --out DIR`: every output frame (as run --frames-dir).
 int render_scene(const RenderArgs& ra, const std::string& backend_arg, std::vector<std::string> sets) {
-  check_not_other_image(ra.out, "--out");
+  check_not_other_image(ra.out, "--out", ", or a directory for a sequence");
   check_distinct_files({{"scene file", ra.scene}, {"--out", ra.out}});
   const bool single = is_png_path(ra.out);
   if (single && ra.time >= 0) {
@@ -402,7 +403,7 @@ int render_scene(const RenderArgs& ra, const std::string& backend_arg, std::vect
 // `sphray render --from out.h5 --out DIR|x.png [--frame K]`: the exported
 // particles, their field rebuilt on the chosen backend, rendered.
 int render_file(const RenderArgs& ra, const std::string& backend_arg, const std::vector<std::string>& sets) {
-  check_not_other_image(ra.out, "--out");
+  check_not_other_image(ra.out, "--out", ", or a directory for a sequence");
   check_distinct_files({{"--from file", ra.from}, {"--out", ra.out}});
   const FrameReader reader(ra.from);
   const Scene scene = parse_scene(reader.header().scene_json, ra.from + " (its scene)", sets);
