@@ -1,6 +1,11 @@
 // Shared test helpers: small scenes in JSON text, and running a solver to a time.
 #pragma once
 
+#include <sys/wait.h>
+
+#include <cstdlib>
+#include <fstream>
+#include <sstream>
 #include <string>
 
 #include "../src/pipeline.h"
@@ -11,6 +16,28 @@
 namespace sphray::test {
 
 inline std::string source_path(const std::string& rel) { return std::string(SPHRAY_SOURCE_DIR) + "/" + rel; }
+
+inline bool has(const std::string& s, const std::string& part) { return s.find(part) != std::string::npos; }
+
+// A whole file's bytes ("" when it cannot be read).
+inline std::string slurp(const std::string& path) {
+  std::ifstream f(path, std::ios::binary);
+  std::stringstream ss;
+  ss << f.rdbuf();
+  return ss.str();
+}
+
+// The sphray executable run with `args`: its exit code (-1 if it did not
+// exit) and its stdout and stderr together.
+struct CliResult {
+  int code;
+  std::string output;
+};
+inline CliResult run_cli(const std::string& args) {
+  const std::string out = "/tmp/sphray_cli_test.txt";
+  const int status = std::system((std::string(SPHRAY_EXE) + " " + args + " > " + out + " 2>&1").c_str());
+  return {WIFEXITED(status) ? WEXITSTATUS(status) : -1, slurp(out)};
+}
 
 // Within the scene's tank (walls included).
 inline bool inside(const Vec3f& p, const Scene& s) {

@@ -19,26 +19,10 @@
 
 namespace {
 
-struct Result {
-  int code;
-  std::string output;
-};
-
-std::string slurp(const std::string& path) {
-  std::ifstream f(path, std::ios::binary);
-  std::stringstream ss;
-  ss << f.rdbuf();
-  return ss.str();
-}
-
-Result run_cli(const std::string& args) {
-  const std::string out = "/tmp/sphray_cli_test.txt";
-  const std::string cmd = std::string(SPHRAY_EXE) + " " + args + " > " + out + " 2>&1";
-  const int status = std::system(cmd.c_str());
-  return {WIFEXITED(status) ? WEXITSTATUS(status) : -1, slurp(out)};
-}
-
-bool has(const std::string& s, const std::string& part) { return s.find(part) != std::string::npos; }
+using Result = sphray::test::CliResult;
+using sphray::test::has;
+using sphray::test::run_cli;
+using sphray::test::slurp;
 
 
 }  // namespace
@@ -162,10 +146,7 @@ TEST_CASE("sphray run builds the field at every frame when the scene has one", "
   CHECK(has(r.output, "field          presence builder"));
   CHECK(has(r.output, "3 builds"));               // t = 0 and two frames
   CHECK(has(r.output, "1 without presence"));     // only t = 0: the frames' last steps computed it
-  std::ifstream f("/tmp/sphray_field_summary.json");
-  std::stringstream ss;
-  ss << f.rdbuf();
-  CHECK(has(ss.str(), "\"builds_without_presence\": 1"));
+  CHECK(has(slurp("/tmp/sphray_field_summary.json"), "\"builds_without_presence\": 1"));
 }
 
 TEST_CASE("sphray bench sim writes every row with its stages and its wall time", "[cli][cpu]") {

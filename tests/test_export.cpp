@@ -43,7 +43,8 @@ std::string error_of(const std::string& path) {
   return "";
 }
 
-bool has(const std::string& s, const std::string& part) { return s.find(part) != std::string::npos; }
+using test::has;
+using test::run_cli;
 
 }  // namespace
 
@@ -107,11 +108,9 @@ TEST_CASE("export round trip: every dataset and attribute reads back exactly", "
   for (size_t i = 1; i < written[2].id.size(); ++i) CHECK(written[2].id[i] > written[2].id[i - 1]);
   CHECK(written[2].pressure[0] == tait_pressure(prm, written[2].density[0]));
   // The XDMF sidecar names every frame's positions.
-  std::ifstream x("/tmp/sphray_roundtrip.xmf");
-  std::stringstream ss;
-  ss << x.rdbuf();
-  CHECK(has(ss.str(), "sphray_roundtrip.h5:/frames/000002/position"));
-  CHECK(has(ss.str(), "CollectionType=\"Temporal\""));
+  const std::string xmf = test::slurp("/tmp/sphray_roundtrip.xmf");
+  CHECK(has(xmf, "sphray_roundtrip.h5:/frames/000002/position"));
+  CHECK(has(xmf, "CollectionType=\"Temporal\""));
 }
 
 TEST_CASE("a run killed with SIGKILL mid-export leaves a file that opens with its frames; while it ran, the file "
@@ -134,10 +133,7 @@ TEST_CASE("a run killed with SIGKILL mid-export leaves a file that opens with it
   bool ready = false;
   for (int t = 0; t < 1200 && !ready; ++t) {
     std::this_thread::sleep_for(std::chrono::milliseconds(100));
-    std::ifstream x("/tmp/sphray_killed.xmf");
-    std::stringstream ss;
-    ss << x.rdbuf();
-    ready = has(ss.str(), "/frames/000003/");
+    ready = has(test::slurp("/tmp/sphray_killed.xmf"), "/frames/000003/");
   }
   // While the run writes the file: another writer is refused without touching
   // it (HDF5's create truncated it before failing on the lock, and the run
@@ -250,16 +246,6 @@ struct TinyFs {
   bool mounted() const { return ok; }
 };
 
-// Runs the sphray command line `args`; exit code and output.
-std::pair<int, std::string> run_sphray(const std::string& args) {
-  const std::string log = "/tmp/sphray_export_cli.log";
-  const int status = std::system((std::string(SPHRAY_EXE) + " " + args + " > " + log + " 2>&1").c_str());
-  std::ifstream f(log);
-  std::stringstream ss;
-  ss << f.rdbuf();
-  return {WIFEXITED(status) ? WEXITSTATUS(status) : -1, ss.str()};
-}
-
 std::string read_error(const std::string& path) {
   try {
     FrameReader(path).read(0);
@@ -307,7 +293,7 @@ TEST_CASE("a frame whose datasets disagree with its particles, or has a non-fini
 TEST_CASE("a full disk stops the run with a message and keeps the frames written before", "[export]") {
   const TinyFs fs("/tmp/sphray_tiny_fs", "2m");
   if (!fs.mounted()) return;
-  const auto [code, out] = run_sphray("run " + test::source_path("scenes/stress/one_cell.json") +
+  const auto [code, out] = run_cli("run " + test::source_path("scenes/stress/one_cell.json") +
                                       " --backend cpu --quiet --set run.end_time=0.2 --set run.output_interval=0.001"
                                       " --export " + fs.dir + "/x.h5 --export-fields velocity,density,field");
   INFO(out);
@@ -323,7 +309,7 @@ TEST_CASE("PNG frames on a full disk: the run stops naming the frame, and every 
   // reported "11 PNGs" and left empty and truncated frames.
   const TinyFs fs("/tmp/sphray_tiny_png", "200k");
   if (!fs.mounted()) return;
-  const auto [code, out] = run_sphray("run " + test::source_path("scenes/dam_break.json") +
+  const auto [code, out] = run_cli("run " + test::source_path("scenes/dam_break.json") +
                                       " --backend cpu --quiet --set sph.spacing=0.05 --set run.end_time=0.2"
                                       " --frames-dir " + fs.dir);
   INFO(out);
@@ -348,15 +334,15 @@ TEST_CASE("metrics CSV and summary JSON on a full disk stop the run with the fil
   if (!fs.mounted()) return;
   const std::string run = "run " + test::source_path("scenes/dam_break.json") +
                           " --backend cpu --quiet --set sph.spacing=0.05 --set run.output_interval=0.001";
-  auto [code, out] = run_sphray(run + " --set run.end_time=0.5 --metrics-csv " + fs.dir + "/m.csv");
+  const auto [code, out] = run_cli(run + " --set run.end_time=0.5 --metrics-csv " + fs.dir + "/m.csv");
   INFO(out);
   CHECK(code == 1);
   CHECK(has(out, "--metrics-csv: cannot write '" + fs.dir + "/m.csv': No space left on device"));
   std::filesystem::remove(fs.dir + "/m.csv");
   std::ofstream(fs.dir + "/fill") << std::string(7 * 1024, 'x');  // room for less than the summary
-  std::tie(code, out) = run_sphray(run + " --set run.end_time=0.01 --summary-json " + fs.dir + "/s.json");
-  CHECK(code == 1);
-  CHECK(has(out, "--summary-json: cannot write '" + fs.dir + "/s.json': No space left on device"));
+  const test::CliResult summary = run_cli(run + " --set run.end_time=0.01 --summary-json " + fs.dir + "/s.json");
+  CHECK(summary.code == 1);
+  CHECK(has(summary.output, "--summary-json: cannot write '" + fs.dir + "/s.json': No space left on device"));
 }
 
 TEST_CASE("the background queue runs jobs in order and stops at the first failure", "[export]") {
