@@ -159,8 +159,7 @@ void print_summary(const RunSummary& r, std::ostream& log) {
       << "  simulated      " << r.sim_time << " s in " << r.steps << " steps (dt mean " << r.mean_dt << " s, min "
       << r.min_dt << " s, of the steps not shortened to meet an output time)\n"
       << "  wall time      " << r.wall_seconds << " s ("
-      << (r.wall_seconds > 0 ? double(r.steps) * double(r.fluid_start) / r.wall_seconds : 0.0)
-      << " particle-steps/s)\n"
+      << (r.wall_seconds > 0 ? double(r.particle_steps) / r.wall_seconds : 0.0) << " particle-steps/s)\n"
       << "  particles      " << r.fluid_start << " fluid at start, " << r.fluid_end << " at end; "
       << r.removed << " left through the open top and were removed\n"
       << "  wall clamps    " << r.clamped << " particle-steps put back on a wall face";
