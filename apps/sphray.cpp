@@ -400,6 +400,26 @@ int render_scene(const RenderArgs& ra, const std::string& backend_arg, std::vect
   return 0;
 }
 
+// A run keeps every particle inside its grid (the tank, its wall layers and,
+// with an open top, the headroom above it), so a position beyond it in a
+// frame file means another tank (a --set tank.* on render) or a file edited
+// elsewhere. Refused by name: the grid's key and the field's splat would
+// convert it to an integer cell out of range.
+void check_in_grid(const GridGeom& g, const Float4& p, const std::string& file, size_t frame, size_t i) {
+  const float x[3] = {p.x, p.y, p.z}, lo[3] = {g.origin.x, g.origin.y, g.origin.z};
+  const int n[3] = {g.nx, g.ny, g.nz};
+  for (int a = 0; a < 3; ++a)
+    if (!(x[a] >= lo[a] && x[a] < lo[a] + float(n[a]) * g.cell_size)) {
+      std::ostringstream os;
+      os << "--from '" << file << "': frame " << frame << ", particle " << i << " at (" << p.x << ", " << p.y << ", "
+         << p.z << ") m is outside the scene's domain, x " << lo[0] << " .. " << lo[0] + float(n[0]) * g.cell_size
+         << ", y " << lo[1] << " .. " << lo[1] + float(n[1]) * g.cell_size << ", z " << lo[2] << " .. "
+         << lo[2] + float(n[2]) * g.cell_size << " m (the tank with its walls): the file was written for another tank"
+         << " (a --set tank.* here?)";
+      throw std::runtime_error(os.str());
+    }
+}
+
 // `sphray render --from out.h5 --out DIR|x.png [--frame K]`: the exported
 // particles, their field rebuilt on the chosen backend, rendered.
 int render_file(const RenderArgs& ra, const std::string& backend_arg, const std::vector<std::string>& sets) {
@@ -428,8 +448,10 @@ int render_file(const RenderArgs& ra, const std::string& backend_arg, const std:
     SolverInput in = make_solver_input(scene, PresenceMode::Off);
     const float rho0 = float(scene.sph.rest_density);
     in.fluid_pos_rho.resize(f.count());
-    for (size_t i = 0; i < f.count(); ++i)
+    for (size_t i = 0; i < f.count(); ++i) {
       in.fluid_pos_rho[i] = {f.position[3 * i], f.position[3 * i + 1], f.position[3 * i + 2], rho0};
+      check_in_grid(in.grid, in.fluid_pos_rho[i], ra.from, k, i);
+    }
     in.fluid_vel.assign(f.count(), Float4{0, 0, 0, 0});
     auto solver = b == Backend::Cuda ? make_cuda_solver(in) : make_cpu_solver(in);  // sorts them into the grid
     // exported presence is in the file's order, not the grid's: the presence

@@ -290,6 +290,40 @@ TEST_CASE("a frame whose datasets disagree with its particles, or has a non-fini
   CHECK(has(read_error(path), "/frames/000000/field: not a 3D grid"));
 }
 
+TEST_CASE("render --from refuses a particle outside the scene's domain, naming it", "[export]") {
+  // The grid's key and the field's splat convert a position to integer cells;
+  // one far outside (1e30) rendered silently, through a float -> int
+  // conversion out of range. A run never writes one: another tank, or an edit.
+  const std::string path = "/tmp/sphray_outside.h5";
+  std::filesystem::remove(path);
+  const std::string scene = test::source_path("scenes/stress/one_cell.json");  // tank 0 .. 0.1 m
+  test::CliResult r = run_cli("run " + scene + " --backend cpu --quiet --set run.end_time=0.01 "
+                              "--set run.output_interval=0.01 --export " + path);
+  REQUIRE(r.code == 0);
+  const std::string render = "render --from " + path + " --frame 1 --backend cpu --size 64x36 --out /tmp/sphray_o.png";
+  r = run_cli(render);
+  CHECK(r.code == 0);  // as written, it renders
+
+  std::vector<float> pos(FrameReader(path).read(1).position);
+  REQUIRE(pos.size() == 24);
+  pos[3 * 5 + 2] = 1e30f;
+  put_dataset(path, "/frames/000001/position", pos, {8, 3});
+  r = run_cli(render);
+  INFO(r.output);
+  CHECK(r.code == 2);
+  CHECK(has(r.output, "frame 1, particle 5 at ("));
+  CHECK(has(r.output, "1e+30) m is outside the scene's domain"));
+
+  // The file as written, with the tank shrunk below its particles.
+  r = run_cli("run " + scene + " --backend cpu --quiet --set run.end_time=0.01 --set run.output_interval=0.01 "
+              "--export " + path);
+  REQUIRE(r.code == 0);
+  r = run_cli(render + " --set tank.min=[0.2,0,0] --set tank.max=[0.3,0.1,0.1] --set fluid=[]");
+  INFO(r.output);
+  CHECK(r.code == 2);
+  CHECK(has(r.output, "is outside the scene's domain, x 0.14 .. "));
+}
+
 TEST_CASE("a full disk stops the run with a message and keeps the frames written before", "[export]") {
   const TinyFs fs("/tmp/sphray_tiny_fs", "2m");
   if (!fs.mounted()) return;
