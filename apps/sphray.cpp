@@ -614,6 +614,10 @@ int main(int argc, char** argv) {
   brender->add_option("--json", render_json_out, "write results as JSON");
   brender->add_option("--set", bro.overrides, "override a value of the generated scene");
 
+  // CLI11's own errors (an option's range, a missing value) in sphray's form.
+  app.failure_message([](const CLI::App* a, const CLI::Error& e) {
+    return "sphray: error: " + CLI::FailureMessage::simple(a, e);
+  });
   if (const std::string unknown = unknown_command(app, argc, argv); !unknown.empty()) {
     std::fprintf(stderr, "sphray: error: %s\n", unknown.c_str());
     return 2;
