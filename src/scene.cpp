@@ -4,6 +4,7 @@
 #include <cmath>
 #include <filesystem>
 #include <fstream>
+#include <regex>
 #include <set>
 #include <sstream>
 
@@ -119,6 +120,11 @@ void apply_override(json& j, const std::string& file, const std::string& assignm
   std::stringstream ss(key);
   for (std::string part; std::getline(ss, part, '.');) {
     if (part.empty()) throw SceneError("--set '" + assignment + "': empty component in key path '" + key + "'");
+    // fluid[0].max, as other tools write it, read as an object key "fluid[0]"
+    // and was refused as unknown at the scene's top level.
+    if (part.find('[') != std::string::npos && part.back() == ']')
+      throw SceneError(file + ": --set " + key + ": array elements are indexed with a dot: " +
+                       std::regex_replace(key, std::regex(R"(\[(\d+)\])"), ".$1"));
     // An array index may name an element or append one (index = size); past
     // that, JSON pointers pad the array with nulls, and validation would then
     // blame an element the user never named.

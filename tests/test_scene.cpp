@@ -116,6 +116,7 @@ TEST_CASE("bad scenes get a message naming file, key and value", "[scene][cpu]")
   CHECK(contains(e, "fluid has 1 element(s)"));
   CHECK(contains(e, "fluid.1 appends one"));
   CHECK(contains(error_of(kGood, {"fluid.x.min=[0,0,0]"}), "'x' is not an index"));
+  CHECK(contains(error_of(kGood, {"fluid[0].min=[0,0,0]"}), "--set fluid[0].min: array elements are indexed with a dot: fluid.0.min"));
   e = error_of(kGood, {"fluid.1.min=[0.5,0,0]"});  // appending a block asks for the rest of it
   CHECK(contains(e, "fluid.1"));
   CHECK(contains(e, "max"));
