@@ -28,6 +28,7 @@
 #include "../src/bench_frame.h"
 #include "../src/scene.h"
 #include "../src/setup.h"
+#include "sphray_builtin_scenes.h"
 
 using namespace sphray;
 
@@ -557,9 +558,11 @@ int main(int argc, char** argv) {
   auto* bench = app.add_subcommand("bench", "benchmarks");
   bench->require_subcommand(1);
   auto* bsim = bench->add_subcommand("sim", "ms per SPH step by stage, with and without presence");
-  std::string bench_scene = "scenes/bench/dam_break.json", sizes_text, json_out;
+  std::string bench_scene, sizes_text, json_out;
   BenchSimOptions bopt;
-  bsim->add_option("--scene", bench_scene, "dam-break scene whose spacing is scaled to each size");
+  bsim->add_option("--scene", bench_scene,
+                   "dam-break scene whose spacing is scaled to each size (default: scenes/bench/dam_break.json, "
+                   "built in)");
   bsim->add_option("--backend", backend, "auto | cpu | cuda");
   bsim->add_option("--sizes", sizes_text, "fluid particle counts (default 125k,1M,4M on CUDA, 8k,27k on CPU)");
   bsim->add_option("--warmup", bopt.warmup, "warm-up steps")->check(CLI::Range(0, 100000));
@@ -701,7 +704,11 @@ int main(int argc, char** argv) {
       if (!json_out.empty()) jf = open_output("--json", json_out);
       const Backend b = choose_backend(backend, std::cout);
       bopt.sizes = parse_sizes(!sizes_text.empty() ? sizes_text : b == Backend::Cuda ? "125k,1M,4M" : "8k,27k");
-      const auto rows = bench_sim(bench_scene, b, bopt, std::cout);
+      // The default scene is compiled in, so that the benchmark runs from any directory.
+      const auto rows = bench_scene.empty()
+                            ? bench_sim(builtin::bench_dam_break, "scenes/bench/dam_break.json (built in)", b, bopt,
+                                        std::cout)
+                            : bench_sim(read_scene_text(bench_scene), bench_scene, b, bopt, std::cout);
       print_table(rows, std::cout);
       if (jf.is_open()) write_json(jf, to_json(rows, b, bopt), "--json", json_out);
       return 0;

@@ -28,16 +28,17 @@ double spacing_for_count(const Scene& s, size_t target) {
   return std::cbrt(volume / double(std::max<size_t>(target, 1)));
 }
 
-std::vector<BenchSimRow> bench_sim(const std::string& scene_path, Backend b, const BenchSimOptions& opt, std::ostream& log) {
+std::vector<BenchSimRow> bench_sim(const std::string& scene_json, const std::string& scene_name, Backend b,
+                                   const BenchSimOptions& opt, std::ostream& log) {
   std::vector<BenchSimRow> rows;
   for (size_t target : opt.sizes) {
-    const Scene base = load_scene(scene_path, opt.overrides);
+    const Scene base = parse_scene(scene_json, scene_name, opt.overrides);
     std::ostringstream set;
     set.precision(9);
     set << "sph.spacing=" << spacing_for_count(base, target);
     std::vector<std::string> overrides = opt.overrides;
     overrides.push_back(set.str());
-    const Scene s = load_scene(scene_path, overrides);
+    const Scene s = parse_scene(scene_json, scene_name, overrides);
     for (bool presence : {false, true}) {
       auto solver = make_solver(s, b, {presence ? PresenceMode::EveryStep : PresenceMode::Off});
       BenchSimRow row;

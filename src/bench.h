@@ -37,7 +37,9 @@ struct BenchSimRow {
 // Spacing that gives about `target` fluid particles in the scene's fluid blocks.
 double spacing_for_count(const Scene& s, size_t target);
 
-std::vector<BenchSimRow> bench_sim(const std::string& scene_path, Backend b, const BenchSimOptions& opt, std::ostream& log);
+// `scene_json` is the scene's text, `scene_name` names it in messages.
+std::vector<BenchSimRow> bench_sim(const std::string& scene_json, const std::string& scene_name, Backend b,
+                                   const BenchSimOptions& opt, std::ostream& log);
 nlohmann::json to_json(const std::vector<BenchSimRow>& rows, Backend b, const BenchSimOptions& opt);
 void print_table(const std::vector<BenchSimRow>& rows, std::ostream& out);
 

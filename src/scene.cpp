@@ -369,7 +369,7 @@ Scene parse_scene(const std::string& text, const std::string& file, const std::v
   return s;
 }
 
-Scene load_scene(const std::string& path, const std::vector<std::string>& overrides) {
+std::string read_scene_text(const std::string& path) {
   // A directory opens as an empty stream on Linux, which read as "not valid JSON".
   std::error_code ec;
   if (std::filesystem::is_directory(path, ec)) throw SceneError(path + ": is a directory, not a scene file");
@@ -381,7 +381,11 @@ Scene load_scene(const std::string& path, const std::vector<std::string>& overri
   if (is_hdf5_signature(text))
     throw SceneError(path + ": is an HDF5 file, not a scene (JSON): render it with `sphray render --from " + path +
                      "`, or list its frames with `sphray inspect " + path + "`");
-  return parse_scene(text, path, overrides);
+  return text;
+}
+
+Scene load_scene(const std::string& path, const std::vector<std::string>& overrides) {
+  return parse_scene(read_scene_text(path), path, overrides);
 }
 
 }  // namespace sphray

@@ -89,6 +89,9 @@ struct Scene {
 // ("key.path=value", value as JSON or else as a string) and validates.
 Scene parse_scene(const std::string& text, const std::string& file, const std::vector<std::string>& overrides = {});
 Scene load_scene(const std::string& path, const std::vector<std::string>& overrides = {});
+// The text of a scene file, with load_scene's messages for a path that is a
+// directory, unreadable, or an HDF5 export.
+std::string read_scene_text(const std::string& path);
 
 // Whether `head` (a file's first bytes) starts with the HDF5 signature (a
 // file of sphray run --export at offset 0, where sphray writes it).

@@ -174,6 +174,16 @@ TEST_CASE("sphray bench sim writes every row with its stages and its wall time",
     // the medians.
     CHECK(wall >= total);
   }
+  // Without --scene, the built-in copy of the same scene, from any directory
+  // (the default was a path relative to the repository's root).
+  const std::string builtin_json = "/tmp/sphray_cli_bench_builtin.json";
+  std::remove(builtin_json.c_str());
+  CHECK(std::system(("cd / && " + std::string(SPHRAY_EXE) + " bench sim --backend cpu --sizes 2k --warmup 1 --steps 1 "
+                     "--json " + builtin_json + " > /dev/null 2>&1").c_str()) == 0);
+  const nlohmann::json b = nlohmann::json::parse(slurp(builtin_json));
+  REQUIRE(b["rows"].size() == 2);
+  CHECK(b["rows"][0]["particles"] == j["rows"][0]["particles"]);
+  CHECK(b["rows"][0]["boundary_particles"] == j["rows"][0]["boundary_particles"]);
   // An unwritable --json fails before the benchmark runs, not after it.
   const Result bad = run_cli("bench sim --backend cpu --scene " + scene + " --sizes 2k --json /nonexistent/dir/b.json");
   CHECK(bad.code == 2);
