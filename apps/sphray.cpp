@@ -98,8 +98,9 @@ std::string write_failure(const std::string& flag, const std::string& path) {
 // Opens an output file before the work that fills it, so that a bad path
 // fails at once (bad input, exit 2).
 std::ofstream open_output(const std::string& flag, const std::string& path) {
+  errno = 0;
   std::ofstream f(path);
-  if (!f) throw std::runtime_error(flag + ": cannot write '" + path + "'");
+  if (!f) throw std::runtime_error(write_failure(flag, path));
   return f;
 }
 
@@ -346,8 +347,9 @@ void check_not_other_image(const std::string& path, const char* flag, const char
 // A file we are about to write after a long computation: fail now if we cannot.
 void check_writable(const std::string& path, const char* flag = "--out") {
   const bool existed = std::filesystem::exists(path);
+  errno = 0;
   std::FILE* f = std::fopen(path.c_str(), "ab");
-  if (!f) throw std::runtime_error(std::string(flag) + ": cannot write '" + path + "'");
+  if (!f) throw std::runtime_error(write_failure(flag, path));
   std::fclose(f);
   if (!existed) std::remove(path.c_str());
 }

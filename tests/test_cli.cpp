@@ -187,7 +187,7 @@ TEST_CASE("sphray bench sim writes every row with its stages and its wall time",
   // An unwritable --json fails before the benchmark runs, not after it.
   const Result bad = run_cli("bench sim --backend cpu --scene " + scene + " --sizes 2k --json /nonexistent/dir/b.json");
   CHECK(bad.code == 2);
-  CHECK(has(bad.output, "--json: cannot write '/nonexistent/dir/b.json'"));
+  CHECK(has(bad.output, "--json: cannot write '/nonexistent/dir/b.json': No such file or directory"));
   CHECK_FALSE(has(bad.output, "presence"));  // no table row printed
 }
 
@@ -320,7 +320,11 @@ TEST_CASE("sphray render and --frames-dir report bad input with exit code 2", "[
   CHECK_FALSE(has(r.output, "summary (cpu)"));
   r = run_cli("render " + scene + " --backend cpu --out /nonexistent/dir/x.png");
   CHECK(r.code == 2);
-  CHECK(has(r.output, "--out: cannot write '/nonexistent/dir/x.png'"));
+  CHECK(has(r.output, "--out: cannot write '/nonexistent/dir/x.png': No such file or directory"));
+  std::filesystem::create_directories("/tmp/sphray_dir.png");  // a directory by a PNG's name: says so
+  r = run_cli("render " + scene + " --backend cpu --out /tmp/sphray_dir.png");
+  CHECK(r.code == 2);
+  CHECK(has(r.output, "--out: cannot write '/tmp/sphray_dir.png': Is a directory"));
   r = run_cli("render --backend cpu --out /tmp/x.png");
   CHECK(r.code == 2);
   CHECK(has(r.output, "either a scene file or --from"));
