@@ -98,6 +98,22 @@ RunSummary run_scene(const Scene& s, Solver& solver, const RunOptions& opt, std:
   uint64_t free_steps = 0;
   double last_free_dt = 0;  // the progress line's dt
 
+  // Every second, and at the end; also between output times, which may be
+  // far apart (render --time T takes one step of output to T).
+  auto progress = [&](bool last) {
+    const auto now = clock::now();
+    if (!opt.progress || (!last && std::chrono::duration<double>(now - last_print).count() < opt.progress_seconds)) return;
+    last_print = now;
+    const double wall = std::chrono::duration<double>(now - t0).count();
+    const double eta = solver.time() > 0 ? wall * (end - solver.time()) / solver.time() : 0.0;
+    log << "  t = " << std::fixed << std::setprecision(4) << solver.time() << " / " << end << " s  step "
+        << solver.steps() << "  dt " << std::scientific << std::setprecision(2)
+        << (last_free_dt > 0 ? last_free_dt : double(solver.last_limits().dt))
+        << " s  " << (wall > 0 ? r.particle_steps / wall : 0.0) << " particle-steps/s  ETA "
+        << format_seconds(eta) << std::defaultfloat << "\n";
+    log.flush();
+  };
+
   while (solver.time() < end - 1e-12) {
     const double next_output = std::min(end, (frame + 1) * every);
     if (opt.presence_at) solver.set_presence(opt.presence_at(frame + 1) ? PresenceMode::AtUntil : PresenceMode::Off);
@@ -114,21 +130,11 @@ RunSummary run_scene(const Scene& s, Solver& solver, const RunOptions& opt, std:
       }
       r.max_speed = std::max(r.max_speed, l.max_speed);
       r.particle_steps += solver.num_fluid();
+      if (solver.time() < next_output - 1e-12) progress(false);
     }
     ++frame;
     output();
-    const auto now = clock::now();
-    if (opt.progress && (std::chrono::duration<double>(now - last_print).count() > 1.0 || solver.time() >= end - 1e-12)) {
-      last_print = now;
-      const double wall = std::chrono::duration<double>(now - t0).count();
-      const double eta = solver.time() > 0 ? wall * (end - solver.time()) / solver.time() : 0.0;
-      log << "  t = " << std::fixed << std::setprecision(4) << solver.time() << " / " << end << " s  step "
-          << solver.steps() << "  dt " << std::scientific << std::setprecision(2)
-          << (last_free_dt > 0 ? last_free_dt : double(solver.last_limits().dt))
-          << " s  " << (wall > 0 ? r.particle_steps / wall : 0.0) << " particle-steps/s  ETA "
-          << format_seconds(eta) << std::defaultfloat << "\n";
-      log.flush();
-    }
+    progress(solver.time() >= end - 1e-12);
   }
   r.wall_seconds = std::chrono::duration<double>(clock::now() - t0).count();
   r.steps = solver.steps();

@@ -32,6 +32,7 @@ std::unique_ptr<FieldBuilder> make_field(const Scene& s, Backend b, const StageN
 
 struct RunOptions {
   bool progress = true;
+  double progress_seconds = 1.0;  // between progress lines (and at the end)
   // Built at every output frame, before on_output (which may read it).
   FieldBuilder* field = nullptr;
   FieldKind field_kind = FieldKind::Presence;

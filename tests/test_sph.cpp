@@ -273,3 +273,27 @@ TEST_CASE("the run summary's particle-steps count the particles present at each 
   REQUIRE(std::sscanf(text.c_str() + at, "wall time %lf s (%lf particle-steps/s)", &wall, &rate) == 2);
   CHECK(rate * wall == Approx(double(present)).epsilon(2e-3));
 }
+
+TEST_CASE("the run's progress line comes between output times too", "[sph][cpu]") {
+  // render --time T runs to T in one output interval; the progress line came
+  // only at output times, so a long render said nothing until it ended.
+  const Scene s = load_scene(test::source_path("scenes/dam_break.json"),
+                             {"sph.spacing=0.05", "run.end_time=0.02", "run.output_interval=0.02"});
+  auto solver = make_cpu_solver(make_solver_input(s, PresenceMode::Off));
+  RunOptions opt;
+  opt.progress_seconds = 0;  // a line for every step
+  std::ostringstream log;
+  const RunSummary r = run_scene(s, *solver, opt, log);
+  INFO(log.str());
+  REQUIRE(r.steps > 3);
+  std::istringstream lines(log.str());
+  std::vector<double> times;
+  for (std::string line; std::getline(lines, line);) {
+    double t = 0;
+    if (std::sscanf(line.c_str(), "  t = %lf /", &t) == 1) times.push_back(t);
+  }
+  CHECK(times.size() == r.steps);  // one per step, the last at the end
+  CHECK(times.front() < 0.02);
+  CHECK(times.back() == Approx(0.02));
+  CHECK(std::is_sorted(times.begin(), times.end()));
+}
