@@ -108,13 +108,56 @@ class Reader {
   std::string file_, path_;
 };
 
+// JSON text parsed with every object's keys checked for repeats: JSON allows
+// them and nlohmann keeps the last, so a scene with two "sph" sections ran
+// with the second one silently. Throws json::parse_error as json::parse
+// does; returns the dotted key of the first repeat in `repeated`.
+json parse_json(const std::string& text, std::string& repeated, bool allow_exceptions = true) {
+  struct Level {
+    bool array;
+    size_t index = 0;  // arrays: the element being read
+    std::string key;   // objects: the key being read
+    std::set<std::string> keys;
+  };
+  std::vector<Level> levels;
+  auto dotted = [&] {
+    std::string path;
+    for (const Level& l : levels) path += (path.empty() ? "" : ".") + (l.array ? std::to_string(l.index) : l.key);
+    return path;
+  };
+  auto element_done = [&] {
+    if (!levels.empty() && levels.back().array) ++levels.back().index;
+  };
+  const json::parser_callback_t check = [&](int, json::parse_event_t event, json& parsed) {
+    switch (event) {
+      case json::parse_event_t::object_start: levels.push_back({false}); break;
+      case json::parse_event_t::array_start: levels.push_back({true}); break;
+      case json::parse_event_t::object_end:
+      case json::parse_event_t::array_end:
+        levels.pop_back();
+        element_done();
+        break;
+      case json::parse_event_t::key:
+        levels.back().key = parsed.get<std::string>();
+        if (!levels.back().keys.insert(levels.back().key).second && repeated.empty()) repeated = dotted();
+        break;
+      case json::parse_event_t::value: element_done(); break;
+    }
+    return true;
+  };
+  return json::parse(text, check, allow_exceptions);
+}
+
 void apply_override(json& j, const std::string& file, const std::string& assignment) {
   const auto eq = assignment.find('=');
   if (eq == std::string::npos || eq == 0)
     throw SceneError("--set '" + assignment + "': expected key.path=value (e.g. sph.spacing=0.02)");
   const std::string key = assignment.substr(0, eq), text = assignment.substr(eq + 1);
-  json value = json::parse(text, nullptr, /*allow_exceptions=*/false);
+  std::string repeated;
+  json value = parse_json(text, repeated, /*allow_exceptions=*/false);
   if (value.is_discarded()) value = text;  // a bare word is a string
+  else if (!repeated.empty())
+    throw SceneError("--set " + key + ": the value names '" + repeated + "' twice (JSON keeps only the last)");
   std::string pointer, walked;
   const json* at = &j;  // the value the path has reached, while it exists
   std::stringstream ss(key);
@@ -206,11 +249,14 @@ int auto_boundary_layers(const Scene& s) { return int(std::ceil(2.0 * s.sph.smoo
 
 Scene parse_scene(const std::string& text, const std::string& file, const std::vector<std::string>& overrides) {
   json j;
+  std::string repeated;
   try {
-    j = json::parse(text);
+    j = parse_json(text, repeated);
   } catch (const json::parse_error& e) {
     throw SceneError(file + ": not valid JSON: " + e.what());
   }
+  if (!repeated.empty())
+    throw SceneError(file + ": " + repeated + " is given twice (JSON keeps only the last; give it once)");
   if (!j.is_object()) throw SceneError(file + ": the scene must be a JSON object");
   for (const auto& o : overrides) apply_override(j, file, o);
 

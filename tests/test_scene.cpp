@@ -194,6 +194,26 @@ TEST_CASE("overlapping fluid blocks fill their union once, at its hydrostatic de
   CHECK(std::abs(double(o.fluid_pos_rho.size()) - union_cells) <= 25 * 15);
 }
 
+TEST_CASE("a key given twice in one object is refused by its dotted path", "[scene][cpu]") {
+  // JSON allows it and the parser keeps the last, so the first was ignored
+  // silently (two "sph" sections ran with the second one's spacing).
+  const std::string tank = R"("tank": {"min": [0,0,0], "max": [1,1,1]})";
+  CHECK(error_of("{" + tank + R"(, "sph": {"spacing": 0.1}, "sph": {"spacing": 0.2}})") ==
+        "t.json: sph is given twice (JSON keeps only the last; give it once)");
+  CHECK(contains(error_of("{" + tank + R"(, "sph": {"spacing": 0.1, "rest_density": 1000, "spacing": 0.2}})"),
+                 "t.json: sph.spacing is given twice"));
+  // inside an array: the element's index (arrays count nested objects and scalars alike)
+  CHECK(contains(error_of("{" + tank + R"(, "sph": {"spacing": 0.1}, "fluid": [
+      {"min": [0,0,0], "max": [0.5,0.5,0.5]},
+      {"min": [0.5,0,0], "max": [1,0.5,0.5], "velocity": [0,0,0], "max": [1,1,1]}]})"),
+                 "t.json: fluid.1.max is given twice"));
+  CHECK(contains(error_of(kGood, {R"(fluid.0={"min":[0,0,0],"max":[0.1,0.1,0.1],"min":[0,0,0]})"}),
+                 "--set fluid.0: the value names 'min' twice"));
+  // the same key in different objects is no repeat
+  CHECK(error_of("{" + tank + R"(, "sph": {"spacing": 0.1}, "fluid": [
+      {"min": [0,0,0], "max": [0.5,0.5,0.5]}, {"min": [0.5,0,0], "max": [1,0.5,0.5]}]})").empty());
+}
+
 TEST_CASE("a missing scene file is a clear error", "[scene][cpu]") {
   CHECK_THROWS_AS(load_scene("/nonexistent/scene.json"), SceneError);
 }
