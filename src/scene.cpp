@@ -379,6 +379,22 @@ Scene parse_scene(const std::string& text, const std::string& file, const std::v
   const Vec3d tank_size = s.tank.max - s.tank.min;
   if (std::min({tank_size.x, tank_size.y, tank_size.z}) < 2 * dx)
     tank.fail("max", tank.at("max"), "the tank must be at least two particle spacings (sph.spacing) wide in every axis");
+  // Positions are single precision on both backends: 2^-24 of a coordinate.
+  // Within 16384 spacings of the origin that is under 1/1000 of a spacing; a
+  // tank placed far out (map coordinates) would run with distances, and so
+  // pressures, rounded to a visible fraction of a particle.
+  constexpr double kMaxSpacingsFromOrigin = 16384;
+  for (const char* corner : {"min", "max"}) {
+    const Vec3d c = corner[1] == 'i' ? s.tank.min : s.tank.max;
+    const double far = std::max({std::abs(c.x), std::abs(c.y), std::abs(c.z)});
+    if (far > kMaxSpacingsFromOrigin * dx) {
+      std::ostringstream os;
+      os << "lies " << far / dx << " particle spacings from the origin: positions are single precision, which resolve "
+         << "1/1000 of a spacing only within " << kMaxSpacingsFromOrigin << " spacings (" << kMaxSpacingsFromOrigin * dx
+         << " m here); move the tank nearer the origin";
+      tank.fail(corner, tank.at(corner), os.str());
+    }
+  }
 
   if (root.has("fluid")) {
     const json& fl = root.at("fluid");
