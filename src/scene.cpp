@@ -130,8 +130,8 @@ json parse_json(const std::string& text, std::string& repeated, bool allow_excep
   };
   const json::parser_callback_t check = [&](int, json::parse_event_t event, json& parsed) {
     switch (event) {
-      case json::parse_event_t::object_start: levels.push_back({false}); break;
-      case json::parse_event_t::array_start: levels.push_back({true}); break;
+      case json::parse_event_t::object_start: levels.push_back(Level{false, 0, {}, {}}); break;
+      case json::parse_event_t::array_start: levels.push_back(Level{true, 0, {}, {}}); break;
       case json::parse_event_t::object_end:
       case json::parse_event_t::array_end:
         levels.pop_back();
@@ -384,8 +384,7 @@ Scene parse_scene(const std::string& text, const std::string& file, const std::v
   // tank placed far out (map coordinates) would run with distances, and so
   // pressures, rounded to a visible fraction of a particle.
   constexpr double kMaxSpacingsFromOrigin = 16384;
-  for (const char* corner : {"min", "max"}) {
-    const Vec3d c = corner[1] == 'i' ? s.tank.min : s.tank.max;
+  for (const auto& [corner, c] : {std::pair{"min", s.tank.min}, std::pair{"max", s.tank.max}}) {
     const double far = std::max({std::abs(c.x), std::abs(c.y), std::abs(c.z)});
     if (far > kMaxSpacingsFromOrigin * dx) {
       std::ostringstream os;
