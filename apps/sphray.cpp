@@ -295,7 +295,8 @@ int cmd_inspect(const std::string& path) {
       ++finite;
     }
     std::ostringstream os;
-    os << "[" << lo << ", " << hi << "]";
+    if (finite) os << "[" << lo << ", " << hi << "]";
+    else os << "(no finite value)";
     if (other) os << " (" << other << " non-finite)";
     return os.str();
   };
@@ -303,8 +304,10 @@ int cmd_inspect(const std::string& path) {
     const FrameInfo& fi = r.frames()[k];
     const Frame f = r.read(k);
     std::cout << "  " << fi.name << "  t = " << fi.time << " s  step " << fi.step << "  " << fi.particles
-              << " particles  x " << range(f.position, 3, 0) << " y " << range(f.position, 3, 1) << " z "
-              << range(f.position, 3, 2);
+              << " particles";
+    if (fi.particles)  // none left (an open top): no ranges to print
+      std::cout << "  x " << range(f.position, 3, 0) << " y " << range(f.position, 3, 1) << " z "
+                << range(f.position, 3, 2);
     if (!f.density.empty()) std::cout << "  density " << range(f.density, 1, 0);
     if (!f.pressure.empty()) std::cout << "  pressure " << range(f.pressure, 1, 0);
     if (!f.velocity.empty()) {
