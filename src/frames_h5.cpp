@@ -185,8 +185,9 @@ FrameWriter::FrameWriter(const std::string& path, const FileHeader& header, int 
     attr_string(file_, "backend", header.backend, path);
     Handle g{check(H5Gcreate2(file_, "boundary", H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT), path, "creating /boundary"),
              H5Gclose};
-    dataset(g.id, "position", H5T_NATIVE_FLOAT, H5T_IEEE_F32LE, header.boundary.data(),
-            {hsize_t(header.boundary.size() / 3), 3}, gzip_, path);
+    boundary_ = header.boundary.size() / 3;
+    dataset(g.id, "position", H5T_NATIVE_FLOAT, H5T_IEEE_F32LE, header.boundary.data(), {hsize_t(boundary_), 3},
+            gzip_, path);
     Handle f{check(H5Gcreate2(file_, "frames", H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT), path, "creating /frames"),
              H5Gclose};
     if (H5Fflush(file_, H5F_SCOPE_GLOBAL) < 0) fail(path, "flushing the header");
@@ -274,29 +275,101 @@ void FrameWriter::write(const Frame& f) {
     attr_array(d.id, "iso", H5T_NATIVE_FLOAT, H5T_IEEE_F32LE, &f.field_iso, 1, path_);
   }
   if (H5Fflush(file_, H5F_SCOPE_GLOBAL) < 0) fail(path_, "flushing frame " + name);
-  xdmf_.push_back({f.time, f.count()});
+  xdmf_.push_back({f.time,
+                   f.count(),
+                   !f.velocity.empty(),
+                   !f.density.empty(),
+                   !f.pressure.empty(),
+                   !f.presence.empty(),
+                   !f.field.empty(),
+                   {f.field_dims[0], f.field_dims[1], f.field_dims[2]},
+                   {f.field_origin[0], f.field_origin[1], f.field_origin[2]},
+                   f.field_voxel});
   write_xdmf();
 }
 
+// The sidecar that lets ParaView (and VisIt) read the export as time series:
+// the particles with every per-particle dataset as a point array, the walls
+// (the same particles at every time), and the density
+// field, when exported, as a uniform grid of its voxel centres (contour it at
+// the dataset's iso for the liquid's surface).
 void FrameWriter::write_xdmf() {
   const std::string xmf = xdmf_path(path_), tmp = xmf + ".tmp";
   const size_t slash = path_.rfind('/');
   const std::string h5 = slash == std::string::npos ? path_ : path_.substr(slash + 1);
   std::ofstream o(tmp);
-  o << "<?xml version=\"1.0\" ?>\n<Xdmf Version=\"3.0\">\n <Domain>\n"
-    << "  <Grid Name=\"particles\" GridType=\"Collection\" CollectionType=\"Temporal\">\n";
   o.precision(10);
-  for (size_t k = 0; k < xdmf_.size(); ++k) {
-    const std::string g = h5 + ":/frames/" + frame_name(k);
-    const size_t n = xdmf_[k].second;
-    o << "   <Grid Name=\"frame " << k << "\" GridType=\"Uniform\">\n"
-      << "    <Time Value=\"" << xdmf_[k].first << "\"/>\n"
-      << "    <Topology TopologyType=\"Polyvertex\" NumberOfElements=\"" << n << "\"/>\n"
-      << "    <Geometry GeometryType=\"XYZ\">\n"
-      << "     <DataItem Dimensions=\"" << n << " 3\" NumberType=\"Float\" Precision=\"4\" Format=\"HDF\">" << g
-      << "/position</DataItem>\n    </Geometry>\n   </Grid>\n";
+  auto item = [&](const std::string& dims, const char* type, const std::string& path) {
+    o << "<DataItem Dimensions=\"" << dims << "\" NumberType=\"" << type << "\" Precision=\"4\" Format=\"HDF\">" << h5
+      << ":" << path << "</DataItem>";
+  };
+  auto attribute = [&](const char* name, const char* kind, const std::string& dims, const std::string& path) {
+    o << "    <Attribute Name=\"" << name << "\" AttributeType=\"" << kind << "\" Center=\"Node\">\n     ";
+    item(dims, "Float", path);
+    o << "\n    </Attribute>\n";
+  };
+  o << "<?xml version=\"1.0\" ?>\n<Xdmf Version=\"3.0\">\n <Domain>\n";
+  // The walls at every frame's time, all from the one dataset: ParaView's
+  // Xdmf3 readers drop a grid without a time from a file with time steps.
+  if (boundary_ > 0) {
+    const std::string b = std::to_string(boundary_);
+    o << "  <Grid Name=\"walls\" GridType=\"Collection\" CollectionType=\"Temporal\">\n";
+    for (size_t k = 0; k < xdmf_.size(); ++k) {
+      o << "   <Grid Name=\"walls " << k << "\" GridType=\"Uniform\">\n"
+        << "    <Time Value=\"" << xdmf_[k].time << "\"/>\n"
+        << "    <Topology TopologyType=\"Polyvertex\" NumberOfElements=\"" << b << "\"/>\n"
+        << "    <Geometry GeometryType=\"XYZ\">\n     ";
+      item(b + " 3", "Float", "/boundary/position");
+      o << "\n    </Geometry>\n   </Grid>\n";
+    }
+    o << "  </Grid>\n";
   }
-  o << "  </Grid>\n </Domain>\n</Xdmf>\n";
+  o << "  <Grid Name=\"particles\" GridType=\"Collection\" CollectionType=\"Temporal\">\n";
+  for (size_t k = 0; k < xdmf_.size(); ++k) {
+    const XdmfFrame& x = xdmf_[k];
+    const std::string g = "/frames/" + frame_name(k), n = std::to_string(x.particles);
+    o << "   <Grid Name=\"frame " << k << "\" GridType=\"Uniform\">\n"
+      << "    <Time Value=\"" << x.time << "\"/>\n"
+      << "    <Topology TopologyType=\"Polyvertex\" NumberOfElements=\"" << n << "\"/>\n"
+      << "    <Geometry GeometryType=\"XYZ\">\n     ";
+    item(n + " 3", "Float", g + "/position");
+    o << "\n    </Geometry>\n    <Attribute Name=\"id\" AttributeType=\"Scalar\" Center=\"Node\">\n     ";
+    item(n, "UInt", g + "/id");
+    o << "\n    </Attribute>\n";
+    if (x.velocity) attribute("velocity", "Vector", n + " 3", g + "/velocity");
+    if (x.density) attribute("density", "Scalar", n, g + "/density");
+    if (x.pressure) attribute("pressure", "Scalar", n, g + "/pressure");
+    // six components, +x -x +y -y +z -z (ParaView's reader skips a HyperSlab per column)
+    if (x.presence) attribute("presence", "Matrix", n + " 6", g + "/presence");
+    o << "   </Grid>\n";
+  }
+  o << "  </Grid>\n";
+  bool any_field = false;
+  for (const XdmfFrame& x : xdmf_) any_field = any_field || x.field;
+  if (any_field) {
+    o << "  <Grid Name=\"field\" GridType=\"Collection\" CollectionType=\"Temporal\">\n";
+    for (size_t k = 0; k < xdmf_.size(); ++k) {
+      const XdmfFrame& x = xdmf_[k];
+      if (!x.field) continue;
+      // XDMF orders a structured grid's axes slowest first: z, y, x, as the dataset is stored.
+      const std::string dims = std::to_string(x.field_dims[2]) + " " + std::to_string(x.field_dims[1]) + " " +
+                               std::to_string(x.field_dims[0]);
+      const float v = x.field_voxel;  // values sit at voxel centres, half a voxel in from `origin`
+      o << "   <Grid Name=\"field " << k << "\" GridType=\"Uniform\">\n"
+        << "    <Time Value=\"" << x.time << "\"/>\n"
+        << "    <Topology TopologyType=\"3DCoRectMesh\" Dimensions=\"" << dims << "\"/>\n"
+        << "    <Geometry GeometryType=\"ORIGIN_DXDYDZ\">\n"
+        << "     <DataItem Dimensions=\"3\" NumberType=\"Float\" Precision=\"4\" Format=\"XML\">"
+        << x.field_origin[2] + 0.5f * v << " " << x.field_origin[1] + 0.5f * v << " " << x.field_origin[0] + 0.5f * v
+        << "</DataItem>\n"
+        << "     <DataItem Dimensions=\"3\" NumberType=\"Float\" Precision=\"4\" Format=\"XML\">" << v << " " << v
+        << " " << v << "</DataItem>\n    </Geometry>\n";
+      attribute("field", "Scalar", dims, "/frames/" + frame_name(k) + "/field");
+      o << "   </Grid>\n";
+    }
+    o << "  </Grid>\n";
+  }
+  o << " </Domain>\n</Xdmf>\n";
   o.close();
   if (!o || std::rename(tmp.c_str(), xmf.c_str()) != 0)
     throw FrameFileError(xmf + ": cannot write the XDMF sidecar: " + std::strerror(errno));

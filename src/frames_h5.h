@@ -80,10 +80,20 @@ class FrameWriter {
   void write(const Frame& f);
   void write_xdmf();
 
+  // What the XDMF sidecar says of each written frame (writer thread).
+  struct XdmfFrame {
+    double time;
+    size_t particles;
+    bool velocity, density, pressure, presence, field;
+    int field_dims[3];  // nx, ny, nz
+    float field_origin[3], field_voxel;
+  };
+
   std::string path_;
   int gzip_;
   int64_t file_ = -1;
-  std::vector<std::pair<double, size_t>> xdmf_;  // time, particle count of each written frame (writer thread)
+  size_t boundary_ = 0;  // wall particles in /boundary/position
+  std::vector<XdmfFrame> xdmf_;
   std::unique_ptr<BackgroundQueue> queue_;       // last: started once the header is written
 };
 
