@@ -225,7 +225,14 @@ void FrameWriter::finish() {
   // closing would flush the failed frame's partial metadata over it.
   if (ok) H5Fclose(file_);
   file_ = -1;
-  if (!ok) throw FrameFileError(queue_->error());
+  if (!ok) {
+    try {  // the frames written before, if the disk still takes the sidecar
+      if (xdmf_written_ < xdmf_.size()) write_xdmf();
+    } catch (const FrameFileError&) {
+    }
+    throw FrameFileError(queue_->error());
+  }
+  if (xdmf_written_ < xdmf_.size()) write_xdmf();
 }
 
 void FrameWriter::write(const Frame& f) {
@@ -235,7 +242,8 @@ void FrameWriter::write(const Frame& f) {
   // that fails half way (disk full) can leave HDF5's metadata inconsistent.
   const double payload = 4.0 * double(f.id.size() + f.position.size() + f.velocity.size() + f.density.size() +
                                       f.pressure.size() + f.presence.size() + f.field.size());
-  const double need = 1.1 * payload + 64.0 * 1024.0;  // chunk indexes, group, attributes
+  // chunk indexes, group, attributes; and the sidecar's rewrite (its .tmp beside the old one)
+  const double need = 1.1 * payload + 64.0 * 1024.0 + xdmf_bytes_ + 16.0 * 1024.0;
   struct statvfs fs {};
   const size_t slash = path_.rfind('/');
   const std::string dir = slash == std::string::npos ? "." : (slash == 0 ? "/" : path_.substr(0, slash));
@@ -285,7 +293,16 @@ void FrameWriter::write(const Frame& f) {
                    {f.field_dims[0], f.field_dims[1], f.field_dims[2]},
                    {f.field_origin[0], f.field_origin[1], f.field_origin[2]},
                    f.field_voxel});
-  write_xdmf();
+  // The sidecar is rewritten whole (to a .tmp renamed into place, so it is
+  // never seen half written), and it grows with the frames: rewritten after
+  // every frame, a long run's sidecars would sum to the square of its frame
+  // count. So after every frame up to 16, then once the frames not yet in it
+  // reach 1/16 of those in it (the rewrites sum to about 17 sidecars), or a
+  // second has passed; and at the end.
+  const size_t behind = xdmf_.size() - xdmf_written_;
+  if (behind >= std::max<size_t>(1, xdmf_written_ / 16) ||
+      std::chrono::steady_clock::now() - xdmf_time_ > std::chrono::seconds(1))
+    write_xdmf();
 }
 
 // The sidecar that lets ParaView (and VisIt) read the export as time series:
@@ -370,9 +387,14 @@ void FrameWriter::write_xdmf() {
     o << "  </Grid>\n";
   }
   o << " </Domain>\n</Xdmf>\n";
+  const double bytes = double(o.tellp());
   o.close();
   if (!o || std::rename(tmp.c_str(), xmf.c_str()) != 0)
     throw FrameFileError(xmf + ": cannot write the XDMF sidecar: " + std::strerror(errno));
+  xdmf_written_ = xdmf_.size();
+  ++xdmf_writes_;
+  xdmf_bytes_ = bytes;
+  xdmf_time_ = std::chrono::steady_clock::now();
 }
 
 // ---------------- reader ----------------

@@ -6,6 +6,7 @@
 // tests and later re-rendering.
 #pragma once
 
+#include <chrono>
 #include <cstdint>
 #include <memory>
 #include <functional>
@@ -75,6 +76,7 @@ class FrameWriter {
   void finish();
   size_t frames_written() const { return queue_ ? queue_->done() : 0; }
   double seconds_waited() const { return queue_ ? queue_->seconds_waited() : 0.0; }  // time submit() blocked the run
+  size_t sidecar_writes() const { return xdmf_writes_; }  // times the XDMF sidecar was written (after finish())
 
  private:
   void write(const Frame& f);
@@ -94,6 +96,10 @@ class FrameWriter {
   int64_t file_ = -1;
   size_t boundary_ = 0;  // wall particles in /boundary/position
   std::vector<XdmfFrame> xdmf_;
+  // The sidecar on disk: frames it describes, its size, when it was written.
+  size_t xdmf_written_ = 0, xdmf_writes_ = 0;
+  double xdmf_bytes_ = 0;
+  std::chrono::steady_clock::time_point xdmf_time_{};
   std::unique_ptr<BackgroundQueue> queue_;       // last: started once the header is written
 };
 
