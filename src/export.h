@@ -3,6 +3,7 @@
 #pragma once
 
 #include <functional>
+#include <memory>
 #include <set>
 #include <string>
 
@@ -16,10 +17,12 @@ namespace sphray {
 std::set<std::string> parse_export_fields(const std::string& text);
 
 // What a frame needs, copied from the solver (and the field) as it is; the
-// returned function makes the frame (sorting, conversions) and is meant to
-// run on the writer's thread (FrameWriter::submit).
-std::function<Frame()> capture_frame(const Solver& s, const SphParams& prm, const std::set<std::string>& fields,
-                                     const FieldBuilder* field);
+// returned function makes the frame (ordering, conversions) and is meant to
+// run on the writer's thread (FrameWriter::submit). Its buffers are reused by
+// a later capture once the frame is released.
+std::function<std::shared_ptr<const Frame>()> capture_frame(const Solver& s, const SphParams& prm,
+                                                            const std::set<std::string>& fields,
+                                                            const FieldBuilder* field);
 
 // The fluid sorted by initial index, with the fields asked for (presence only
 // when the solver's last step computed it; the field from `field`'s last build).

@@ -208,11 +208,11 @@ FrameWriter::~FrameWriter() {
 
 void FrameWriter::submit(Frame&& f) {
   auto shared = std::make_shared<Frame>(std::move(f));
-  submit(std::function<Frame()>([shared] { return std::move(*shared); }));
+  submit(std::function<std::shared_ptr<const Frame>()>([shared] { return shared; }));
 }
 
-void FrameWriter::submit(std::function<Frame()> f) {
-  if (!queue_->submit([this, make = std::move(f)] { write(make()); })) throw FrameFileError(queue_->error());
+void FrameWriter::submit(std::function<std::shared_ptr<const Frame>()> f) {
+  if (!queue_->submit([this, make = std::move(f)] { write(*make()); })) throw FrameFileError(queue_->error());
 }
 
 void FrameWriter::finish() {

@@ -70,8 +70,9 @@ class FrameWriter {
   // Queues a frame; blocks only while another frame is still queued. Throws
   // FrameFileError if an earlier write failed.
   void submit(Frame&& f);
-  // Same, with the frame made on the writer thread (conversions off the run's thread).
-  void submit(std::function<Frame()> make);
+  // Same, with the frame made on the writer thread (conversions off the run's
+  // thread); the frame is released once written (its buffers may be reused).
+  void submit(std::function<std::shared_ptr<const Frame>()> make);
   // Waits for the queue to drain and closes the file; throws on a write error.
   void finish();
   size_t frames_written() const { return queue_ ? queue_->done() : 0; }

@@ -10,6 +10,7 @@
 #include <string>
 #include <vector>
 
+#include "host_memory.h"
 #include "../cuda/sph/grid.h"
 #include "../cuda/sph/integrate.h"  // StepLimits
 #include "../cuda/sph/params.h"
@@ -69,11 +70,12 @@ struct ParticleView {
 
 // Device buffers copied as they are (sorted order, no conversion), for sinks
 // that convert on another thread (the HDF5 export).
+// Pinned where the backend provides it (host_memory.h).
 struct RawParticles {
-  std::vector<Float4> pos;       // x, y, z, density
-  std::vector<Float4> vel;       // vx, vy, vz, - (empty unless asked for)
-  std::vector<uint32_t> id;
-  std::vector<float> presence;   // [6][n] (empty unless asked for and computed)
+  PinnedVector<Float4> pos;      // x, y, z, density
+  PinnedVector<Float4> vel;      // vx, vy, vz, - (empty unless asked for)
+  PinnedVector<uint32_t> id;
+  PinnedVector<float> presence;  // [6][n] (empty unless asked for and computed)
 };
 
 // Milliseconds of the last step. pairs: the wall pressure and the one

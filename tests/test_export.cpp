@@ -292,6 +292,43 @@ TEST_CASE("a frame whose datasets disagree with its particles, or has a non-fini
   CHECK(has(read_error(path), "/frames/000000/field: not a 3D grid"));
 }
 
+TEST_CASE("a frame of a run that lost particles keeps ascending ids with gaps, each row its particle", "[export]") {
+  // convert() takes a particle's id as its row while every initial particle
+  // is present, and the id's rank among those present once some have gone.
+  const Scene s = parse_scene(R"({"tank": {"min": [0,0,0], "max": [0.2,0.1,0.1], "open_top": true},
+    "fluid": [{"min": [0.12,0.04,0.02], "max": [0.16,0.06,0.04], "velocity": [0,0,20]},
+              {"min": [0.02,0.02,0.0], "max": [0.08,0.08,0.04]}],
+    "sph": {"spacing": 0.01}, "run": {"end_time": 0.03}})", "gaps.json");
+  auto solver = make_cpu_solver(make_solver_input(s, PresenceMode::Off));
+  const SphParams prm = make_params(s);
+  const std::set<std::string> fields = parse_export_fields("velocity,density,pressure");
+  const size_t start = solver->num_fluid();
+  for (const double t : {0.0, 0.03}) {
+    test::run_until(*solver, t);
+    INFO("t = " << t << ": " << solver->num_fluid() << " of " << start << " particles");
+    const Frame f = frame_of(*solver, prm, fields, nullptr);
+    const HostParticles h = solver->download();
+    REQUIRE(f.count() == h.id.size());
+    std::map<uint32_t, size_t> at;  // id -> index in the solver's order
+    for (size_t i = 0; i < h.id.size(); ++i) at[h.id[i]] = i;
+    size_t row = 0;
+    for (const auto& [id, i] : at) {  // ascending ids
+      CHECK(f.id[row] == id);
+      for (int d = 0; d < 3; ++d) {
+        CHECK(f.position[3 * row + d] == (&h.pos[i].x)[d]);
+        CHECK(f.velocity[3 * row + d] == (&h.vel[i].x)[d]);
+      }
+      CHECK(f.density[row] == h.density[i]);
+      CHECK(f.pressure[row] == tait_pressure(prm, h.density[i]));
+      ++row;
+    }
+    if (t > 0) {
+      CHECK(solver->num_removed() > 0);  // the jet (the first ids) has left: the ids no longer start at 0
+      CHECK(f.id.front() > 0);
+    }
+  }
+}
+
 TEST_CASE("the XDMF sidecar describes every exported dataset as the HDF5 file holds it", "[export]") {
   // ParaView reads the export through the sidecar: particles with their
   // point arrays, walls, and the density field as a grid of voxel centres.
@@ -546,4 +583,29 @@ TEST_CASE("PNG frames are written in the background; a failed write is reported 
     msg = e.what();
   }
   CHECK(msg.find("cannot write PNG '/tmp/sphray_bg_frames/frame_000000.png'") != std::string::npos);
+}
+
+namespace {
+int g_made_a = 0, g_freed_a = 0, g_freed_b = 0;
+}  // namespace
+
+TEST_CASE("pinned host blocks go back to the provider that made them, and fall back to malloc", "[export]") {
+  // The CUDA backend installs cudaMallocHost when a device is used; snapshots
+  // made before (or after a failed page-lock) must still be freed rightly.
+  const HostMemoryProvider before = pinned_provider();
+  set_pinned_provider({[](size_t b) -> void* { ++g_made_a; return std::malloc(b); },
+                       [](void* p) { ++g_freed_a; std::free(p); }});
+  auto* a = new PinnedVector<Float4>(1000, Float4{1, 2, 3, 4});
+  CHECK(g_made_a == 1);
+  CHECK(reinterpret_cast<uintptr_t>(a->data()) % alignof(Float4) == 0);
+  set_pinned_provider({[](size_t) -> void* { return nullptr; },  // cannot page-lock: malloc's block
+                       [](void* p) { ++g_freed_b; std::free(p); }});
+  auto* b = new PinnedVector<uint32_t>(5000, 7u);
+  CHECK((*b)[4999] == 7u);
+  delete a;  // to the first provider
+  CHECK(g_freed_a == 1);
+  delete b;  // to malloc, not to the second provider
+  CHECK(g_freed_b == 0);
+  CHECK(g_freed_a == 1);
+  set_pinned_provider(before);
 }

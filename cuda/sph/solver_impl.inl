@@ -280,7 +280,7 @@ class SolverImpl final : public Solver {
   void download_raw(RawParticles& out, bool velocity, bool presence) const override {
     auto copy = [](const auto& src, auto& dst, size_t n) {
       dst.resize(n);
-      if (n) thrust::copy(src.begin(), src.begin() + n, dst.begin());
+      if (n) thrust::copy(src.begin(), src.begin() + n, dst.data());  // into pinned memory on CUDA (host_memory.h)
     };
     copy(pos_, out.pos, n_);
     copy(id_, out.id, n_);
