@@ -21,9 +21,9 @@ constexpr size_t kHeader = 64;
 }  // namespace
 
 void set_pinned_provider(HostMemoryProvider p) {
-  static HostMemoryProvider installed;  // set once by a backend; blocks made before keep their release
-  installed = p;
-  g_provider.store(&installed);
+  // Never freed: an allocation on another thread may still be reading the
+  // one replaced (a backend installs one per process; tests a few).
+  g_provider.store(new HostMemoryProvider(p));
 }
 
 HostMemoryProvider pinned_provider() {
