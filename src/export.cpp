@@ -157,6 +157,7 @@ std::function<std::shared_ptr<const Frame>()> capture_frame(const Solver& solver
     s->iso = field->setup().shape.iso;
   }
   return [s] {
+    if (s->p.ready) s->p.ready();  // the copies off the device, behind the run's next steps
     convert(*s);
     // back to the pool, with the frame's buffers, once the writer is done with it
     return std::shared_ptr<const Frame>(&s->out, [s](const Frame*) { pool().give(s); });

@@ -147,10 +147,11 @@ SceneSize measure_scene(const Scene& s) {
   // Per fluid particle: the solver's buffers (see SolverImpl: 8 x 16 bytes of
   // state, scratch and pair-loop results, 48 of presence and its scratch, 18
   // of ids, status, keys and order) plus sort scratch and the host-side copy,
-  // the two pair masks (fluid and walls); the coarse + 2 slab tables and the
-  // two near-cell flags.
+  // an export's staging copies (60: position, id, velocity, presence), the
+  // two pair masks (fluid and walls); the coarse + 2 slab tables and the two
+  // near-cell flags.
   const size_t mask_bytes = 2 * (sizeof(PairWord) * pair_mask_capacity(support / dx) + sizeof(uint32_t));
-  z.bytes = z.fluid * (248 + mask_bytes) + z.boundary * 64 + z.cells * (4 + 8 * GridGeom::kSubX + 2);
+  z.bytes = z.fluid * (248 + 60 + mask_bytes) + z.boundary * 64 + z.cells * (4 + 8 * GridGeom::kSubX + 2);
   return z;
 }
 

@@ -5,6 +5,7 @@
 
 #include <array>
 #include <cstdint>
+#include <functional>
 #include <memory>
 #include <stdexcept>
 #include <string>
@@ -76,6 +77,8 @@ struct RawParticles {
   PinnedVector<Float4> vel;      // vx, vy, vz, - (empty unless asked for)
   PinnedVector<uint32_t> id;
   PinnedVector<float> presence;  // [6][n] (empty unless asked for and computed)
+  // Call before reading: the copies may still be running (CUDA). Empty: done.
+  std::function<void()> ready;
 };
 
 // Milliseconds of the last step. pairs: the wall pressure and the one

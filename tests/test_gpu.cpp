@@ -5,11 +5,13 @@
 #include <iostream>
 #include <limits>
 #include <random>
+#include <set>
 
 #include "../cuda/sph/neighbours.h"
 #include "catch.h"
 #include "helpers.h"
 #include "hydrostatic.h"
+#include "../src/export.h"
 #include "../src/field.h"
 #include "../src/metrics.h"
 #include "../src/render.h"
@@ -217,6 +219,44 @@ TEST_CASE("cuda and cpu dam breaks agree to float tolerance", "[gpu]") {
   CHECK(worst_pos < 1e-3 * s.sph.spacing);
   CHECK(worst_rho < 1e-3 * s.sph.rest_density);
   CHECK(worst_presence < 1e-3);
+}
+
+TEST_CASE("cuda export snapshots hold the state they were taken at, while the run goes on", "[gpu]") {
+  // The copy off the device runs on a stream of its own behind the next
+  // steps (AsyncDownload): a frame made after them must still be the state
+  // at its capture, and match the cpu's frame of the same steps.
+  const Scene s = load_scene(test::source_path("scenes/dam_break.json"), {"sph.spacing=0.02", "sph.presence=true"});
+  const SolverInput in = make_solver_input(s, PresenceMode::EveryStep);
+  auto cpu = make_cpu_solver(in), gpu = make_cuda_solver(in);
+  const SphParams prm = make_params(s);
+  const std::set<std::string> fields = parse_export_fields("velocity,density,presence");
+  for (int k = 0; k < 20; ++k) {
+    cpu->step(1.0);
+    gpu->step(1.0);
+  }
+  const HostParticles at = gpu->download();
+  auto make = capture_frame(*gpu, prm, fields, nullptr);
+  auto make_second = capture_frame(*gpu, prm, fields, nullptr);  // waits for the first's copies, then its own
+  for (int k = 0; k < 10; ++k) gpu->step(1.0);  // the run goes on, re-sorting and moving every particle
+  const Frame f = *make(), f2 = *make_second();
+  const Frame c = frame_of(*cpu, prm, fields, nullptr);
+  REQUIRE(f.count() == at.id.size());
+  std::vector<size_t> where(at.id.size());
+  for (size_t k = 0; k < at.id.size(); ++k) where[at.id[k]] = k;
+  double worst_cpu = 0;
+  for (size_t r = 0; r < f.count(); ++r) {
+    const size_t k = where[f.id[r]];
+    for (int d = 0; d < 3; ++d) {
+      REQUIRE(f.position[3 * r + d] == (&at.pos[k].x)[d]);  // exactly the state at capture
+      REQUIRE(f.velocity[3 * r + d] == (&at.vel[k].x)[d]);
+      worst_cpu = std::max(worst_cpu, double(std::abs(f.position[3 * r + d] - c.position[3 * r + d])));
+    }
+    REQUIRE(f.density[r] == at.density[k]);
+    for (int d = 0; d < 6; ++d) REQUIRE(f.presence[6 * r + d] == at.presence[k][d]);
+  }
+  CHECK(f2.position == f.position);
+  CHECK(c.id == f.id);
+  CHECK(worst_cpu < 1e-3 * s.sph.spacing);
 }
 
 TEST_CASE("cuda hydrostatic tank: pressure error against spacing and speed of sound", "[gpu]") {

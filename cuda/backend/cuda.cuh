@@ -4,6 +4,8 @@
 #pragma once
 
 #include <cstdint>
+#include <functional>
+#include <memory>
 #include <stdexcept>
 #include <string>
 #include <type_traits>
@@ -184,6 +186,56 @@ class ReadBack {
 
  private:
   T* host_ = nullptr;
+};
+
+// Copies off the device that the run does not wait for (the export's
+// snapshots): each array is copied on the device into a staging buffer, in
+// order with the step's work, and from there into host memory on a stream of
+// its own while the next steps run. done() gives what waits for the copies;
+// the next begin() waits for them before the staging buffers are reused.
+class AsyncDownload {
+ public:
+  AsyncDownload() {
+    SPHRAY_CUDA_CHECK(cudaStreamCreateWithFlags(&stream_, cudaStreamNonBlocking));
+    SPHRAY_CUDA_CHECK(cudaEventCreateWithFlags(&staged_, cudaEventDisableTiming));
+  }
+  ~AsyncDownload() {
+    if (last_) cudaEventSynchronize(*last_);
+    cudaEventDestroy(staged_);
+    cudaStreamDestroy(stream_);
+  }
+  AsyncDownload(const AsyncDownload&) = delete;
+  AsyncDownload& operator=(const AsyncDownload&) = delete;
+
+  void begin() {
+    if (last_) SPHRAY_CUDA_CHECK(cudaEventSynchronize(*last_));
+  }
+  template <class T>
+  void copy(const Vector<T>& src, size_t n, Vector<T>& staging, T* host) {
+    if (staging.size() < n) staging.resize(n);
+    const size_t bytes = n * sizeof(T);
+    SPHRAY_CUDA_CHECK(cudaMemcpyAsync(thrust::raw_pointer_cast(staging.data()), thrust::raw_pointer_cast(src.data()),
+                                      bytes, cudaMemcpyDeviceToDevice, cudaStreamLegacy));
+    SPHRAY_CUDA_CHECK(cudaEventRecord(staged_, cudaStreamLegacy));
+    SPHRAY_CUDA_CHECK(cudaStreamWaitEvent(stream_, staged_, 0));
+    SPHRAY_CUDA_CHECK(cudaMemcpyAsync(host, thrust::raw_pointer_cast(staging.data()), bytes, cudaMemcpyDeviceToHost,
+                                      stream_));
+  }
+  std::function<void()> done() {
+    cudaEvent_t e;
+    SPHRAY_CUDA_CHECK(cudaEventCreateWithFlags(&e, cudaEventDisableTiming));
+    SPHRAY_CUDA_CHECK(cudaEventRecord(e, stream_));
+    last_ = std::shared_ptr<cudaEvent_t>(new cudaEvent_t(e), [](cudaEvent_t* p) {
+      cudaEventDestroy(*p);
+      delete p;
+    });
+    return [ev = last_] { SPHRAY_CUDA_CHECK(cudaEventSynchronize(*ev)); };
+  }
+
+ private:
+  cudaStream_t stream_{};
+  cudaEvent_t staged_{};
+  std::shared_ptr<cudaEvent_t> last_;
 };
 
 template <class T>

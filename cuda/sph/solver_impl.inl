@@ -216,7 +216,8 @@ class SolverImpl final : public Solver {
     return b(pos_) + b(vel_) + b(flow_) + b(pos_tmp_) + b(vel_tmp_) + b(flow_tmp_) + b(accel_) + b(rate_grad_) + b(presence_) + b(presence_tmp_) + b(id_) +
            b(id_tmp_) + b(status_) + b(status_tmp_) + b(keys_) + b(order_) + b(offsets_) + b(fine_offsets_) + b(boundary_) +
            b(boundary_alpha_) + b(wall_) + b(boundary_offsets_) + b(fluid_pairs_) + b(boundary_pairs_) +
-           b(fluid_pair_count_) + b(boundary_pair_count_) + b(fluid_near_) + b(boundary_near_);
+           b(fluid_pair_count_) + b(boundary_pair_count_) + b(fluid_near_) + b(boundary_near_) + b(snap_pos_) +
+           b(snap_vel_) + b(snap_id_) + b(snap_presence_);
   }
 
   // Stage order: pairs (wall pressure, then one neighbour loop for the
@@ -277,17 +278,21 @@ class SolverImpl final : public Solver {
     return h;
   }
 
+  // On CUDA the copies run behind the next steps (AsyncDownload): out.ready
+  // waits for them.
   void download_raw(RawParticles& out, bool velocity, bool presence) const override {
-    auto copy = [](const auto& src, auto& dst, size_t n) {
-      dst.resize(n);
-      if (n) thrust::copy(src.begin(), src.begin() + n, dst.data());  // into pinned memory on CUDA (host_memory.h)
+    snapshot_.begin();
+    auto copy = [&](const auto& src, auto& staging, auto& dst, size_t n) {
+      dst.resize(n);  // pinned memory on CUDA (host_memory.h)
+      if (n) snapshot_.copy(src, n, staging, dst.data());
     };
-    copy(pos_, out.pos, n_);
-    copy(id_, out.id, n_);
-    if (velocity) copy(vel_, out.vel, n_);
+    copy(pos_, snap_pos_, out.pos, n_);
+    copy(id_, snap_id_, out.id, n_);
+    if (velocity) copy(vel_, snap_vel_, out.vel, n_);
     else out.vel.clear();
-    if (presence && presence_valid_) copy(presence_, out.presence, 6 * size_t(n_));
+    if (presence && presence_valid_) copy(presence_, snap_presence_, out.presence, 6 * size_t(n_));
     else out.presence.clear();
+    out.ready = snapshot_.done();
   }
 
   std::vector<Vec3f> boundary_positions() const override {
@@ -429,6 +434,11 @@ class SolverImpl final : public Solver {
   // The step's decision on the device (ChooseStep) and its copy for the host.
   Vector<StepControl> control_ = Vector<StepControl>(1);
   ReadBack<StepControl> control_read_;
+  // download_raw's staging buffers and copies (allocated by the first export).
+  mutable AsyncDownload snapshot_;
+  mutable Vector<Float4> snap_pos_, snap_vel_;
+  mutable Vector<uint32_t> snap_id_;
+  mutable Vector<float> snap_presence_;
 
   // vel_: the exact velocity; flow_: what the pair loop reads of a neighbour,
   // u (the predicted kicked velocity) and p / rho^2 (integrate.h).
