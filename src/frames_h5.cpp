@@ -268,10 +268,14 @@ void FrameWriter::write(const Frame& f) {
   const std::string name = frame_name(xdmf_.size());
   // A frame that cannot fit is refused before the file is touched: a write
   // that fails half way (disk full) can leave HDF5's metadata inconsistent.
-  const double payload = 4.0 * double(f.id.size() + f.position.size() + f.velocity.size() + f.density.size() +
-                                      f.pressure.size() + f.presence.size() + f.field.size());
+  double payload = 0, padding = 0;
+  for (const size_t values : {f.id.size(), f.position.size(), f.velocity.size(), f.density.size(), f.pressure.size(),
+                              f.presence.size(), f.field.size()}) {
+    payload += 4.0 * double(values);
+    padding += std::min(4.0 * double(values), 1048576.0);  // the last chunk is stored whole (under 1 MiB)
+  }
   // chunk indexes, group, attributes; and the sidecar's rewrite (its .tmp beside the old one)
-  const double need = 1.1 * payload + 64.0 * 1024.0 + xdmf_bytes_ + 16.0 * 1024.0;
+  const double need = 1.1 * payload + padding + 64.0 * 1024.0 + xdmf_bytes_ + 16.0 * 1024.0;
   struct statvfs fs {};
   const size_t slash = path_.rfind('/');
   const std::string dir = slash == std::string::npos ? "." : (slash == 0 ? "/" : path_.substr(0, slash));
