@@ -46,8 +46,8 @@ struct Snapshot {
 
 // s.out = the snapshot in ascending id order. At 1M particles and a frame
 // every 5 steps (12 ms on the H100) this must keep up with the run: it runs
-// on all cores, and writes into the buffers of earlier frames (fresh ones
-// cost their zero fill and page faults, 16 MB a frame).
+// on half the cores, and writes into the buffers of earlier frames (fresh
+// ones cost their zero fill and page faults, 16 MB a frame).
 void convert(Snapshot& s) {
   const RawParticles& p = s.p;
   const int64_t n = int64_t(p.id.size());
@@ -62,15 +62,14 @@ void convert(Snapshot& s) {
   // Each particle's row: its id when every initial particle is present (ids
   // are unique initial indices), else its id's rank among those present
   // (removed particles leave gaps).
-  s.rank.resize(size_t(n));
-  if (n > 0 && int64_t(max_id) + 1 == n) {
-#pragma omp parallel for if (big) num_threads(team)
-    for (int64_t k = 0; k < n; ++k) s.rank[size_t(k)] = p.id[size_t(k)];
-  } else if (n > 0) {
+  const uint32_t* row = p.id.data();
+  if (n > 0 && int64_t(max_id) + 1 != n) {
     s.slot.assign(size_t(max_id) + 1, 0);
     for (int64_t k = 0; k < n; ++k) s.slot[p.id[size_t(k)]] = 1;
     std::exclusive_scan(s.slot.begin(), s.slot.end(), s.slot.begin(), 0u);
+    s.rank.resize(size_t(n));
     for (int64_t k = 0; k < n; ++k) s.rank[size_t(k)] = s.slot[p.id[size_t(k)]];
+    row = s.rank.data();
   }
   Frame& f = s.out;
   f.time = s.time;
@@ -85,7 +84,7 @@ void convert(Snapshot& s) {
   f.presence.resize(pres ? 6 * size_t(n) : 0);
 #pragma omp parallel for if (big) num_threads(team)
   for (int64_t k = 0; k < n; ++k) {
-    const size_t i = size_t(k), r = s.rank[i];
+    const size_t i = size_t(k), r = row[i];
     const Float4& q = p.pos[i];
     f.id[r] = p.id[i];
     f.position[3 * r] = q.x, f.position[3 * r + 1] = q.y, f.position[3 * r + 2] = q.z;
