@@ -120,8 +120,8 @@ void dataset(hid_t loc, const char* name, hid_t mem_type, hid_t file_type, const
   Handle dcpl{check(H5Pcreate(H5P_DATASET_CREATE), path, "property list"), H5Pclose};
   hsize_t total = 1;
   for (hsize_t d : dims) total *= d;
+  std::vector<hsize_t> chunk = dims;
   if (total > 0) {
-    std::vector<hsize_t> chunk = dims;
     // About 1 MiB chunks: rows of particles, or z slices of the volume.
     hsize_t row = 4;
     for (size_t k = 1; k < dims.size(); ++k) row *= dims[k];
@@ -141,12 +141,7 @@ void dataset(hid_t loc, const char* name, hid_t mem_type, hid_t file_type, const
   // chunk cache, which held the writer to about 2 GB/s (1.7x faster here).
   if (gzip == 0 && H5Tequal(mem_type, file_type) > 0) {
     const size_t row_bytes = size_t(H5Tget_size(file_type)) * size_t(total / dims[0]);
-    hsize_t chunk_rows = 0;
-    {
-      std::vector<hsize_t> chunk(dims.size());
-      H5Pget_chunk(dcpl.id, int(chunk.size()), chunk.data());
-      chunk_rows = chunk[0];
-    }
+    const hsize_t chunk_rows = chunk[0];
     std::vector<char> last;  // the final chunk, padded to its full size
     std::vector<hsize_t> offset(dims.size(), 0);
     for (hsize_t r = 0; r < dims[0]; r += chunk_rows) {
@@ -352,9 +347,10 @@ void FrameWriter::write_xdmf() {
     o << "<DataItem Dimensions=\"" << dims << "\" NumberType=\"" << type << "\" Precision=\"4\" Format=\"HDF\">" << h5
       << ":" << path << "</DataItem>";
   };
-  auto attribute = [&](const char* name, const char* kind, const std::string& dims, const std::string& path) {
+  auto attribute = [&](const char* name, const char* kind, const std::string& dims, const std::string& path,
+                       const char* type = "Float") {
     o << "    <Attribute Name=\"" << name << "\" AttributeType=\"" << kind << "\" Center=\"Node\">\n     ";
-    item(dims, "Float", path);
+    item(dims, type, path);
     o << "\n    </Attribute>\n";
   };
   o << "<?xml version=\"1.0\" ?>\n<Xdmf Version=\"3.0\">\n <Domain>\n";
@@ -382,9 +378,8 @@ void FrameWriter::write_xdmf() {
       << "    <Topology TopologyType=\"Polyvertex\" NumberOfElements=\"" << n << "\"/>\n"
       << "    <Geometry GeometryType=\"XYZ\">\n     ";
     item(n + " 3", "Float", g + "/position");
-    o << "\n    </Geometry>\n    <Attribute Name=\"id\" AttributeType=\"Scalar\" Center=\"Node\">\n     ";
-    item(n, "UInt", g + "/id");
-    o << "\n    </Attribute>\n";
+    o << "\n    </Geometry>\n";
+    attribute("id", "Scalar", n, g + "/id", "UInt");
     if (x.velocity) attribute("velocity", "Vector", n + " 3", g + "/velocity");
     if (x.density) attribute("density", "Scalar", n, g + "/density");
     if (x.pressure) attribute("pressure", "Scalar", n, g + "/pressure");
