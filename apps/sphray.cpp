@@ -413,15 +413,15 @@ int render_scene(const RenderArgs& ra, const std::string& backend_arg, std::vect
 // convert it to an integer cell out of range.
 void check_in_grid(const GridGeom& g, const Float4& p, const std::string& file, size_t frame, size_t i) {
   const float x[3] = {p.x, p.y, p.z}, lo[3] = {g.origin.x, g.origin.y, g.origin.z};
-  const int n[3] = {g.nx, g.ny, g.nz};
+  const float hi[3] = {lo[0] + float(g.nx) * g.cell_size, lo[1] + float(g.ny) * g.cell_size,
+                       lo[2] + float(g.nz) * g.cell_size};
   for (int a = 0; a < 3; ++a)
-    if (!(x[a] >= lo[a] && x[a] < lo[a] + float(n[a]) * g.cell_size)) {
+    if (!(x[a] >= lo[a] && x[a] < hi[a])) {
       std::ostringstream os;
       os << "--from '" << file << "': frame " << frame << ", particle " << i << " at (" << p.x << ", " << p.y << ", "
-         << p.z << ") m is outside the scene's domain, x " << lo[0] << " .. " << lo[0] + float(n[0]) * g.cell_size
-         << ", y " << lo[1] << " .. " << lo[1] + float(n[1]) * g.cell_size << ", z " << lo[2] << " .. "
-         << lo[2] + float(n[2]) * g.cell_size << " m (the tank with its walls): the file was written for another tank"
-         << " (a --set tank.* here?)";
+         << p.z << ") m is outside the scene's domain, x " << lo[0] << " .. " << hi[0] << ", y " << lo[1] << " .. "
+         << hi[1] << ", z " << lo[2] << " .. " << hi[2] << " m (the tank with its walls): the file was written for "
+         << "another tank (a --set tank.* here?)";
       throw std::runtime_error(os.str());
     }
 }
