@@ -122,7 +122,8 @@ RunSummary run_scene(const Scene& s, Solver& solver, const RunOptions& opt, std:
       const StageTimes& st = solver.last_stage_times();
       sum.grid += st.grid; sum.pairs += st.pairs; sum.integrate += st.integrate;
       const StepLimits& l = solver.last_limits();
-      if (solver.time() < next_output - 1e-12) {  // not the shortened last step
+      const bool free = solver.time() < next_output - 1e-12;  // not the step shortened to land on the output time
+      if (free) {
         dt_sum += l.dt;
         last_free_dt = l.dt;
         ++free_steps;
@@ -130,7 +131,7 @@ RunSummary run_scene(const Scene& s, Solver& solver, const RunOptions& opt, std:
       }
       r.max_speed = std::max(r.max_speed, l.max_speed);
       r.particle_steps += solver.num_fluid();
-      if (solver.time() < next_output - 1e-12) progress(false);
+      if (free) progress(false);  // the last step's line comes after its output
     }
     ++frame;
     output();
