@@ -4,18 +4,45 @@
 #include <sys/wait.h>
 
 #include <cstdlib>
+#include <filesystem>
+#include <stdexcept>
 #include <fstream>
 #include <sstream>
 #include <string>
 
-#include "../src/pipeline.h"
-#include "../src/scene.h"
-#include "../src/setup.h"
-#include "../src/solver.h"
+#include "pipeline/pipeline.h"
+#include "io/scene.h"
+#include "pipeline/setup.h"
+#include "sph/solver.h"
 
 namespace sphray::test {
 
 inline std::string source_path(const std::string& rel) { return std::string(SPHRAY_SOURCE_DIR) + "/" + rel; }
+
+// This test process's own directory for the files it writes, made on first
+// use under $TMPDIR (or /tmp) and removed when the process ends, so that
+// test processes run side by side (ctest -j) never share a path.
+class TempDir {
+ public:
+  TempDir() {
+    const char* base = std::getenv("TMPDIR");
+    std::string pattern = std::string(base && *base ? base : "/tmp") + "/sphray-test-XXXXXX";
+    if (!mkdtemp(pattern.data())) throw std::runtime_error("cannot make a temporary directory " + pattern);
+    path_ = pattern;
+  }
+  ~TempDir() {
+    std::error_code ec;
+    std::filesystem::remove_all(path_, ec);
+  }
+  const std::string& path() const { return path_; }
+
+ private:
+  std::string path_;
+};
+inline const std::string& tmp_dir() {
+  static const TempDir dir;
+  return dir.path();
+}
 
 inline bool has(const std::string& s, const std::string& part) { return s.find(part) != std::string::npos; }
 
@@ -34,7 +61,7 @@ struct CliResult {
   std::string output;
 };
 inline CliResult run_cli(const std::string& args) {
-  const std::string out = "/tmp/sphray_cli_test.txt";
+  const std::string out = tmp_dir() + "/cli_output.txt";
   const int status = std::system((std::string(SPHRAY_EXE) + " " + args + " > " + out + " 2>&1").c_str());
   return {WIFEXITED(status) ? WEXITSTATUS(status) : -1, slurp(out)};
 }

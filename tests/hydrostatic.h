@@ -10,7 +10,7 @@
 #include <string>
 #include <vector>
 
-#include "../src/metrics.h"
+#include "io/metrics.h"
 #include "helpers.h"
 
 namespace sphray::test {
@@ -51,7 +51,7 @@ inline Hydrostatic run_hydrostatic(Backend b, double dx, double c0 = 0, double s
        << R"(, "viscosity_alpha": 0.5}, "run": {"end_time": )" << settle + 0.4 << "}}";
   const Scene s = parse_scene(text.str(), "hydrostatic.json");
   const SphParams prm = make_params(s);
-  const SolverInput in = make_solver_input(s, PresenceMode::Off);
+  const SolverInput in = make_solver_input(resolve_scene(s), PresenceMode::Off);
   auto solver = b == Backend::Cuda ? make_cuda_solver(in) : make_cpu_solver(in);
   Hydrostatic r;
   r.particles = solver->num_fluid();

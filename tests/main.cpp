@@ -10,7 +10,7 @@
 #include <cstdio>
 #include <cstring>
 
-#include "../src/solver.h"
+#include "sph/solver.h"
 
 int main(int argc, char** argv) {
   for (int i = 1; i < argc; ++i) {

@@ -14,8 +14,12 @@
 
 #include "catch.h"
 #include "helpers.h"
-#include "../src/frames_h5.h"
-#include "../src/render.h"
+#include "io/frames_h5.h"
+#include "render/render.h"
+
+// This process's own directory (helpers.h), and its name.
+const std::string tmp = sphray::test::tmp_dir();
+const std::string tmp_name = std::filesystem::path(tmp).filename().string();
 
 namespace {
 
@@ -33,16 +37,16 @@ TEST_CASE("sphray run reports bad input with exit code 2", "[cli][cpu]") {
   CHECK(r.code == 2);
   CHECK(has(r.output, "cannot open scene file"));
   {  // an output on the scene file, or two outputs on one path: refused, the scene left as it was
-    std::filesystem::copy_file(scene, "/tmp/sphray_own.json", std::filesystem::copy_options::overwrite_existing);
-    const std::string before = slurp("/tmp/sphray_own.json");
-    r = run_cli("run /tmp/sphray_own.json --backend cpu --quiet --export /tmp/../tmp/sphray_own.json");
+    std::filesystem::copy_file(scene, tmp + "/sphray_own.json", std::filesystem::copy_options::overwrite_existing);
+    const std::string before = slurp(tmp + "/sphray_own.json");
+    r = run_cli("run " + tmp + "/sphray_own.json --backend cpu --quiet --export " + tmp + "/../" + tmp_name + "/sphray_own.json");
     CHECK(r.code == 2);
-    CHECK(has(r.output, "--export: '/tmp/../tmp/sphray_own.json' is the scene file itself; not overwritten"));
-    r = run_cli("run /tmp/sphray_own.json --backend cpu --quiet --metrics-csv /tmp/sphray_o.csv "
-                "--summary-json /tmp/sphray_o.csv");
+    CHECK(has(r.output, "--export: '" + tmp + "/../" + tmp_name + "/sphray_own.json' is the scene file itself; not overwritten"));
+    r = run_cli("run " + tmp + "/sphray_own.json --backend cpu --quiet --metrics-csv " + tmp + "/sphray_o.csv "
+                "--summary-json " + tmp + "/sphray_o.csv");
     CHECK(r.code == 2);
-    CHECK(has(r.output, "--summary-json: '/tmp/sphray_o.csv' is also --metrics-csv"));
-    CHECK(slurp("/tmp/sphray_own.json") == before);
+    CHECK(has(r.output, "--summary-json: '" + tmp + "/sphray_o.csv' is also --metrics-csv"));
+    CHECK(slurp(tmp + "/sphray_own.json") == before);
   }
   r = run_cli("rnu " + scene);  // CLI11 alone said "A subcommand is required"
   CHECK(r.code == 2);
@@ -77,20 +81,20 @@ TEST_CASE("sphray run reports bad input with exit code 2", "[cli][cpu]") {
   r = run_cli("run " + scene + " --frobnicate");
   CHECK(r.code == 2);
 
-  std::ofstream("/tmp/sphray_bad.json") << "{\"tank\": [1,2";
-  r = run_cli("run /tmp/sphray_bad.json --backend cpu");
+  std::ofstream(tmp + "/sphray_bad.json") << "{\"tank\": [1,2";
+  r = run_cli("run " + tmp + "/sphray_bad.json --backend cpu");
   CHECK(r.code == 2);
   CHECK(has(r.output, "not valid JSON"));
 }
 
 TEST_CASE("sphray run simulates a small scene and prints a summary", "[cli][cpu]") {
   const std::string scene = sphray::test::source_path("scenes/stress/one_cell.json");
-  const Result r = run_cli("run " + scene + " --backend auto --set run.end_time=0.05 --set run.output_interval=0.01 --metrics-csv /tmp/sphray_m.csv");
+  const Result r = run_cli("run " + scene + " --backend auto --set run.end_time=0.05 --set run.output_interval=0.01 --metrics-csv " + tmp + "/sphray_m.csv");
   CHECK(r.code == 0);
   CHECK(has(r.output, "backend: "));
   CHECK(has(r.output, "summary"));
   CHECK(has(r.output, "8 fluid at start, 8 at end"));
-  std::ifstream csv("/tmp/sphray_m.csv");
+  std::ifstream csv(tmp + "/sphray_m.csv");
   std::string header, line;
   std::getline(csv, header);
   CHECK(has(header, "front_m"));
@@ -105,12 +109,12 @@ TEST_CASE("sphray run warns when the wall guard, not the walls, held the liquid"
   // JSON's counts are checked against the bound independently of the text.
   const std::string run = "run " + sphray::test::source_path("scenes/dam_break.json") +
                           " --backend cpu --quiet --set sph.spacing=0.04 --set run.end_time=0.3"
-                          " --summary-json /tmp/sphray_clamps.json";
+                          " --summary-json " + tmp + "/sphray_clamps.json";
   for (const bool thin : {true, false}) {
     INFO((thin ? "one layer" : "auto layers"));
     const Result r = run_cli(run + (thin ? " --set sph.boundary_layers=1" : ""));
     REQUIRE(r.code == 0);
-    std::ifstream f("/tmp/sphray_clamps.json");
+    std::ifstream f(tmp + "/sphray_clamps.json");
     const nlohmann::json j = nlohmann::json::parse(f);
     CHECK(j.at("status") == "completed");
     const double share = j.at("clamped").get<double>() / j.at("particle_steps").get<double>();
@@ -125,14 +129,14 @@ TEST_CASE("a run stopped by a guard exits 1 and leaves a summary JSON that says 
   // The particle dropped 0.3 m with c0 = 2 m/s outruns c0 at t = 0.204 s
   // (free fall, tests/test_sph.cpp); the summary file, opened before the run,
   // was left empty.
-  std::ofstream("/tmp/sphray_drop.json") << R"({"tank": {"min": [0,0,0], "max": [0.1,0.1,0.4]},
+  std::ofstream(tmp + "/sphray_drop.json") << R"({"tank": {"min": [0,0,0], "max": [0.1,0.1,0.4]},
     "fluid": [{"min": [0.045,0.045,0.295], "max": [0.055,0.055,0.305]}],
     "sph": {"spacing": 0.01, "speed_of_sound": 2}, "run": {"end_time": 0.4}})";
   const Result r =
-      run_cli("run /tmp/sphray_drop.json --backend cpu --quiet --summary-json /tmp/sphray_drop_summary.json");
+      run_cli("run " + tmp + "/sphray_drop.json --backend cpu --quiet --summary-json " + tmp + "/sphray_drop_summary.json");
   CHECK(r.code == 1);
   CHECK(has(r.output, "faster than the speed of sound"));
-  std::ifstream f("/tmp/sphray_drop_summary.json");
+  std::ifstream f(tmp + "/sphray_drop_summary.json");
   const nlohmann::json j = nlohmann::json::parse(f);
   CHECK(j.at("status") == "stopped");
   CHECK(has(j.at("error").get<std::string>(), "faster than the speed of sound c0 = 2 m/s"));
@@ -143,17 +147,17 @@ TEST_CASE("a run stopped by a guard exits 1 and leaves a summary JSON that says 
 TEST_CASE("sphray run builds the field at every frame when the scene has one", "[cli][cpu]") {
   const std::string scene = sphray::test::source_path("scenes/stress/one_cell.json");
   const Result r = run_cli("run " + scene + " --backend cpu --quiet --set run.end_time=0.02 --set run.output_interval=0.01 "
-                           "--set field.builder=presence --summary-json /tmp/sphray_field_summary.json");
+                           "--set field.builder=presence --summary-json " + tmp + "/sphray_field_summary.json");
   INFO(r.output);
   CHECK(r.code == 0);
   CHECK(has(r.output, "field          presence builder"));
   CHECK(has(r.output, "3 builds"));               // t = 0 and two frames
   CHECK(has(r.output, "1 without presence"));     // only t = 0: the frames' last steps computed it
-  CHECK(has(slurp("/tmp/sphray_field_summary.json"), "\"builds_without_presence\": 1"));
+  CHECK(has(slurp(tmp + "/sphray_field_summary.json"), "\"builds_without_presence\": 1"));
 }
 
 TEST_CASE("sphray bench sim writes every row with its stages and its wall time", "[cli][cpu]") {
-  const std::string json_path = "/tmp/sphray_cli_bench_sim.json";
+  const std::string json_path = tmp + "/sphray_cli_bench_sim.json";
   std::remove(json_path.c_str());
   const std::string scene = sphray::test::source_path("scenes/bench/dam_break.json");
   const Result r =
@@ -176,7 +180,7 @@ TEST_CASE("sphray bench sim writes every row with its stages and its wall time",
   }
   // Without --scene, the built-in copy of the same scene, from any directory
   // (the default was a path relative to the repository's root).
-  const std::string builtin_json = "/tmp/sphray_cli_bench_builtin.json";
+  const std::string builtin_json = tmp + "/sphray_cli_bench_builtin.json";
   std::remove(builtin_json.c_str());
   CHECK(std::system(("cd / && " + std::string(SPHRAY_EXE) + " bench sim --backend cpu --sizes 2k --warmup 1 --steps 1 "
                      "--json " + builtin_json + " > /dev/null 2>&1").c_str()) == 0);
@@ -213,37 +217,37 @@ TEST_CASE("sphray run --export and sphray inspect: bad paths and bad files exit 
   CHECK(!has(r.output, "time = "));
   CHECK(r.output.find('\n', r.output.find("cannot create the export file")) + 1 == r.output.size());
   // The XDMF sidecar (NAME.xmf) renamed over an export named NAME.xmf left only the XML.
-  std::filesystem::remove("/tmp/sphray_side.xmf");
-  r = run_cli("run " + scene + " --backend cpu --quiet --export /tmp/sphray_side.xmf");
+  std::filesystem::remove(tmp + "/sphray_side.xmf");
+  r = run_cli("run " + scene + " --backend cpu --quiet --export " + tmp + "/sphray_side.xmf");
   CHECK(r.code == 2);
-  CHECK(has(r.output, "/tmp/sphray_side.xmf: that is the name of the XDMF sidecar written next to the export"));
-  CHECK_FALSE(std::filesystem::exists("/tmp/sphray_side.xmf"));
-  std::filesystem::copy_file(scene, "/tmp/sphray_scene.xmf", std::filesystem::copy_options::overwrite_existing);
-  r = run_cli("run /tmp/sphray_scene.xmf --backend cpu --quiet --export /tmp/sphray_scene.h5");
+  CHECK(has(r.output, tmp + "/sphray_side.xmf: that is the name of the XDMF sidecar written next to the export"));
+  CHECK_FALSE(std::filesystem::exists(tmp + "/sphray_side.xmf"));
+  std::filesystem::copy_file(scene, tmp + "/sphray_scene.xmf", std::filesystem::copy_options::overwrite_existing);
+  r = run_cli("run " + tmp + "/sphray_scene.xmf --backend cpu --quiet --export " + tmp + "/sphray_scene.h5");
   CHECK(r.code == 2);
-  CHECK(has(r.output, "the export's XDMF sidecar: '/tmp/sphray_scene.xmf' is the scene file itself"));
-  r = run_cli("run " + scene + " --backend cpu --quiet --export /tmp/x.h5 --export-fields velocity,colour");
+  CHECK(has(r.output, "the export's XDMF sidecar: '" + tmp + "/sphray_scene.xmf' is the scene file itself"));
+  r = run_cli("run " + scene + " --backend cpu --quiet --export " + tmp + "/x.h5 --export-fields velocity,colour");
   CHECK(r.code == 2);
   CHECK(has(r.output, "unknown field 'colour'"));
   r = run_cli("inspect /nonexistent.h5");
   CHECK(r.code == 2);
   CHECK(has(r.output, "missing or unreadable"));
-  std::ofstream("/tmp/sphray_cli_text.h5") << "plain text";
-  r = run_cli("inspect /tmp/sphray_cli_text.h5");
+  std::ofstream(tmp + "/sphray_cli_text.h5") << "plain text";
+  r = run_cli("inspect " + tmp + "/sphray_cli_text.h5");
   CHECK(r.code == 2);
   CHECK(has(r.output, "not an HDF5 file"));
 
   r = run_cli("run " + scene + " --backend cpu --quiet --set run.end_time=0.02 --set run.output_interval=0.01 "
-              "--export /tmp/sphray_cli.h5 --export-every 2 --export-fields density");
+              "--export " + tmp + "/sphray_cli.h5 --export-every 2 --export-fields density");
   CHECK(r.code == 0);
-  CHECK(has(r.output, "2 frames to /tmp/sphray_cli.h5"));  // t = 0 and t = 0.02
-  r = run_cli("inspect /tmp/sphray_cli.h5");
+  CHECK(has(r.output, "2 frames to " + tmp + "/sphray_cli.h5"));  // t = 0 and t = 0.02
+  r = run_cli("inspect " + tmp + "/sphray_cli.h5");
   CHECK(r.code == 0);
   CHECK(has(r.output, "frames 2"));
   CHECK(has(r.output, "000001  t = 0.02 s"));
   CHECK(has(r.output, "density ["));
   {  // non-finite values other than positions: counted beside the ranges (min/max alone skipped them)
-    sphray::FrameWriter w("/tmp/sphray_cli_nan.h5", sphray::FileHeader{"{}", "test", "cpu", {}}, 0);
+    sphray::FrameWriter w(tmp + "/sphray_cli_nan.h5", sphray::FileHeader{"{}", "test", "cpu", {}}, 0);
     sphray::Frame f;
     f.id = {0, 1, 2};
     f.position.assign(9, 0.5f);
@@ -252,66 +256,67 @@ TEST_CASE("sphray run --export and sphray inspect: bad paths and bad files exit 
     w.submit(std::move(f));
     w.finish();
   }
-  r = run_cli("inspect /tmp/sphray_cli_nan.h5");
+  r = run_cli("inspect " + tmp + "/sphray_cli_nan.h5");
   CHECK(r.code == 0);
   CHECK(has(r.output, "density [1000, 1002] (1 non-finite)"));
   CHECK(has(r.output, "|v| max 2 (1 non-finite)"));
   // an export where a scene goes: told what it is and what to run instead
-  r = run_cli("run /tmp/sphray_cli.h5 --backend cpu");
+  r = run_cli("run " + tmp + "/sphray_cli.h5 --backend cpu");
   CHECK(r.code == 2);
-  CHECK(has(r.output, "/tmp/sphray_cli.h5: is an HDF5 file, not a scene"));
-  CHECK(has(r.output, "sphray render --from /tmp/sphray_cli.h5"));
+  CHECK(has(r.output, tmp + "/sphray_cli.h5: is an HDF5 file, not a scene"));
+  CHECK(has(r.output, "sphray render --from " + tmp + "/sphray_cli.h5"));
 }
 
 TEST_CASE("sphray run --frames-dir and sphray render write PNGs of the liquid; render --from an export matches",
           "[cli][render]") {
   const std::string scene = sphray::test::source_path("scenes/dam_break.json");
   const std::string small = " --backend cpu --set sph.spacing=0.04 --set field.builder=naive --size 96x54 ";
-  std::system("rm -rf /tmp/sphray_frames /tmp/sphray_render_*.png /tmp/sphray_render.h5 /tmp/sphray_render.xmf");
+  std::system(("rm -rf " + tmp + "/sphray_frames " + tmp + "/sphray_render_*.png " + tmp + "/sphray_render.h5 " + tmp +
+               "/sphray_render.xmf").c_str());
   Result r = run_cli("run " + scene + small + "--quiet --set run.end_time=0.04 --set run.output_interval=0.01 "
-                     "--frames-dir /tmp/sphray_frames --frames-every 2 --export /tmp/sphray_render.h5");
+                     "--frames-dir " + tmp + "/sphray_frames --frames-every 2 --export " + tmp + "/sphray_render.h5");
   INFO(r.output);
   REQUIRE(r.code == 0);
-  CHECK(has(r.output, "3 PNGs (96x54, 4 interfaces) to /tmp/sphray_frames"));
+  CHECK(has(r.output, "3 PNGs (96x54, 4 interfaces) to " + tmp + "/sphray_frames"));
   for (const char* f : {"frame_000000.png", "frame_000002.png", "frame_000004.png"}) {
-    const sphray::Image img = sphray::read_png(std::string("/tmp/sphray_frames/") + f);
+    const sphray::Image img = sphray::read_png(std::string(tmp + "/sphray_frames/") + f);
     CHECK(img.width == 96);
     CHECK(img.height == 54);
   }
-  CHECK_FALSE(std::ifstream("/tmp/sphray_frames/frame_000001.png").good());
+  CHECK_FALSE(std::ifstream(tmp + "/sphray_frames/frame_000001.png").good());
 
   // the liquid is in the picture: the same tank without fluid renders differently
-  r = run_cli("render " + scene + small + "--set fluid=[] --time 0 --out /tmp/sphray_render_empty.png");
+  r = run_cli("render " + scene + small + "--set fluid=[] --time 0 --out " + tmp + "/sphray_render_empty.png");
   REQUIRE(r.code == 0);
-  const sphray::Image empty = sphray::read_png("/tmp/sphray_render_empty.png");
-  const sphray::Image t0 = sphray::read_png("/tmp/sphray_frames/frame_000000.png");
+  const sphray::Image empty = sphray::read_png(tmp + "/sphray_render_empty.png");
+  const sphray::Image t0 = sphray::read_png(tmp + "/sphray_frames/frame_000000.png");
   CHECK(sphray::pixels_differing(t0, empty, 20) > t0.rgba.size() / 50);  // the column covers more than 2% of the image
 
   // the exported particles render as the run rendered them (field rebuilt from the file's positions)
-  r = run_cli("render --from /tmp/sphray_render.h5 --frame 4 --out /tmp/sphray_render_from.png" + small);
+  r = run_cli("render --from " + tmp + "/sphray_render.h5 --frame 4 --out " + tmp + "/sphray_render_from.png" + small);
   INFO(r.output);
   REQUIRE(r.code == 0);
-  const sphray::Image from = sphray::read_png("/tmp/sphray_render_from.png");
-  const sphray::Image live = sphray::read_png("/tmp/sphray_frames/frame_000004.png");
+  const sphray::Image from = sphray::read_png(tmp + "/sphray_render_from.png");
+  const sphray::Image live = sphray::read_png(tmp + "/sphray_frames/frame_000004.png");
   CHECK(sphray::psnr(from, live) > 40.0);
   // the export given where the scene goes renders as with --from
-  r = run_cli("render /tmp/sphray_render.h5 --frame 4 --out /tmp/sphray_render_positional.png" + small);
+  r = run_cli("render " + tmp + "/sphray_render.h5 --frame 4 --out " + tmp + "/sphray_render_positional.png" + small);
   REQUIRE(r.code == 0);
-  CHECK(sphray::pixels_differing(sphray::read_png("/tmp/sphray_render_positional.png"), from, 0) == 0);
-  r = run_cli("render --from /tmp/sphray_render.h5 --out /tmp/sphray_render_dir" + small);
+  CHECK(sphray::pixels_differing(sphray::read_png(tmp + "/sphray_render_positional.png"), from, 0) == 0);
+  r = run_cli("render --from " + tmp + "/sphray_render.h5 --out " + tmp + "/sphray_render_dir" + small);
   CHECK(r.code == 0);
   CHECK(has(r.output, "rendered 5 frames"));
 }
 
 TEST_CASE("sphray render and --frames-dir report bad input with exit code 2", "[cli][render]") {
   const std::string scene = sphray::test::source_path("scenes/stress/one_cell.json");
-  Result r = run_cli("run " + scene + " --backend cpu --frames-dir /tmp/sphray_f --size 100by50");
+  Result r = run_cli("run " + scene + " --backend cpu --frames-dir " + tmp + "/sphray_f --size 100by50");
   CHECK(r.code == 2);
   CHECK(has(r.output, "--size '100by50'"));
   r = run_cli("run " + scene + " --backend cpu --size 100x50");
   CHECK(r.code == 2);
   CHECK(has(r.output, "need --frames-dir"));
-  r = run_cli("run " + scene + " --backend cpu --frames-dir /tmp/sphray_f --size 8x8");
+  r = run_cli("run " + scene + " --backend cpu --frames-dir " + tmp + "/sphray_f --size 8x8");
   CHECK(r.code == 2);
   CHECK(has(r.output, "render.width"));
   r = run_cli("run " + scene + " --backend cpu --frames-dir /proc/sphray_frames");
@@ -321,42 +326,42 @@ TEST_CASE("sphray render and --frames-dir report bad input with exit code 2", "[
   r = run_cli("render " + scene + " --backend cpu --out /nonexistent/dir/x.png");
   CHECK(r.code == 2);
   CHECK(has(r.output, "--out: cannot write '/nonexistent/dir/x.png': No such file or directory"));
-  std::filesystem::create_directories("/tmp/sphray_dir.png");  // a directory by a PNG's name: says so
-  r = run_cli("render " + scene + " --backend cpu --out /tmp/sphray_dir.png");
+  std::filesystem::create_directories(tmp + "/sphray_dir.png");  // a directory by a PNG's name: says so
+  r = run_cli("render " + scene + " --backend cpu --out " + tmp + "/sphray_dir.png");
   CHECK(r.code == 2);
-  CHECK(has(r.output, "--out: cannot write '/tmp/sphray_dir.png': Is a directory"));
-  r = run_cli("render --backend cpu --out /tmp/x.png");
+  CHECK(has(r.output, "--out: cannot write '" + tmp + "/sphray_dir.png': Is a directory"));
+  r = run_cli("render --backend cpu --out " + tmp + "/x.png");
   CHECK(r.code == 2);
   CHECK(has(r.output, "either a scene file or --from"));
-  r = run_cli("render --from /nonexistent.h5 --backend cpu --out /tmp/x.png");
+  r = run_cli("render --from /nonexistent.h5 --backend cpu --out " + tmp + "/x.png");
   CHECK(r.code == 2);
   CHECK(has(r.output, "missing or unreadable"));
   // An image name of another format: refused before the run (it became a directory of PNGs).
-  std::filesystem::remove_all("/tmp/sphray_x.jpg");
-  r = run_cli("render " + scene + " --backend cpu --out /tmp/sphray_x.jpg");
+  std::filesystem::remove_all(tmp + "/sphray_x.jpg");
+  r = run_cli("render " + scene + " --backend cpu --out " + tmp + "/sphray_x.jpg");
   CHECK(r.code == 2);
-  CHECK(has(r.output, "--out '/tmp/sphray_x.jpg': sphray writes PNG images"));
-  CHECK_FALSE(std::filesystem::exists("/tmp/sphray_x.jpg"));
-  r = run_cli("view --frames 2 --screenshot /tmp/sphray_x.JPEG");
+  CHECK(has(r.output, "--out '" + tmp + "/sphray_x.jpg': sphray writes PNG images"));
+  CHECK_FALSE(std::filesystem::exists(tmp + "/sphray_x.jpg"));
+  r = run_cli("view --frames 2 --screenshot " + tmp + "/sphray_x.JPEG");
   CHECK(r.code == 2);
-  CHECK(has(r.output, "--screenshot '/tmp/sphray_x.JPEG': sphray writes PNG images; give a .png name"));
+  CHECK(has(r.output, "--screenshot '" + tmp + "/sphray_x.JPEG': sphray writes PNG images; give a .png name"));
   r = run_cli("render " + scene + " --backend cpu --out /proc/sphray_frames");  // named as render's option
   CHECK(r.code == 2);
   CHECK(has(r.output, "--out: cannot create directory '/proc/sphray_frames'"));
-  r = run_cli("render " + scene + " --backend cpu --out /tmp/x.png --set render.interfaces=12");
+  r = run_cli("render " + scene + " --backend cpu --out " + tmp + "/x.png --set render.interfaces=12");
   CHECK(r.code == 2);
   CHECK(has(r.output, "render.interfaces"));
 
   r = run_cli("run " + scene + " --backend cpu --quiet --set run.end_time=0.01 --set run.output_interval=0.01 "
-              "--export /tmp/sphray_render2.h5");
+              "--export " + tmp + "/sphray_render2.h5");
   REQUIRE(r.code == 0);
-  r = run_cli("render --from /tmp/sphray_render2.h5 --backend cpu --frame 5 --out /tmp/x.png");
+  r = run_cli("render --from " + tmp + "/sphray_render2.h5 --backend cpu --frame 5 --out " + tmp + "/x.png");
   CHECK(r.code == 2);
   CHECK(has(r.output, "holds frames 0 .. 1"));
-  r = run_cli("render --from /tmp/sphray_render2.h5 --backend cpu --out /tmp/sphray_render2.h5");
+  r = run_cli("render --from " + tmp + "/sphray_render2.h5 --backend cpu --out " + tmp + "/sphray_render2.h5");
   CHECK(r.code == 2);
-  CHECK(has(r.output, "--out: '/tmp/sphray_render2.h5' is the --from file itself; not overwritten"));
-  r = run_cli("render --from /tmp/sphray_render2.h5 --backend cpu --out /tmp/x.png");
+  CHECK(has(r.output, "--out: '" + tmp + "/sphray_render2.h5' is the --from file itself; not overwritten"));
+  r = run_cli("render --from " + tmp + "/sphray_render2.h5 --backend cpu --out " + tmp + "/x.png");
   CHECK(r.code == 2);
   CHECK(has(r.output, "give --frame K, or a directory"));
   r = run_cli("bench frame --backend cpu --sizes 8k --builder magic");
@@ -374,18 +379,18 @@ TEST_CASE("sphray view opens a real window under Xvfb and shows the liquid", "[v
     return;
   }
   const std::string xvfb = "xvfb-run -a -s '-screen 0 1024x768x24' ";
-  std::remove("/tmp/sphray_view.png");
-  std::remove("/tmp/sphray_view_empty.png");
+  std::filesystem::remove(tmp + "/sphray_view.png");
+  std::filesystem::remove(tmp + "/sphray_view_empty.png");
   const std::string cmd = xvfb + SPHRAY_EXE + " view --backend cpu --frames 4 --size 800x450 --screenshot ";
-  Result r{std::system((cmd + "/tmp/sphray_view.png > /tmp/sphray_view.log 2>&1").c_str()), ""};
-  std::ifstream lf("/tmp/sphray_view.log");
+  Result r{std::system((cmd + tmp + "/sphray_view.png > " + tmp + "/sphray_view.log 2>&1").c_str()), ""};
+  std::ifstream lf(tmp + "/sphray_view.log");
   std::stringstream ls;
   ls << lf.rdbuf();
   INFO(ls.str());
   REQUIRE(r.code == 0);
-  CHECK(has(ls.str(), "wrote /tmp/sphray_view.png after 4 frames"));
-  REQUIRE(std::system((cmd + "/tmp/sphray_view_empty.png --set fluid=[] > /dev/null 2>&1").c_str()) == 0);
-  const sphray::Image a = sphray::read_png("/tmp/sphray_view.png"), b = sphray::read_png("/tmp/sphray_view_empty.png");
+  CHECK(has(ls.str(), "wrote " + tmp + "/sphray_view.png after 4 frames"));
+  REQUIRE(std::system((cmd + tmp + "/sphray_view_empty.png --set fluid=[] > /dev/null 2>&1").c_str()) == 0);
+  const sphray::Image a = sphray::read_png(tmp + "/sphray_view.png"), b = sphray::read_png(tmp + "/sphray_view_empty.png");
   REQUIRE(a.width == 800);
   REQUIRE(a.height == 450);
   REQUIRE(b.rgba.size() == a.rgba.size());
@@ -399,24 +404,24 @@ TEST_CASE("sphray view opens a real window under Xvfb and shows the liquid", "[v
 
   // Resized after the first frame, the image follows the window (no stretched
   // fixed-size image): the screenshot has the new size and shows the scene.
-  std::remove("/tmp/sphray_view_resized.png");
+  std::filesystem::remove(tmp + "/sphray_view_resized.png");
   REQUIRE(std::system((xvfb + SPHRAY_EXE + " view --backend cpu --frames 8 --size 800x450 --resize 480x400 "
-                              "--screenshot /tmp/sphray_view_resized.png > /dev/null 2>&1").c_str()) == 0);
-  const sphray::Image c = sphray::read_png("/tmp/sphray_view_resized.png");
+                              "--screenshot " + tmp + "/sphray_view_resized.png > /dev/null 2>&1").c_str()) == 0);
+  const sphray::Image c = sphray::read_png(tmp + "/sphray_view_resized.png");
   CHECK(c.width == 480);
   CHECK(c.height == 400);
   std::set<uint32_t> colours_c(c.rgba.begin(), c.rgba.end());
   CHECK(colours_c.size() > 200);
   // and it is the image a window opened at that size shows (a stretched 800x450 image would not be)
   REQUIRE(std::system((xvfb + SPHRAY_EXE + " view --backend cpu --frames 8 --size 480x400 "
-                              "--screenshot /tmp/sphray_view_direct.png > /dev/null 2>&1").c_str()) == 0);
-  const sphray::Image d = sphray::read_png("/tmp/sphray_view_direct.png");
+                              "--screenshot " + tmp + "/sphray_view_direct.png > /dev/null 2>&1").c_str()) == 0);
+  const sphray::Image d = sphray::read_png(tmp + "/sphray_view_direct.png");
   REQUIRE(d.rgba.size() == c.rgba.size());
   const size_t resized_differ = sphray::pixels_differing(c, d, 20);
   INFO(resized_differ << " of " << c.rgba.size() << " pixels differ between the resized and the direct window");
   CHECK(resized_differ < c.rgba.size() / 100);
 
-  Result bad = run_cli("view --backend cpu --screenshot /tmp/x.png");
+  Result bad = run_cli("view --backend cpu --screenshot " + tmp + "/x.png");
   CHECK(bad.code == 2);
   CHECK(has(bad.output, "--screenshot needs --frames N"));
   Result bad_resize = run_cli("view --backend cpu --frames 2 --resize 12x12");

@@ -1,4 +1,4 @@
-// HDF5 frame export (src/frames_h5.cpp): exact round trip of every dataset and
+// HDF5 frame export (io/frames_h5.cpp): exact round trip of every dataset and
 // attribute, a run killed with SIGKILL mid-export still opens with its
 // frames, and every kind of bad file gets a clear error.
 #include <hdf5.h>
@@ -22,12 +22,17 @@
 
 #include "catch.h"
 #include "helpers.h"
-#include "../src/export.h"
-#include "../src/field.h"
-#include "../src/frames_h5.h"
-#include "../src/render.h"
+#include "io/export.h"
+#include "field/field.h"
+#include "io/frames_h5.h"
+#include "render/frame_sink.h"
+#include "render/render.h"
 
 using namespace sphray;
+
+// This process's own directory (helpers.h), and its name.
+const std::string tmp = sphray::test::tmp_dir();
+const std::string tmp_name = std::filesystem::path(tmp).filename().string();
 
 namespace {
 
@@ -54,21 +59,21 @@ using test::run_cli;
 TEST_CASE("export round trip: every dataset and attribute reads back exactly", "[export]") {
   const Scene s = small_scene();
   const SphParams prm = make_params(s);
-  auto solver = make_cpu_solver(make_solver_input(s, PresenceMode::AtUntil));
-  auto field = make_cpu_field_builder(make_field_setup(s));
+  auto solver = make_cpu_solver(make_solver_input(resolve_scene(s), PresenceMode::AtUntil));
+  auto field = make_cpu_field_builder(make_field_setup(resolve_scene(s)), FieldKind::Presence);
   const std::set<std::string> all = parse_export_fields("velocity,density,pressure,presence,field");
   FileHeader h;
   h.scene_json = s.json.dump();
   h.version = sphray_version();
   h.backend = "cpu";
   h.boundary = {1.5f, -2.0f, 3.25f, 0.0f, 1e-7f, 7.0f};
-  const std::string path = "/tmp/sphray_roundtrip.h5";
+  const std::string path = tmp + "/sphray_roundtrip.h5";
   std::vector<Frame> written;
   {
     FrameWriter w(path, h, 4);  // with gzip: compression must be lossless
     for (int k = 0; k < 3; ++k) {
       if (k > 0) test::run_until(*solver, 0.002 * k);
-      field->build(solver->view(), FieldKind::Presence);
+      field->build(solver->view());
       written.push_back(frame_of(*solver, prm, all, field.get()));
       Frame copy = written.back();
       w.submit(std::move(copy));
@@ -111,17 +116,17 @@ TEST_CASE("export round trip: every dataset and attribute reads back exactly", "
   for (size_t i = 1; i < written[2].id.size(); ++i) CHECK(written[2].id[i] > written[2].id[i - 1]);
   CHECK(written[2].pressure[0] == tait_pressure(prm, written[2].density[0]));
   // The XDMF sidecar names every frame's positions.
-  const std::string xmf = test::slurp("/tmp/sphray_roundtrip.xmf");
+  const std::string xmf = test::slurp(tmp + "/sphray_roundtrip.xmf");
   CHECK(has(xmf, "sphray_roundtrip.h5:/frames/000002/position"));
   CHECK(has(xmf, "CollectionType=\"Temporal\""));
 }
 
 TEST_CASE("a run killed with SIGKILL mid-export leaves a file that opens with its frames; while it ran, the file "
           "was refused to another writer and explained to a reader", "[export]") {
-  const std::string path = "/tmp/sphray_killed.h5";
+  const std::string path = tmp + "/sphray_killed.h5";
   std::remove(path.c_str());
-  std::remove("/tmp/sphray_killed.xmf");
-  const std::string scene = test::source_path("scenes/dam_break.json");
+  std::filesystem::remove(tmp + "/sphray_killed.xmf");
+  const std::string scene = test::source_path("scenes/dam_break.json"), csv_path = tmp + "/sphray_killed.csv";
   std::fflush(stdout);  // the child must not repeat what the parent has buffered
   const pid_t pid = fork();
   REQUIRE(pid >= 0);
@@ -129,14 +134,14 @@ TEST_CASE("a run killed with SIGKILL mid-export leaves a file that opens with it
     std::freopen("/dev/null", "w", stdout);
     execl(SPHRAY_EXE, SPHRAY_EXE, "run", scene.c_str(), "--backend", "cpu", "--quiet", "--set", "sph.spacing=0.04",
           "--set", "run.output_interval=0.005", "--set", "run.end_time=100", "--export", path.c_str(),
-          "--export-fields", "velocity,density", "--metrics-csv", "/tmp/sphray_killed.csv", static_cast<char*>(nullptr));
+          "--export-fields", "velocity,density", "--metrics-csv", csv_path.c_str(), static_cast<char*>(nullptr));
     _exit(127);
   }
   // Wait until the sidecar lists four frames (each written and flushed), then kill.
   bool ready = false;
   for (int t = 0; t < 1200 && !ready; ++t) {
     std::this_thread::sleep_for(std::chrono::milliseconds(100));
-    ready = has(test::slurp("/tmp/sphray_killed.xmf"), "/frames/000003/");
+    ready = has(test::slurp(tmp + "/sphray_killed.xmf"), "/frames/000003/");
   }
   // While the run writes the file: another writer is refused without touching
   // it (HDF5's create truncated it before failing on the lock, and the run
@@ -168,7 +173,7 @@ TEST_CASE("a run killed with SIGKILL mid-export leaves a file that opens with it
   }
   // The metrics CSV is flushed per row: its rows up to the kill are there, whole
   // (buffered, the killed run's CSV held its header at most).
-  std::ifstream csv("/tmp/sphray_killed.csv");
+  std::ifstream csv(csv_path);
   std::string line;
   int rows = -1;  // the header
   while (std::getline(csv, line)) {
@@ -181,36 +186,36 @@ TEST_CASE("a run killed with SIGKILL mid-export leaves a file that opens with it
 TEST_CASE("bad frame files: missing, not HDF5, truncated, foreign HDF5", "[export]") {
   CHECK(has(error_of("/nonexistent/frames.h5"), "cannot open (missing or unreadable)"));
 
-  std::ofstream("/tmp/sphray_text.h5") << "this is not an HDF5 file\n";
-  CHECK(has(error_of("/tmp/sphray_text.h5"), "not an HDF5 file"));
+  std::ofstream(tmp + "/sphray_text.h5") << "this is not an HDF5 file\n";
+  CHECK(has(error_of(tmp + "/sphray_text.h5"), "not an HDF5 file"));
 
   {  // a valid file cut in half
     FileHeader h;
     h.scene_json = "{}";
     h.boundary.assign(3000, 1.0f);
-    FrameWriter w("/tmp/sphray_full.h5", h, 0);
+    FrameWriter w(tmp + "/sphray_full.h5", h, 0);
     Frame f;
     f.id.assign(2000, 1);
     f.position.assign(6000, 2.0f);
     w.submit(std::move(f));
     w.finish();
-    std::ifstream in("/tmp/sphray_full.h5", std::ios::binary);
+    std::ifstream in(tmp + "/sphray_full.h5", std::ios::binary);
     std::string bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
-    std::ofstream("/tmp/sphray_truncated.h5", std::ios::binary).write(bytes.data(), std::streamsize(bytes.size() / 2));
+    std::ofstream(tmp + "/sphray_truncated.h5", std::ios::binary).write(bytes.data(), std::streamsize(bytes.size() / 2));
   }
-  const std::string truncated = error_of("/tmp/sphray_truncated.h5");
+  const std::string truncated = error_of(tmp + "/sphray_truncated.h5");
   INFO(truncated);
   CHECK(!truncated.empty());
   CHECK((has(truncated, "truncated") || has(truncated, "not an HDF5")));
 
   {  // an HDF5 file that is not sphray's
-    const hid_t f = H5Fcreate("/tmp/sphray_foreign.h5", H5F_ACC_TRUNC, H5P_DEFAULT, H5P_DEFAULT);
+    const hid_t f = H5Fcreate((tmp + "/sphray_foreign.h5").c_str(), H5F_ACC_TRUNC, H5P_DEFAULT, H5P_DEFAULT);
     REQUIRE(f >= 0);
     const hid_t g = H5Gcreate2(f, "data", H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT);
     H5Gclose(g);
     H5Fclose(f);
   }
-  CHECK(has(error_of("/tmp/sphray_foreign.h5"), "not a sphray frames file"));
+  CHECK(has(error_of(tmp + "/sphray_foreign.h5"), "not a sphray frames file"));
 
   CHECK_THROWS_AS(parse_export_fields("velocity,colour"), std::runtime_error);
 }
@@ -262,7 +267,7 @@ std::string read_error(const std::string& path) {
 
 TEST_CASE("a frame whose datasets disagree with its particles, or has a non-finite position, is refused by name",
           "[export]") {
-  const std::string path = "/tmp/sphray_damaged.h5";
+  const std::string path = tmp + "/sphray_damaged.h5";
   auto write_valid = [&] {
     FrameWriter w(path, FileHeader{"{}", "test", "cpu", {}}, 0);
     Frame f;
@@ -300,7 +305,7 @@ TEST_CASE("a frame of a run that lost particles keeps ascending ids with gaps, e
     "fluid": [{"min": [0.12,0.04,0.02], "max": [0.16,0.06,0.04], "velocity": [0,0,20]},
               {"min": [0.02,0.02,0.0], "max": [0.08,0.08,0.04]}],
     "sph": {"spacing": 0.01}, "run": {"end_time": 0.03}})", "gaps.json");
-  auto solver = make_cpu_solver(make_solver_input(s, PresenceMode::Off));
+  auto solver = make_cpu_solver(make_solver_input(resolve_scene(s), PresenceMode::Off));
   const SphParams prm = make_params(s);
   const std::set<std::string> fields = parse_export_fields("velocity,density,pressure");
   const size_t start = solver->num_fluid();
@@ -335,7 +340,7 @@ TEST_CASE("the XDMF sidecar describes every exported dataset as the HDF5 file ho
   // point arrays, walls, and the density field as a grid of voxel centres.
   // Checked here against the HDF5 file itself (tools/check_xdmf_paraview.py
   // opens it in ParaView, docs/formats.md).
-  const std::string dir = "/tmp/sphray_xdmf", h5 = dir + "/run.h5", xmf = dir + "/run.xmf";
+  const std::string dir = tmp + "/sphray_xdmf", h5 = dir + "/run.h5", xmf = dir + "/run.xmf";
   std::filesystem::remove_all(dir);
   std::filesystem::create_directories(dir);
   const test::CliResult r = run_cli(
@@ -446,7 +451,7 @@ TEST_CASE("large frames read back exactly, chunks written directly or through th
   f.field_voxel = 0.01f;
   for (const int gzip : {0, 3}) {
     INFO("gzip " << gzip);
-    const std::string path = "/tmp/sphray_big_" + std::to_string(gzip) + ".h5";
+    const std::string path = tmp + "/sphray_big_" + std::to_string(gzip) + ".h5";
     {
       FrameWriter w(path, FileHeader{"{}", "test", "cpu", {}}, gzip);
       Frame copy = f;
@@ -469,7 +474,7 @@ TEST_CASE("large frames read back exactly, chunks written directly or through th
 TEST_CASE("the XDMF sidecar is rewritten ever less often as it grows, and is complete at the end", "[export]") {
   // Rewritten after every frame, the sidecars of a run summed to the square
   // of its frames: 2,501 small frames took 47.6 s instead of 2.7 s.
-  const std::string path = "/tmp/sphray_sidecar.h5";
+  const std::string path = tmp + "/sphray_sidecar.h5";
   FrameWriter w(path, FileHeader{"{}", "test", "cpu", {0.5f, 0.5f, 0.5f}}, 0);
   for (int k = 0; k < 400; ++k) {
     Frame f;
@@ -485,7 +490,7 @@ TEST_CASE("the XDMF sidecar is rewritten ever less often as it grows, and is com
   // most one more per second of the writer's time.
   CHECK(w.sidecar_writes() >= 60);
   CHECK(w.sidecar_writes() < 110);
-  const std::string xmf = test::slurp("/tmp/sphray_sidecar.xmf");
+  const std::string xmf = test::slurp(tmp + "/sphray_sidecar.xmf");
   CHECK(has(xmf, "sphray_sidecar.h5:/frames/000399/position"));
   CHECK(has(xmf, "<Grid Name=\"walls 399\""));
 }
@@ -494,13 +499,13 @@ TEST_CASE("render --from refuses a particle outside the scene's domain, naming i
   // The grid's key and the field's splat convert a position to integer cells;
   // one far outside (1e30) rendered silently, through a float -> int
   // conversion out of range. A run never writes one: another tank, or an edit.
-  const std::string path = "/tmp/sphray_outside.h5";
+  const std::string path = tmp + "/sphray_outside.h5";
   std::filesystem::remove(path);
   const std::string scene = test::source_path("scenes/stress/one_cell.json");  // tank 0 .. 0.1 m
   test::CliResult r = run_cli("run " + scene + " --backend cpu --quiet --set run.end_time=0.01 "
                               "--set run.output_interval=0.01 --export " + path);
   REQUIRE(r.code == 0);
-  const std::string render = "render --from " + path + " --frame 1 --backend cpu --size 64x36 --out /tmp/sphray_o.png";
+  const std::string render = "render --from " + path + " --frame 1 --backend cpu --size 64x36 --out " + tmp + "/sphray_o.png";
   r = run_cli(render);
   CHECK(r.code == 0);  // as written, it renders
 
@@ -525,7 +530,7 @@ TEST_CASE("render --from refuses a particle outside the scene's domain, naming i
 }
 
 TEST_CASE("a full disk stops the run with a message and keeps the frames written before", "[export]") {
-  const TinyFs fs("/tmp/sphray_tiny_fs", "2m");
+  const TinyFs fs(tmp + "/sphray_tiny_fs", "2m");
   if (!fs.mounted()) return;
   const auto [code, out] = run_cli("run " + test::source_path("scenes/stress/one_cell.json") +
                                       " --backend cpu --quiet --set run.end_time=0.2 --set run.output_interval=0.001"
@@ -541,7 +546,7 @@ TEST_CASE("a full disk stops the run with a message and keeps the frames written
 TEST_CASE("PNG frames on a full disk: the run stops naming the frame, and every PNG left is whole", "[export]") {
   // stb's own file writer ignored write errors: on a full disk the run
   // reported "11 PNGs" and left empty and truncated frames.
-  const TinyFs fs("/tmp/sphray_tiny_png", "200k");
+  const TinyFs fs(tmp + "/sphray_tiny_png", "200k");
   if (!fs.mounted()) return;
   const auto [code, out] = run_cli("run " + test::source_path("scenes/dam_break.json") +
                                       " --backend cpu --quiet --set sph.spacing=0.05 --set run.end_time=0.2"
@@ -564,7 +569,7 @@ TEST_CASE("PNG frames on a full disk: the run stops naming the frame, and every 
 
 TEST_CASE("metrics CSV and summary JSON on a full disk stop the run with the file named", "[export]") {
   // Unchecked, the CSV ended mid-run at 4 KiB and the summary was empty, exit 0.
-  const TinyFs fs("/tmp/sphray_tiny_csv", "8k");
+  const TinyFs fs(tmp + "/sphray_tiny_csv", "8k");
   if (!fs.mounted()) return;
   const std::string run = "run " + test::source_path("scenes/dam_break.json") +
                           " --backend cpu --quiet --set sph.spacing=0.05 --set run.output_interval=0.001";
@@ -606,19 +611,19 @@ TEST_CASE("the background queue runs jobs in order and stops at the first failur
 
 TEST_CASE("PNG frames are written in the background; a failed write is reported by name", "[export]") {
   const Scene s = small_scene();
-  auto solver = make_cpu_solver(make_solver_input(s, PresenceMode::Off));
-  auto field = make_field(s, Backend::Cpu, needs_of(s));
-  const std::string dir = "/tmp/sphray_bg_frames";
+  auto solver = make_cpu_solver(make_solver_input(resolve_scene(s), PresenceMode::Off));
+  auto field = make_cpu_field_builder(make_field_setup(resolve_scene(s)), FieldKind::Naive);
+  const std::string dir = tmp + "/sphray_bg_frames";
   std::filesystem::remove_all(dir);
   {
-    FrameRenderer fr(s, Backend::Cpu, field->setup(), dir);
-    field->build(solver->view(), FieldKind::Naive);
+    FrameRenderer fr(s.render, s.tank, Backend::Cpu, field->setup(), dir);
+    field->build(solver->view());
     for (int f = 0; f < 3; ++f) fr.write_frame(solver->view(), *field, f);
     fr.finish();
     CHECK(fr.frames_written() == 3);
     for (int f = 0; f < 3; ++f) CHECK(std::filesystem::exists(dir + "/frame_00000" + std::to_string(f) + ".png"));
   }
-  FrameRenderer fr(s, Backend::Cpu, field->setup(), dir);
+  FrameRenderer fr(s.render, s.tank, Backend::Cpu, field->setup(), dir);
   std::filesystem::remove_all(dir);  // the directory goes away under the run
   std::string msg;
   try {
@@ -627,7 +632,7 @@ TEST_CASE("PNG frames are written in the background; a failed write is reported 
   } catch (const std::runtime_error& e) {
     msg = e.what();
   }
-  CHECK(msg.find("cannot write PNG '/tmp/sphray_bg_frames/frame_000000.png'") != std::string::npos);
+  CHECK(msg.find("cannot write PNG '" + tmp + "/sphray_bg_frames/frame_000000.png'") != std::string::npos);
 }
 
 namespace {

@@ -1,4 +1,4 @@
-// Density-field builders (cuda/field/) against independent references: the
+// Density-field builders (field/) against independent references: the
 // falloff and iso value in double, the naive field against a double brute-force
 // sum, gather against naive, the presence builder's guarantees (never past the
 // clip value; exactly naive's classification without presence; within 1% of
@@ -12,8 +12,9 @@
 
 #include "catch.h"
 #include "helpers.h"
-#include "../src/field.h"
-#include "../src/metrics.h"
+#include "host_particles.h"
+#include "field/field.h"
+#include "io/metrics.h"
 
 using namespace sphray;
 
@@ -53,9 +54,10 @@ std::vector<Vec3f> random_points(const Scene& s, size_t n, unsigned seed) {
   return pts;
 }
 
-std::vector<float> build(FieldBuilder& b, const ParticleView& v, FieldKind k) {
-  b.build(v, k);
-  return b.download();
+std::vector<float> build(const FieldSetup& fs, const ParticleView& v, FieldKind k) {
+  auto b = make_cpu_field_builder(fs, k);
+  b->build(v);
+  return b->download();
 }
 
 }  // namespace
@@ -63,7 +65,7 @@ std::vector<float> build(FieldBuilder& b, const ParticleView& v, FieldKind k) {
 TEST_CASE("field geometry: the volume is the grid over the tank at 2^refine voxels per cell", "[field]") {
   for (int refine : {0, 1, 2}) {
     const Scene s = small_scene({"field.refine=" + std::to_string(refine)});
-    const FieldSetup fs = make_field_setup(s);
+    const FieldSetup fs = make_field_setup(resolve_scene(s));
     const GridGeom g = measure_scene(s).grid;
     CHECK(fs.geom.voxel == Approx(g.cell_size / double(1 << refine)));
     CHECK(fs.geom.nx % (1 << refine) == 0);
@@ -76,7 +78,7 @@ TEST_CASE("field geometry: the volume is the grid over the tank at 2^refine voxe
 }
 
 TEST_CASE("falloff: inverse square with a finite core, zero at R, iso = f(sqrt(3)/2)", "[field]") {
-  const FieldSetup fs = make_field_setup(small_scene());
+  const FieldSetup fs = make_field_setup(resolve_scene(small_scene()));
   const FieldShape& s = fs.shape;
   CHECK(s.falloff(0.0f) == Approx(falloff_ref(s, 0.0)).epsilon(1e-6));
   CHECK(s.falloff(1.0f) == Approx(falloff_ref(s, 1.0)).epsilon(1e-6));
@@ -89,8 +91,7 @@ TEST_CASE("falloff: inverse square with a finite core, zero at R, iso = f(sqrt(3
 
 TEST_CASE("a lone particle anywhere in a voxel makes that voxel inside (surface never below one voxel)", "[field]") {
   const Scene s = small_scene();
-  const FieldSetup fs = make_field_setup(s);
-  auto b = make_cpu_field_builder(fs);
+  const FieldSetup fs = make_field_setup(resolve_scene(s));
   std::mt19937 rng(11);
   std::uniform_real_distribution<float> u(0.0f, 1.0f);
   for (int trial = 0; trial < 50; ++trial) {
@@ -98,19 +99,18 @@ TEST_CASE("a lone particle anywhere in a voxel makes that voxel inside (surface 
     const Vec3f p{fs.geom.origin.x + (vi + u(rng)) * fs.geom.voxel, fs.geom.origin.y + (vj + u(rng)) * fs.geom.voxel,
                   fs.geom.origin.z + (vk + u(rng)) * fs.geom.voxel};
     const HostParticleSet ps(measure_scene(s).grid, {p});
-    const std::vector<float> f = build(*b, ps.view(), FieldKind::Naive);
+    const std::vector<float> f = build(fs, ps.view(), FieldKind::Naive);
     CHECK(f[fs.geom.index(vi, vj, vk)] >= fs.shape.iso);
   }
 }
 
 TEST_CASE("naive and gather fields equal a double brute-force sum", "[field]") {
   const Scene s = small_scene();
-  const FieldSetup fs = make_field_setup(s);
+  const FieldSetup fs = make_field_setup(resolve_scene(s));
   const std::vector<Vec3f> pts = random_points(s, 3000, 3);
   const HostParticleSet ps(measure_scene(s).grid, pts);
-  auto b = make_cpu_field_builder(fs);
-  const std::vector<float> naive = build(*b, ps.view(), FieldKind::Naive);
-  const std::vector<float> gather = build(*b, ps.view(), FieldKind::Gather);
+  const std::vector<float> naive = build(fs, ps.view(), FieldKind::Naive);
+  const std::vector<float> gather = build(fs, ps.view(), FieldKind::Gather);
   double worst_naive = 0, worst_gather = 0;
   std::mt19937 rng(4);
   for (int t = 0; t < 3000; ++t) {
@@ -128,11 +128,10 @@ TEST_CASE("naive and gather fields equal a double brute-force sum", "[field]") {
 TEST_CASE("presence builder without presence classifies exactly as naive, and never passes the clip value", "[field]") {
   for (int refine : {0, 1, 2}) {
     const Scene s = small_scene({"field.refine=" + std::to_string(refine)});
-    const FieldSetup fs = make_field_setup(s);
+    const FieldSetup fs = make_field_setup(resolve_scene(s));
     const HostParticleSet ps(measure_scene(s).grid, random_points(s, 4000, 7 + refine));
-    auto b = make_cpu_field_builder(fs);
-    const std::vector<float> naive = build(*b, ps.view(), FieldKind::Naive);
-    const std::vector<float> pres = build(*b, ps.view(), FieldKind::Presence);
+    const std::vector<float> naive = build(fs, ps.view(), FieldKind::Naive);
+    const std::vector<float> pres = build(fs, ps.view(), FieldKind::Presence);
     size_t differ = 0;
     for (size_t v = 0; v < naive.size(); ++v) differ += (naive[v] >= fs.shape.iso) != (pres[v] >= fs.shape.iso);
     INFO("refine " << refine);
@@ -168,22 +167,22 @@ TEST_CASE("field error metric on analytic spheres", "[field]") {
   CHECK(e.unmatched == 0);
 }
 
-TEST_CASE("presence builder on a dam break after its collapse: within 1% of naive, no holes, less work", "[field]") {
+TEST_CASE("presence builder on a dam break after its collapse: within 1% of naive, no holes, less work", "[field][slow]") {
   // Coarse (2,400 particles) to keep the CPU suite short; the column has
   // collapsed by t = 0.3 s (front past 2.5 column widths).
   const Scene s = small_scene({"sph.spacing=0.0125"});
-  auto solver = make_cpu_solver(make_solver_input(s, PresenceMode::AtUntil));
+  auto solver = make_cpu_solver(make_solver_input(resolve_scene(s), PresenceMode::AtUntil));
   test::run_until(*solver, 0.3);
   REQUIRE(solver->has_presence());
   const ParticleView v = solver->view();
-  const FieldSetup fs = make_field_setup(s);
-  auto b = make_cpu_field_builder(fs);
-  b->build(v, FieldKind::Naive, true);
-  const std::vector<float> naive = b->download();
-  const FieldCounts cn = b->last_counts();
-  b->build(v, FieldKind::Presence, true);
-  const std::vector<float> pres = b->download();
-  const FieldCounts cp = b->last_counts();
+  const FieldSetup fs = make_field_setup(resolve_scene(s));
+  auto nb = make_cpu_field_builder(fs, FieldKind::Naive), pb = make_cpu_field_builder(fs, FieldKind::Presence);
+  nb->build(v, true);
+  const std::vector<float> naive = nb->download();
+  const FieldCounts cn = nb->last_counts();
+  pb->build(v, true);
+  const std::vector<float> pres = pb->download();
+  const FieldCounts cp = pb->last_counts();
   const FieldError e = compare_fields(fs.geom.nx, fs.geom.ny, fs.geom.nz, naive, pres, fs.shape.iso);
   INFO("misclassified " << 100 * e.misclassified_share() << "% of " << e.band << " band voxels, elsewhere "
                         << e.misclassified_other << ", surface distance mean " << e.mean_distance << " max "
@@ -198,16 +197,16 @@ TEST_CASE("presence builder on a dam break after its collapse: within 1% of naiv
   CHECK(cp.skipped > 0);
   CHECK(*std::max_element(pres.begin(), pres.end()) <= fs.shape.clip * (1.0f + 1e-6f));  // to float rounding
   // Gather computes the naive field.
-  b->build(v, FieldKind::Gather);
-  const FieldError g = compare_fields(fs.geom.nx, fs.geom.ny, fs.geom.nz, naive, b->download(), fs.shape.iso);
+  const FieldError g = compare_fields(fs.geom.nx, fs.geom.ny, fs.geom.nz, naive, build(fs, v, FieldKind::Gather),
+                                      fs.shape.iso);
   CHECK(g.misclassified_band + g.misclassified_other <= 2);  // float summation order only
   CHECK(g.mean_distance < 1e-3);
 }
 
 TEST_CASE("presence at the frame only: the step that reaches `until` computes what every step would", "[field]") {
   const Scene s = small_scene({"sph.spacing=0.0125"});
-  auto every = make_cpu_solver(make_solver_input(s, PresenceMode::EveryStep));
-  auto at = make_cpu_solver(make_solver_input(s, PresenceMode::AtUntil));
+  auto every = make_cpu_solver(make_solver_input(resolve_scene(s), PresenceMode::EveryStep));
+  auto at = make_cpu_solver(make_solver_input(resolve_scene(s), PresenceMode::AtUntil));
   every->step(0.01);
   at->step(0.01);
   CHECK_FALSE(at->has_presence());  // the first step does not reach t = 0.01
@@ -227,18 +226,21 @@ TEST_CASE("presence at the frame only: the step that reaches `until` computes wh
 TEST_CASE("run_scene computes presence only toward the frames that use it", "[field]") {
   // A field every 3rd output frame: presence on the step reaching frames 3, 6,
   // 9 and on no other, and the field built from it there.
-  const Scene s = small_scene({"sph.spacing=0.0125", "run.end_time=0.05", "run.output_interval=0.005"});
-  auto solver = make_cpu_solver(make_solver_input(s, PresenceMode::AtUntil));
-  auto field = make_field(s, Backend::Cpu, needs_of(s));
+  Scene s = small_scene({"sph.spacing=0.0125", "run.end_time=0.05", "run.output_interval=0.005"});
+  s.field.given = false;  // built only where a sink needs it
+  std::vector<int> with;
+  FunctionSink every_third([&](const Solver& sv, const FieldBuilder*, int f) {
+    if (sv.has_presence()) with.push_back(f);
+  }, FrameNeeds{true, false}, [](int f) { return f % 3 == 0; });
+  const StageNeeds needs = needs_of(s, {&every_third});
+  REQUIRE(needs.field);
+  REQUIRE(needs.presence == PresenceMode::AtUntil);
+  auto solver = make_solver(resolve_scene(s), Backend::Cpu, needs);
+  auto field = make_field(resolve_scene(s), Backend::Cpu, needs);
   RunOptions opt;
   opt.progress = false;
   opt.field = field.get();
-  opt.field_at = [](int f) { return f % 3 == 0; };
-  opt.presence_at = opt.field_at;
-  std::vector<int> with;
-  opt.on_output = [&](const Solver& sv, int f) {
-    if (sv.has_presence()) with.push_back(f);
-  };
+  opt.sinks = {&every_third};
   std::ostringstream log;
   const RunSummary r = run_scene(s, *solver, opt, log);
   CHECK(with == std::vector<int>{3, 6, 9});
@@ -252,12 +254,12 @@ TEST_CASE("a scene pays only for the stages it needs: no field, no presence", "[
   no_field.field.given = false;
   CHECK(needs_of(no_field).presence == PresenceMode::Off);
   CHECK_FALSE(needs_of(no_field).field);
-  CHECK(make_field(no_field, Backend::Cpu, needs_of(no_field)) == nullptr);
+  CHECK(make_field(resolve_scene(no_field), Backend::Cpu, needs_of(no_field)) == nullptr);
   CHECK(needs_of(plain).presence == PresenceMode::AtUntil);
   const Scene naive = small_scene({"field.builder=naive"});
   CHECK(needs_of(naive).presence == PresenceMode::Off);
-  auto off = make_cpu_solver(make_solver_input(plain, PresenceMode::Off));
-  auto on = make_cpu_solver(make_solver_input(plain, PresenceMode::AtUntil));
+  auto off = make_cpu_solver(make_solver_input(resolve_scene(plain), PresenceMode::Off));
+  auto on = make_cpu_solver(make_solver_input(resolve_scene(plain), PresenceMode::AtUntil));
   CHECK(on->device_bytes() >= off->device_bytes() + 2 * 6 * sizeof(float) * off->num_fluid());
 }
 

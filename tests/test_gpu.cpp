@@ -7,14 +7,16 @@
 #include <random>
 #include <set>
 
-#include "../cuda/sph/neighbours.h"
+#include "nsearch/pair_masks.h"
 #include "catch.h"
 #include "helpers.h"
+#include "host_particles.h"
+#include "nsearch_probe.h"
 #include "hydrostatic.h"
-#include "../src/export.h"
-#include "../src/field.h"
-#include "../src/metrics.h"
-#include "../src/render.h"
+#include "io/export.h"
+#include "field/field.h"
+#include "io/metrics.h"
+#include "render/render.h"
 
 using namespace sphray;
 
@@ -70,7 +72,7 @@ double distance2(Vec3f a, Vec3f b) {
 }  // namespace
 
 TEST_CASE("cuda pair masks visit the cpu's neighbours in the same order", "[gpu]") {
-  // The GPU builds a warp's masks together from shared memory (neighbours.h);
+  // The GPU builds a warp's masks together from shared memory (nsearch/pair_masks.h);
   // the CPU builds each query's own. Walked, both must give every query the
   // same neighbours in the same order: uniform points (a particle count that
   // leaves a partial last warp), a jittered lattice at h = 2 dx (rows shared by
@@ -154,7 +156,7 @@ TEST_CASE("cuda wall masks with near-cell flags visit the cpu's neighbours", "[g
 TEST_CASE("cuda guards and open-top removal behave as on the cpu", "[gpu]") {
   {
     const Scene s = load_scene(test::source_path("scenes/stress/jet.json"));
-    SolverInput in = make_solver_input(s, PresenceMode::Off);
+    SolverInput in = make_solver_input(resolve_scene(s), PresenceMode::Off);
     in.fluid_vel[17].y = std::numeric_limits<float>::quiet_NaN();
     auto cpu = make_cpu_solver(in), gpu = make_cuda_solver(in);
     const std::string a = test::step_error(*cpu, 1.0), b = test::step_error(*gpu, 1.0);
@@ -169,13 +171,13 @@ TEST_CASE("cuda guards and open-top removal behave as on the cpu", "[gpu]") {
   }
   {
     const Scene s = load_scene(test::source_path("scenes/stress/stiff.json"), {"run.min_dt=0.001", "run.max_dt=0.01"});
-    auto gpu = make_cuda_solver(make_solver_input(s, PresenceMode::Off));
+    auto gpu = make_cuda_solver(make_solver_input(resolve_scene(s), PresenceMode::Off));
     const std::string b = test::step_error(*gpu, 1.0);
     CHECK(b.find("run.min_dt") != std::string::npos);
     CHECK(b.find("limit") != std::string::npos);
   }
   {
-    const SolverInput in = make_solver_input(test::dropped_particle_scene(2.0), PresenceMode::Off);
+    const SolverInput in = make_solver_input(resolve_scene(test::dropped_particle_scene(2.0)), PresenceMode::Off);
     auto cpu = make_cpu_solver(in), gpu = make_cuda_solver(in);
     const std::string a = test::run_to_error(*cpu, 0.4), b = test::run_to_error(*gpu, 0.4);
     INFO(a << "\n" << b);
@@ -186,7 +188,7 @@ TEST_CASE("cuda guards and open-top removal behave as on the cpu", "[gpu]") {
   }
   {
     const Scene s = test::open_top_jet_scene();
-    auto gpu = make_cuda_solver(make_solver_input(s, PresenceMode::Off));
+    auto gpu = make_cuda_solver(make_solver_input(resolve_scene(s), PresenceMode::Off));
     REQUIRE(gpu->num_fluid() == 8);
     test::run_until(*gpu, 0.1);
     CHECK(gpu->num_removed() == 8);
@@ -197,7 +199,7 @@ TEST_CASE("cuda guards and open-top removal behave as on the cpu", "[gpu]") {
 
 TEST_CASE("cuda and cpu dam breaks agree to float tolerance", "[gpu]") {
   const Scene s = load_scene(test::source_path("scenes/dam_break.json"), {"sph.spacing=0.02", "sph.presence=true"});
-  const SolverInput in = make_solver_input(s, PresenceMode::EveryStep);
+  const SolverInput in = make_solver_input(resolve_scene(s), PresenceMode::EveryStep);
   auto cpu = make_cpu_solver(in), gpu = make_cuda_solver(in);
   for (int k = 0; k < 50; ++k) {
     cpu->step(1.0);
@@ -226,7 +228,7 @@ TEST_CASE("cuda export snapshots hold the state they were taken at, while the ru
   // steps (AsyncDownload): a frame made after them must still be the state
   // at its capture, and match the cpu's frame of the same steps.
   const Scene s = load_scene(test::source_path("scenes/dam_break.json"), {"sph.spacing=0.02", "sph.presence=true"});
-  const SolverInput in = make_solver_input(s, PresenceMode::EveryStep);
+  const SolverInput in = make_solver_input(resolve_scene(s), PresenceMode::EveryStep);
   auto cpu = make_cpu_solver(in), gpu = make_cuda_solver(in);
   const SphParams prm = make_params(s);
   const std::set<std::string> fields = parse_export_fields("velocity,density,presence");
@@ -296,17 +298,17 @@ TEST_CASE("cuda hydrostatic tank: pressure error against spacing and speed of so
 TEST_CASE("cuda field builders agree with the cpu builders", "[gpu]") {
   const Scene s = load_scene(test::source_path("scenes/dam_break.json"),
                              {"sph.spacing=0.02", "field.refine=2", "run.end_time=1"});
-  const SolverInput in = make_solver_input(s, PresenceMode::EveryStep);
+  const SolverInput in = make_solver_input(resolve_scene(s), PresenceMode::EveryStep);
   auto cpu = make_cpu_solver(in), gpu = make_cuda_solver(in);
   for (int k = 0; k < 20; ++k) {
     cpu->step(1.0);
     gpu->step(1.0);
   }
-  const FieldSetup fs = make_field_setup(s);
-  auto fc = make_cpu_field_builder(fs), fg = make_cuda_field_builder(fs);
+  const FieldSetup fs = make_field_setup(resolve_scene(s));
   for (FieldKind kind : {FieldKind::Naive, FieldKind::Presence, FieldKind::Gather}) {
-    fc->build(cpu->view(), kind, true);
-    fg->build(gpu->view(), kind, true);
+    auto fc = make_cpu_field_builder(fs, kind), fg = make_cuda_field_builder(fs, kind);
+    fc->build(cpu->view(), true);
+    fg->build(gpu->view(), true);
     const std::vector<float> a = fc->download(), b = fg->download();
     double worst = 0;
     for (size_t v = 0; v < a.size(); ++v) worst = std::max(worst, std::abs(double(a[v]) - b[v]) / (1.0 + a[v]));
@@ -324,14 +326,14 @@ TEST_CASE("cuda field builders agree with the cpu builders", "[gpu]") {
 TEST_CASE("cuda raycast agrees with the cpu raycast", "[gpu]") {
   const Scene s = load_scene(test::source_path("scenes/dam_break.json"),
                              {"sph.spacing=0.02", "run.end_time=1", "render.width=320", "render.height=180"});
-  const SolverInput in = make_solver_input(s, PresenceMode::Off);
+  const SolverInput in = make_solver_input(resolve_scene(s), PresenceMode::Off);
   auto cpu = make_cpu_solver(in), gpu = make_cuda_solver(in);
-  const FieldSetup fs = make_field_setup(s);
-  auto fc = make_cpu_field_builder(fs), fg = make_cuda_field_builder(fs);
-  fc->build(cpu->view(), FieldKind::Naive);
-  fg->build(gpu->view(), FieldKind::Naive);
-  const Camera cam = make_camera(s, s.render);
-  const Environment env = make_environment(s, fs.geom, cam);
+  const FieldSetup fs = make_field_setup(resolve_scene(s));
+  auto fc = make_cpu_field_builder(fs, FieldKind::Naive), fg = make_cuda_field_builder(fs, FieldKind::Naive);
+  fc->build(cpu->view());
+  fg->build(gpu->view());
+  const Camera cam = make_camera(s.tank, s.render);
+  const Environment env = make_environment(s.tank, fs.geom, cam);
   auto rc = make_cpu_renderer(), rg = make_cuda_renderer();
   for (int interfaces : {1, 4, 8}) {
     RenderSettings rs = s.render;

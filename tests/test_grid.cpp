@@ -1,16 +1,17 @@
 // Neighbour grid against brute force: random points, a lattice, points on cell
 // faces, empty cells, everything in one cell, and points outside the grid; the
-// pair masks (neighbours.h) against the direct loop on the same inputs.
+// pair masks (nsearch/pair_masks.h) against the direct loop on the same inputs.
 #include <algorithm>
 #include <cmath>
 #include <random>
 #include <set>
 #include <vector>
 
-#include "../cuda/sph/grid.h"
-#include "../cuda/sph/neighbours.h"
+#include "nsearch/grid.h"
+#include "nsearch/pair_masks.h"
 #include "catch.h"
 #include "helpers.h"
+#include "nsearch_probe.h"
 
 using namespace sphray;
 

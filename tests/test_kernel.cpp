@@ -3,7 +3,7 @@
 #include <limits>
 #include <type_traits>
 
-#include "../cuda/sph/kernel.h"
+#include "sph/kernel.h"
 #include "catch.h"
 
 using namespace sphray;

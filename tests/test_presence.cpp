@@ -21,7 +21,7 @@ SolverInput lattice_input(int nx, int ny, int nz, const std::vector<Vec3d>& extr
   const std::string text = R"({"tank": {"min": [-0.1,-0.1,-0.1], "max": [0.4,0.4,0.4]},
     "gravity": [0,0,0], "sph": {"spacing": 0.01}, "run": {"end_time": 1}})";
   const Scene s = parse_scene(text, "presence.json");
-  SolverInput in = make_solver_input(s, PresenceMode::EveryStep);
+  SolverInput in = make_solver_input(resolve_scene(s), PresenceMode::EveryStep);
   for (int k = 0; k < nz; ++k)
     for (int j = 0; j < ny; ++j)
       for (int i = 0; i < nx; ++i)
@@ -55,7 +55,7 @@ double lattice_lobe(const SmoothingKernel<double>& k) {
   return sum;
 }
 
-// Independent reference in double: the definition in cuda/sph/interaction.h.
+// Independent reference in double: the definition in sph/interaction.h.
 std::array<double, 6> reference_presence(const SolverInput& in, size_t i) {
   const auto k = SmoothingKernel<double>::make(KernelType::WendlandC2, double(in.params.kernel.h));
   const Float4 a = in.fluid_pos_rho[i];

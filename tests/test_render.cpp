@@ -1,4 +1,4 @@
-// The raycaster (cuda/render/raycast.h) on the CPU backend against analytic
+// The raycaster (render/raycast.h) on the CPU backend against analytic
 // answers computed in double: the hit distance and normal on a sphere field,
 // Snell refraction through a sphere, total internal reflection at a flat
 // surface, weights that never sum above 1; the empty-space skip against no
@@ -12,8 +12,9 @@
 
 #include "catch.h"
 #include "helpers.h"
-#include "../src/field.h"
-#include "../src/render.h"
+#include "host_particles.h"
+#include "field/field.h"
+#include "render/render.h"
 
 using namespace sphray;
 
@@ -278,7 +279,7 @@ TEST_CASE("the weights of one ray sum to 1 without absorption and never above 1"
   const Scene s = parse_scene(R"({"tank": {"min": [0,0,0], "max": [0.4,0.2,0.3]},
     "fluid": [{"min": [0,0,0], "max": [0.12,0.2,0.2]}], "sph": {"spacing": 0.01}, "run": {"end_time": 1}})",
                               "render.json");
-  const FieldSetup fs = make_field_setup(s);
+  const FieldSetup fs = make_field_setup(resolve_scene(s));
   std::mt19937 rng(5);
   std::uniform_real_distribution<float> u(0, 1);
   std::normal_distribution<float> g(0, 0.02f);
@@ -293,10 +294,10 @@ TEST_CASE("the weights of one ray sum to 1 without absorption and never above 1"
     p.z = std::clamp(p.z, 0.001f, 0.299f);
   }
   const HostParticleSet ps(measure_scene(s).grid, pts);
-  auto builder = make_cpu_field_builder(fs);
-  builder->build(ps.view(), FieldKind::Naive);
+  auto builder = make_cpu_field_builder(fs, FieldKind::Naive);
+  builder->build(ps.view());
   const std::vector<float> field = builder->download();
-  const Environment env = make_environment(s, fs.geom, make_camera(s, s.render));
+  const Environment env = make_environment(s.tank, fs.geom, make_camera(s.tank, s.render));
   const Vec3f box{float(fs.geom.nx), float(fs.geom.ny), float(fs.geom.nz)};
   for (double absorption : {0.0, 0.05}) {
     for (int interfaces : {1, 4, 8}) {
@@ -334,17 +335,17 @@ TEST_CASE("the weights of one ray sum to 1 without absorption and never above 1"
 TEST_CASE("empty-space skipping is conservative and leaves the image unchanged", "[render]") {
   const Scene s = load_scene(test::source_path("scenes/dam_break.json"),
                              {"sph.spacing=0.04", "render.width=160", "render.height=90"});
-  const SolverInput in = make_solver_input(s, PresenceMode::Off);
+  const SolverInput in = make_solver_input(resolve_scene(s), PresenceMode::Off);
   auto solver = make_cpu_solver(in);
   for (int k = 0; k < 60; ++k) solver->step(1.0);  // the column starts to fall: a surface with a front
   for (int refine : {0, 2}) {
     const Scene sr = load_scene(test::source_path("scenes/dam_break.json"),
                                 {"sph.spacing=0.04", "render.width=160", "render.height=90",
                                  "field.refine=" + std::to_string(refine)});
-    const FieldSetup fs = make_field_setup(sr);
-    auto builder = make_cpu_field_builder(fs);
+    const FieldSetup fs = make_field_setup(resolve_scene(sr));
+    auto builder = make_cpu_field_builder(fs, FieldKind::Naive);
     const ParticleView pv = solver->view();
-    builder->build(pv, FieldKind::Naive);
+    builder->build(pv);
     const std::vector<float> f = builder->download();
     // the guarantee: a cell the occupancy calls empty has zero field within one voxel of it
     const int cell = 1 << fs.geom.refine;
@@ -374,8 +375,8 @@ TEST_CASE("empty-space skipping is conservative and leaves the image unchanged",
     CHECK(empty > occ.size() / 4);  // the skip has something to skip
 
     RenderSettings rs = sr.render;
-    const Camera cam = make_camera(sr, rs);
-    const Environment env = make_environment(sr, fs.geom, cam);
+    const Camera cam = make_camera(sr.tank, rs);
+    const Environment env = make_environment(sr.tank, fs.geom, cam);
     auto renderer = make_cpu_renderer();
     rs.skip_empty = false;
     renderer->render(builder->data(), fs, &pv, cam, env, rs);

@@ -52,14 +52,14 @@ TEST_CASE("wall viscosity: sph.viscosity_alpha unless set apart, none on free-sl
   // Counts the wall particles by their viscosity coefficient.
   auto alphas = [](const Scene& s) {
     std::map<float, size_t> n;
-    for (float a : make_solver_input(s, PresenceMode::Off).boundary_alpha) ++n[a];
+    for (float a : make_solver_input(resolve_scene(s), PresenceMode::Off).boundary_alpha) ++n[a];
     return n;
   };
   const Scene same = parse_scene(kGood, "t.json", {"sph.viscosity_alpha=0.05"});
   const auto a = alphas(same);
   REQUIRE(a.size() == 1);
   CHECK(a.begin()->first == 0.05f);
-  CHECK(a.begin()->second == make_solver_input(same, PresenceMode::Off).boundary.size());
+  CHECK(a.begin()->second == make_solver_input(resolve_scene(same), PresenceMode::Off).boundary.size());
 
   const Scene apart = parse_scene(kGood, "t.json", {"sph.wall_viscosity_alpha=0.3", "tank.free_slip=[\"-y\",\"+y\"]"});
   CHECK(make_params(apart).viscosity_alpha == 0.02f);  // the fluid's own stays
@@ -175,8 +175,8 @@ TEST_CASE("overlapping fluid blocks fill their union once, at its hydrostatic de
   // The same block twice: the particles of one.
   const Scene twice = parse_scene(kGood, "t.json", {"fluid=[{\"min\":[0,0,0],\"max\":[0.2,0.5,0.3]},"
                                                     "{\"min\":[0,0,0],\"max\":[0.2,0.5,0.3]}]"});
-  const SolverInput one = make_solver_input(parse_scene(kGood, "t.json"), PresenceMode::Off);
-  const SolverInput two = make_solver_input(twice, PresenceMode::Off);
+  const SolverInput one = make_solver_input(resolve_scene(parse_scene(kGood, "t.json")), PresenceMode::Off);
+  const SolverInput two = make_solver_input(resolve_scene(twice), PresenceMode::Off);
   REQUIRE(two.fluid_pos_rho.size() == one.fluid_pos_rho.size());
   for (size_t k = 0; k < one.fluid_pos_rho.size(); ++k)
     CHECK(length2(xyz(two.fluid_pos_rho[k]) - xyz(one.fluid_pos_rho[k])) == 0);
@@ -185,7 +185,7 @@ TEST_CASE("overlapping fluid blocks fill their union once, at its hydrostatic de
   // cells exactly, and the bed under the column at the column's depth.
   const Scene l = parse_scene(kGood, "t.json", {"fluid=[{\"min\":[0,0,0],\"max\":[1,0.5,0.1]},"
                                                 "{\"min\":[0,0,0],\"max\":[0.2,0.5,0.4]}]"});
-  const SolverInput in = make_solver_input(l, PresenceMode::Off);
+  const SolverInput in = make_solver_input(resolve_scene(l), PresenceMode::Off);
   CHECK(in.fluid_pos_rho.size() == 50 * 25 * 5 + 10 * 25 * 15);
   CHECK(closest(in.fluid_pos_rho) == Approx(dx).epsilon(1e-4));
   const double b = make_params(l).tait_b;
@@ -199,7 +199,7 @@ TEST_CASE("overlapping fluid blocks fill their union once, at its hydrostatic de
   // union's volume filled to within a layer of particles along the seam.
   const Scene off = parse_scene(kGood, "t.json", {"fluid=[{\"min\":[0,0,0],\"max\":[0.2,0.5,0.3]},"
                                                   "{\"min\":[0.133,0,0],\"max\":[0.4,0.5,0.3]}]"});
-  const SolverInput o = make_solver_input(off, PresenceMode::Off);
+  const SolverInput o = make_solver_input(resolve_scene(off), PresenceMode::Off);
   CHECK(closest(o.fluid_pos_rho) >= 0.75 * dx);
   const double union_cells = 0.4 * 0.5 * 0.3 / (dx * dx * dx);
   CHECK(std::abs(double(o.fluid_pos_rho.size()) - union_cells) <= 25 * 15);
@@ -233,7 +233,7 @@ TEST_CASE("a scene too large for memory is refused before allocating", "[scene][
   const Scene s = parse_scene(kGood, "t.json", {"tank.max=[16,16,16]", "fluid.0.max=[16,16,8]", "sph.spacing=0.001"});
   std::string e;
   try {
-    check_fits(s, Backend::Cpu);
+    check_fits(resolve_scene(s), Backend::Cpu);
   } catch (const SceneError& x) {
     e = x.what();
   }

@@ -6,14 +6,14 @@
 #include <limits>
 #include <string>
 
-#include "../src/metrics.h"
+#include "io/metrics.h"
 #include "catch.h"
 #include "helpers.h"
 #include "hydrostatic.h"
 
 using namespace sphray;
 
-TEST_CASE("a tank at rest settles to hydrostatic pressure within 2%", "[sph][cpu]") {
+TEST_CASE("a tank at rest settles to hydrostatic pressure within 2%", "[sph][slow][cpu]") {
   // dx = 1 cm: 2880 particles (tests/hydrostatic.h). c0 = 28 m/s, twice the
   // automatic 10 sqrt(g H): at the automatic c0 the weakly-compressible error
   // is about 2.4% at the bottom (the gpu test measures it against dx and c0;
@@ -57,7 +57,7 @@ TEST_CASE("hydrostatic tank against the smoothing length", "[.][study][cpu]") {
 
 TEST_CASE("a non-finite value stops the run and names step, particle and quantity", "[sph][cpu]") {
   const Scene s = load_scene(test::source_path("scenes/stress/jet.json"));
-  SolverInput in = make_solver_input(s, PresenceMode::Off);
+  SolverInput in = make_solver_input(resolve_scene(s), PresenceMode::Off);
   in.fluid_vel[17].y = std::numeric_limits<float>::quiet_NaN();
   auto solver = make_cpu_solver(in);
   const std::string msg = test::step_error(*solver, 1.0);
@@ -80,7 +80,7 @@ TEST_CASE("a non-finite value stops the run and names step, particle and quantit
 
 TEST_CASE("a time step below the floor is an error with its reason", "[sph][cpu]") {
   const Scene s = load_scene(test::source_path("scenes/stress/stiff.json"), {"run.min_dt=0.001", "run.max_dt=0.01"});
-  auto solver = make_cpu_solver(make_solver_input(s, PresenceMode::Off));
+  auto solver = make_cpu_solver(make_solver_input(resolve_scene(s), PresenceMode::Off));
   const std::string msg = test::step_error(*solver, 1.0);
   CHECK(msg.find("run.min_dt") != std::string::npos);
   CHECK(msg.find("limit") != std::string::npos);
@@ -90,7 +90,7 @@ TEST_CASE("a particle outrunning the speed of sound stops the run and is named",
   // c0 = 2 m/s passes the scene check (1.73 m/s, tests/helpers.h); free fall
   // reaches 2 m/s after 0.204 m (t = 0.204 s), 0.06 m above the floor's reach.
   // With c0 = 3 m/s the particle lands, bounces and the run ends.
-  auto solver = make_cpu_solver(make_solver_input(test::dropped_particle_scene(2.0), PresenceMode::Off));
+  auto solver = make_cpu_solver(make_solver_input(resolve_scene(test::dropped_particle_scene(2.0)), PresenceMode::Off));
   const std::string msg = test::run_to_error(*solver, 0.4);
   INFO(msg);
   CHECK(msg.find("particle 0 ") != std::string::npos);
@@ -104,14 +104,14 @@ TEST_CASE("a particle outrunning the speed of sound stops the run and is named",
   CHECK(length(p.vel[0]) > 2.0f);
   CHECK(p.pos[0].z > 0.04f);  // still falling freely: no wall has touched it
 
-  auto ok = make_cpu_solver(make_solver_input(test::dropped_particle_scene(3.0), PresenceMode::Off));
+  auto ok = make_cpu_solver(make_solver_input(resolve_scene(test::dropped_particle_scene(3.0)), PresenceMode::Off));
   CHECK(test::run_to_error(*ok, 0.4).empty());
   CHECK(ok->time() == Approx(0.4));
 }
 
 TEST_CASE("particles leaving through an open top are removed and counted", "[sph][cpu]") {
   const Scene s = test::open_top_jet_scene();
-  auto solver = make_cpu_solver(make_solver_input(s, PresenceMode::Off));
+  auto solver = make_cpu_solver(make_solver_input(resolve_scene(s), PresenceMode::Off));
   CHECK(solver->num_fluid() == 8);
   test::run_until(*solver, 0.1);
   CHECK(solver->num_fluid() + solver->num_removed() == 8);
@@ -120,7 +120,7 @@ TEST_CASE("particles leaving through an open top are removed and counted", "[sph
 
 TEST_CASE("a dam break conserves particles and keeps them inside the walls", "[sph][cpu]") {
   const Scene s = load_scene(test::source_path("scenes/dam_break.json"), {"sph.spacing=0.04", "run.end_time=0.5"});
-  auto solver = make_cpu_solver(make_solver_input(s, PresenceMode::Off));
+  auto solver = make_cpu_solver(make_solver_input(resolve_scene(s), PresenceMode::Off));
   const size_t n = solver->num_fluid();
   test::run_until(*solver, 0.5);
   const HostParticles p = solver->download();
@@ -132,13 +132,13 @@ TEST_CASE("a dam break conserves particles and keeps them inside the walls", "[s
 }
 
 TEST_CASE("the pair masks change no result: all, one or no mask words stored give the same run", "[sph][cpu]") {
-  // neighbours.h: a particle whose candidates need more words than are kept
+  // nsearch/pair_masks.h: a particle whose candidates need more words than are kept
   // is served by the direct loop, which visits the same neighbours in the same
   // order, so the runs agree bit for bit. Presence on, so that its loop is covered too.
   const Scene s = load_scene(test::source_path("scenes/dam_break.json"), {"sph.spacing=0.04", "run.end_time=0.1"});
   HostParticles ref;
   for (int words : {-1, 1, 0}) {
-    SolverInput in = make_solver_input(s, PresenceMode::EveryStep);
+    SolverInput in = make_solver_input(resolve_scene(s), PresenceMode::EveryStep);
     in.pair_mask_words = words;
     auto solver = make_cpu_solver(in);
     test::run_until(*solver, 0.1);
@@ -168,7 +168,7 @@ TEST_CASE("the pair masks change no result: all, one or no mask words stored giv
 // mechanical energy away from any contact may only fall.
 TEST_CASE("a lone particle bouncing on the floor never rises above its drop height", "[sph][cpu]") {
   const Scene s = load_scene(test::source_path("scenes/stress/single_particle.json"), {"run.end_time=1.5"});
-  auto solver = make_cpu_solver(make_solver_input(s, PresenceMode::Off));
+  auto solver = make_cpu_solver(make_solver_input(resolve_scene(s), PresenceMode::Off));
   const double g = 9.81, z0 = solver->download().pos[0].z;
   const double support = 2.0 * s.sph.smoothing_ratio * s.sph.spacing;
   int bounces = 0;
@@ -194,7 +194,7 @@ TEST_CASE("two particles meeting head-on do not part faster than they met", "[sp
               {"min": [0.23,0.045,0.045], "max": [0.24,0.055,0.055], "velocity": [-0.5,0,0]}],
     "sph": {"spacing": 0.01, "speed_of_sound": 5}, "run": {"end_time": 0.25}})";
   const Scene s = parse_scene(text, "collide.json");
-  auto solver = make_cpu_solver(make_solver_input(s, PresenceMode::Off));
+  auto solver = make_cpu_solver(make_solver_input(resolve_scene(s), PresenceMode::Off));
   REQUIRE(solver->num_fluid() == 2);
   test::run_until(*solver, 0.25);
   const HostParticles p = solver->download();
@@ -212,7 +212,7 @@ TEST_CASE("the scene check's memory estimate covers what the solver allocates", 
   // buffers, presence and pair masks included.
   for (const char* spacing : {"sph.spacing=0.04", "sph.spacing=0.02"}) {
     const Scene s = load_scene(test::source_path("scenes/dam_break.json"), {spacing});
-    auto solver = make_cpu_solver(make_solver_input(s, PresenceMode::EveryStep));
+    auto solver = make_cpu_solver(make_solver_input(resolve_scene(s), PresenceMode::EveryStep));
     const size_t estimate = measure_scene(s).bytes;
     INFO(spacing << ": estimate " << estimate << " B, solver " << solver->device_bytes() << " B");
     CHECK(estimate >= solver->device_bytes());
@@ -226,7 +226,7 @@ TEST_CASE("the run's dt (summary and progress) leaves out the steps shortened to
   // shortened ones, the mean read 0.15 ms, below the min.
   const Scene s = load_scene(test::source_path("scenes/dam_break.json"),
                              {"sph.spacing=0.05", "run.max_dt=2e-4", "run.output_interval=3e-4", "run.end_time=3e-3"});
-  auto solver = make_cpu_solver(make_solver_input(s, PresenceMode::Off));
+  auto solver = make_cpu_solver(make_solver_input(resolve_scene(s), PresenceMode::Off));
   RunOptions opt;
   opt.progress = true;  // prints at the end at least
   std::ostringstream log;
@@ -244,13 +244,13 @@ TEST_CASE("the run summary's particle-steps count the particles present at each 
   // rate counted every step at the starting count (steps x 8), here many times
   // the work done. Reference: a second solver stepped by hand.
   const Scene s = test::open_top_jet_scene();
-  auto solver = make_cpu_solver(make_solver_input(s, PresenceMode::Off));
+  auto solver = make_cpu_solver(make_solver_input(resolve_scene(s), PresenceMode::Off));
   RunOptions opt;
   std::ostringstream log;
   const RunSummary r = run_scene(s, *solver, opt, log);
   REQUIRE(r.removed == 8);
 
-  auto ref = make_cpu_solver(make_solver_input(s, PresenceMode::Off));
+  auto ref = make_cpu_solver(make_solver_input(resolve_scene(s), PresenceMode::Off));
   uint64_t present = 0;
   for (int frame = 1; ref->time() < s.run.end_time - 1e-12; ++frame) {
     const double next = std::min(s.run.end_time, frame * s.run.output_interval);
@@ -279,7 +279,7 @@ TEST_CASE("the run's progress line comes between output times too", "[sph][cpu]"
   // only at output times, so a long render said nothing until it ended.
   const Scene s = load_scene(test::source_path("scenes/dam_break.json"),
                              {"sph.spacing=0.05", "run.end_time=0.02", "run.output_interval=0.02"});
-  auto solver = make_cpu_solver(make_solver_input(s, PresenceMode::Off));
+  auto solver = make_cpu_solver(make_solver_input(resolve_scene(s), PresenceMode::Off));
   RunOptions opt;
   opt.progress_seconds = 0;  // a line for every step
   std::ostringstream log;

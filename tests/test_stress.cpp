@@ -9,12 +9,12 @@
 
 using namespace sphray;
 
-TEST_CASE("every stress scene runs to its end with all particles inside the walls", "[stress][cpu]") {
+TEST_CASE("every stress scene runs to its end with all particles inside the walls", "[stress][slow][cpu]") {
   for (const char* name : {"stiff", "jet", "tall_column", "one_cell", "zero_gravity", "high_gravity",
                            "single_particle", "empty_tank"}) {
     INFO("scene " << name);
     const Scene s = load_scene(test::source_path(std::string("scenes/stress/") + name + ".json"));
-    auto solver = make_cpu_solver(make_solver_input(s, PresenceMode::Off));
+    auto solver = make_cpu_solver(make_solver_input(resolve_scene(s), PresenceMode::Off));
     const size_t n = solver->num_fluid();
     RunOptions opt;
     opt.progress = false;
@@ -40,7 +40,7 @@ TEST_CASE("every stress scene runs to its end with all particles inside the wall
 
 TEST_CASE("the one-cell scene really starts with every particle in one grid cell", "[stress][cpu]") {
   const Scene s = load_scene(test::source_path("scenes/stress/one_cell.json"));
-  const SolverInput in = make_solver_input(s, PresenceMode::Off);
+  const SolverInput in = make_solver_input(resolve_scene(s), PresenceMode::Off);
   REQUIRE(in.fluid_pos_rho.size() == 8);
   const uint32_t key = in.grid.key_of(xyz(in.fluid_pos_rho[0]));
   for (const auto& p : in.fluid_pos_rho) CHECK(in.grid.key_of(xyz(p)) == key);
@@ -48,7 +48,7 @@ TEST_CASE("the one-cell scene really starts with every particle in one grid cell
 
 TEST_CASE("without gravity a still block stays still", "[stress][cpu]") {
   const Scene s = load_scene(test::source_path("scenes/stress/zero_gravity.json"));
-  auto solver = make_cpu_solver(make_solver_input(s, PresenceMode::Off));
+  auto solver = make_cpu_solver(make_solver_input(resolve_scene(s), PresenceMode::Off));
   const HostParticles before = solver->download();
   test::run_until(*solver, s.run.end_time);
   const HostParticles after = solver->download();

@@ -3,23 +3,24 @@
 // docs/validation.md has the full study (three resolutions, both backends).
 #include <cmath>
 
-#include "../src/metrics.h"
+#include "io/metrics.h"
 #include "catch.h"
 #include "helpers.h"
 
 using namespace sphray;
 
-TEST_CASE("a coarse Martin-Moyce dam break follows the experimental surge front", "[validation][cpu]") {
+TEST_CASE("a coarse Martin-Moyce dam break follows the experimental surge front", "[validation][slow][cpu]") {
   const double a = 0.05715, g = 9.81;
   const Scene s = load_scene(test::source_path("scenes/validation/martin_moyce.json"), {"sph.spacing=0.005715"});
-  auto solver = make_cpu_solver(make_solver_input(s, PresenceMode::Off));
+  auto solver = make_cpu_solver(make_solver_input(resolve_scene(s), PresenceMode::Off));
   Curve sim;
-  RunOptions opt;
-  opt.progress = false;
-  opt.on_output = [&](const Solver& sv, int) {
+  FunctionSink front([&](const Solver& sv, const FieldBuilder*, int) {
     sim.x.push_back(sv.time() * std::sqrt(2 * g / a));
     sim.y.push_back(surge_front(sv.download(), 0.0, s.sph.spacing) / a);
-  };
+  });
+  RunOptions opt;
+  opt.progress = false;
+  opt.sinks = {&front};
   std::ostringstream log;
   run_scene(s, *solver, opt, log);
   const Curve experiment = read_csv_curve(test::source_path("data/martin_moyce_1952.csv"));

@@ -1,0 +1,172 @@
+// `sphray bench sim|field|frame|render`: the benchmarks (bench/), their
+// tables on stdout and, with --json, their records.
+#include <iostream>
+
+#include "bench/field.h"
+#include "bench/frame.h"
+#include "bench/sim.h"
+#include "cli.h"
+#include "commands.h"
+#include "io/scene.h"
+#include "pipeline/pipeline.h"
+#include "sphray_builtin_scenes.h"
+
+namespace sphray::cli {
+
+namespace {
+
+// What every benchmark command takes besides its own options.
+struct Common {
+  std::string backend = "auto", sizes, json;
+};
+
+void add_common(CLI::App* c, Common& o, const std::string& sizes_help) {
+  c->add_option("--backend", o.backend, "auto | cpu | cuda");
+  if (!sizes_help.empty()) c->add_option("--sizes", o.sizes, sizes_help);
+  c->add_option("--json", o.json, "write results as JSON");
+}
+
+// Opens --json before the benchmark (a bad path fails at once), runs it and
+// writes its record.
+template <class Run>
+void run_bench(const Common& o, Run run) {
+  std::ofstream jf;
+  if (!o.json.empty()) jf = open_output("--json", o.json);
+  const Backend b = choose_backend(o.backend, std::cout);
+  const nlohmann::json j = run(b);
+  if (jf.is_open()) write_json(jf, j, "--json", o.json);
+}
+
+void add_sim(CLI::App* bench, int& exit_code) {
+  struct Args {
+    Common c;
+    std::string scene;
+    BenchSimOptions opt;
+  };
+  auto a = std::make_shared<Args>();
+  auto* s = bench->add_subcommand("sim", "ms per SPH step by stage, with and without presence");
+  s->add_option("--scene", a->scene,
+                "dam-break scene whose spacing is scaled to each size (default: scenes/bench/dam_break.json, "
+                "built in)");
+  add_common(s, a->c, "fluid particle counts (default 125k,1M,4M on CUDA, 8k,27k on CPU)");
+  s->add_option("--warmup", a->opt.warmup, "warm-up steps")->check(CLI::Range(0, 100000));
+  s->add_option("--steps", a->opt.steps, "measured steps")->check(CLI::Range(1, 100000));
+  s->add_option("--set", a->opt.overrides, "override a scene value for every size, e.g. --set sph.smoothing_ratio=1.3");
+  s->add_flag("--kernels", a->opt.kernels, "also time every named launch (ms per step by name, over further steps)");
+  s->callback([a, &exit_code] {
+    run_bench(a->c, [&](Backend b) {
+      a->opt.sizes = parse_sizes(!a->c.sizes.empty() ? a->c.sizes : b == Backend::Cuda ? "125k,1M,4M" : "8k,27k");
+      // The default scene is compiled in, so that the benchmark runs from any directory.
+      const auto rows = a->scene.empty() ? bench_sim(builtin::bench_dam_break, "scenes/bench/dam_break.json (built in)",
+                                                     b, a->opt, std::cout)
+                                         : bench_sim(read_scene_text(a->scene), a->scene, b, a->opt, std::cout);
+      print_table(rows, std::cout);
+      return to_json(rows, b, a->opt);
+    });
+    exit_code = 0;
+  });
+}
+
+void add_field(CLI::App* bench, int& exit_code) {
+  struct Args {
+    Common c;
+    BenchFieldOptions opt;
+  };
+  auto a = std::make_shared<Args>();
+  auto* f = bench->add_subcommand("field", "naive vs presence vs gather density-field builders on a collapsed dam break");
+  add_common(f, a->c, "fluid particle counts (default 8k,27k,64k,125k,1M,4M on CUDA, 8k,27k on CPU)");
+  f->add_option("--volume", a->opt.volume, "volume edge in voxels (default 64 up to 200k particles, else 256)")
+      ->check(CLI::Range(8, 1024));
+  f->add_option("--warmup", a->opt.warmup, "warm-up builds per builder")->check(CLI::Range(0, 10000));
+  f->add_option("--frames", a->opt.frames, "measured builds per builder")->check(CLI::Range(1, 100000));
+  f->add_option("--collapse", a->opt.collapse, "build at T = t sqrt(2g/a) (column collapsed)")
+      ->check(CLI::Range(0.0, 100.0));
+  f->add_option("--set", a->opt.overrides, "override a value of the generated scene, e.g. --set field.clip=2");
+  f->callback([a, &exit_code] {
+    run_bench(a->c, [&](Backend b) {
+      a->opt.sizes = parse_sizes(!a->c.sizes.empty() ? a->c.sizes
+                                 : b == Backend::Cuda  ? "8k,27k,64k,125k,1M,4M"
+                                                       : "8k,27k");
+      const auto rows = bench_field(b, a->opt, std::cout);
+      print_table(rows, std::cout);
+      return to_json(rows, b, a->opt);
+    });
+    exit_code = 0;
+  });
+}
+
+void add_frame(CLI::App* bench, int& exit_code) {
+  struct Args {
+    Common c;
+    BenchFrameOptions opt;
+  };
+  auto a = std::make_shared<Args>();
+  auto* f = bench->add_subcommand("frame", "whole frames: SPH substeps + field + raycast, per-stage medians");
+  add_common(f, a->c, "fluid particle counts (default 125k,1M on CUDA, 8k on CPU)");
+  BenchFrameOptions& o = a->opt;
+  f->add_option("--width", o.width, "image width")->check(CLI::Range(16, 8192));
+  f->add_option("--height", o.height, "image height")->check(CLI::Range(16, 8192));
+  f->add_option("--interfaces", o.interfaces, "interfaces per ray")->check(CLI::Range(1, 8));
+  f->add_option("--substeps", o.substeps, "SPH steps per frame")->check(CLI::Range(1, 1000));
+  f->add_option("--builder", o.builder, "naive | presence | gather");
+  f->add_option("--warmup", o.warmup, "warm-up frames")->check(CLI::Range(0, 10000));
+  f->add_option("--frames", o.frames, "measured frames")->check(CLI::Range(1, 100000));
+  f->add_option("--collapse", o.collapse, "start at T = t sqrt(2g/a)")->check(CLI::Range(0.0, 100.0));
+  f->add_option("--png-dir", o.png_dir, "write each size's last frame here");
+  f->add_option("--set", o.overrides, "override a value of the generated scene, e.g. --set render.step=0.25");
+  f->callback([a, &exit_code] {
+    run_bench(a->c, [&](Backend b) {
+      a->opt.sizes = parse_sizes(!a->c.sizes.empty() ? a->c.sizes : b == Backend::Cuda ? "125k,1M" : "8k");
+      parse_field_kind(a->opt.builder);  // a bad name fails before the simulation
+      const auto rows = bench_frame(b, a->opt, std::cout);
+      print_table(rows, std::cout);
+      return to_json(rows, b, a->opt);
+    });
+    exit_code = 0;
+  });
+}
+
+void add_render(CLI::App* bench, int& exit_code) {
+  struct Args {
+    Common c;
+    std::string size;
+    BenchRenderOptions opt;
+  };
+  auto a = std::make_shared<Args>();
+  auto* r = bench->add_subcommand("render", "raycast image error (PSNR vs a fine reference) against render time");
+  add_common(r, a->c, "");
+  BenchRenderOptions& o = a->opt;
+  r->add_option("--size", a->size, "fluid particle count (default 125k on CUDA, 8k on CPU)");
+  r->add_option("--width", o.width, "image width")->check(CLI::Range(16, 8192));
+  r->add_option("--height", o.height, "image height")->check(CLI::Range(16, 8192));
+  r->add_option("--reference-step", o.reference_step, "reference march step [voxels]")->check(CLI::Range(0.001, 0.5));
+  r->add_option("--warmup", o.warmup, "warm-up renders")->check(CLI::Range(0, 10000));
+  r->add_option("--frames", o.frames, "measured renders")->check(CLI::Range(1, 100000));
+  r->add_option("--png-dir", o.png_dir, "write the reference and the default-setting image here");
+  r->add_option("--set", o.overrides, "override a value of the generated scene");
+  r->callback([a, &exit_code] {
+    run_bench(a->c, [&](Backend b) {
+      const auto sizes = parse_sizes(!a->size.empty() ? a->size : b == Backend::Cuda ? "125k" : "8k");
+      if (sizes.size() != 1) throw std::runtime_error("--size: one particle count");
+      a->opt.particles = sizes[0];
+      const auto rows = bench_render(b, a->opt, std::cout);
+      print_table(rows, std::cout);
+      return to_json(rows, b, a->opt);
+    });
+    exit_code = 0;
+  });
+}
+
+}  // namespace
+
+CLI::App* add_bench_command(CLI::App& app, int& exit_code) {
+  auto* bench = app.add_subcommand("bench", "benchmarks");
+  bench->require_subcommand(1);
+  add_sim(bench, exit_code);
+  add_field(bench, exit_code);
+  add_frame(bench, exit_code);
+  add_render(bench, exit_code);
+  return bench;
+}
+
+}  // namespace sphray::cli

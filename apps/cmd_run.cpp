@@ -1,0 +1,203 @@
+// `sphray run SCENE`: simulates a scene, with the outputs its flags ask for
+// (metrics CSV, summary JSON, HDF5 export, PNG frames).
+#include <cerrno>
+#include <iomanip>
+#include <iostream>
+#include <set>
+
+#include "cli.h"
+#include "commands.h"
+#include "io/export.h"
+#include "io/frames_h5.h"
+#include "pipeline/pipeline.h"
+#include "pipeline/setup.h"
+#include "pipeline/sinks.h"
+
+namespace sphray::cli {
+
+namespace {
+
+struct ExportArgs {
+  std::string path;
+  int every = 1;
+  std::string fields;
+};
+
+struct RunArgs {
+  std::string scene_path, backend = "auto", metrics_csv, summary_json;
+  std::vector<std::string> sets;
+  bool quiet = false;
+  ExportArgs ex;
+  FrameArgs fa;
+};
+
+// The export's file header: the scene, the build, the walls.
+FileHeader export_header(const Scene& scene, Backend b, const Solver& solver) {
+  FileHeader h;
+  h.scene_json = scene.json.dump(2);
+  h.version = sphray_version();
+  h.backend = backend_name(b);
+  for (const Vec3f& q : solver.boundary_positions()) h.boundary.insert(h.boundary.end(), {q.x, q.y, q.z});
+  return h;
+}
+
+// The start line, and notes on settings that weaken the run.
+void print_start(const ResolvedScene& rs, const std::string& scene_path, const Solver& solver) {
+  const Scene& scene = rs.scene;
+  const SceneSize& size = rs.size;
+  const SphParams& prm = rs.params;
+  std::cout << "scene " << scene.name << " (" << scene_path << "): " << solver.num_fluid() << " fluid particles, "
+            << size.boundary << " wall particles, grid " << size.grid.nx << "x" << size.grid.ny << "x" << size.grid.nz
+            << ", c0 = " << prm.speed_of_sound << " m/s, to t = " << scene.run.end_time << " s\n";
+  if (const double c_auto = auto_speed_of_sound(scene), v = expected_flow_speed(scene);
+      scene.sph.speed_of_sound > 0 && scene.sph.speed_of_sound < c_auto)
+    std::cout << std::setprecision(3) << "  note: sph.speed_of_sound is below the automatic " << c_auto
+              << " m/s (10x the flow speed " << v << " m/s the scene can reach): density varies as (v / c0)^2, about "
+              << 100 * (v / scene.sph.speed_of_sound) * (v / scene.sph.speed_of_sound)
+              << "% here, and the run stops if a particle outruns c0\n" << std::setprecision(6);
+  if (const int layers = scene.sph.auto_boundary_layers(), given = scene.sph.boundary_layers; given > 0 && given < layers)
+    std::cout << "  note: sph.boundary_layers = " << given << " is thinner than the kernel support (" << layers
+              << " layers, \"auto\"): near a wall part of a particle's kernel is empty and the walls may not hold "
+              << "the liquid (the summary counts the particle-steps put back on a wall face)\n";
+}
+
+nlohmann::json completed_json(const RunSummary& r, const RunArgs& a, const Scene& scene) {
+  nlohmann::json j = {{"status", "completed"},       {"scene", a.scene_path},
+                      {"backend", backend_name(r.backend)}, {"steps", r.steps},
+                      {"sim_time_s", r.sim_time},        {"wall_s", r.wall_seconds},
+                      {"fluid_start", r.fluid_start},    {"fluid_end", r.fluid_end},
+                      {"removed", r.removed},            {"clamped", r.clamped},
+                      {"particle_steps", r.particle_steps}, {"spacing_m", scene.sph.spacing},
+                      {"mean_dt_s", r.mean_dt},          {"max_speed_m_s", r.max_speed}};
+  if (r.field_builds)
+    j["field"] = {{"builder", r.field_builder}, {"volume", r.field_dims}, {"builds", r.field_builds},
+                  {"ms_per_build", r.field_ms_mean}, {"builds_without_presence", r.field_without_presence}};
+  return j;
+}
+
+// The run's outputs. The files are opened before the run: an unwritable path
+// fails in a second, not after the simulation.
+struct RunOutputs {
+  std::unique_ptr<MetricsSink> metrics;
+  std::unique_ptr<ExportSink> exporter;
+  std::unique_ptr<PngSink> png;
+  std::ofstream summary;
+
+  std::vector<OutputSink*> sinks() const {
+    std::vector<OutputSink*> v;
+    for (OutputSink* k : {static_cast<OutputSink*>(png.get()), static_cast<OutputSink*>(metrics.get()),
+                          static_cast<OutputSink*>(exporter.get())})
+      if (k) v.push_back(k);
+    return v;
+  }
+};
+
+void print_outputs(RunOutputs& o, const RunArgs& a, const Scene& scene) {
+  if (o.png)
+    std::cout << "  frames         " << o.png->frames().frames_written() << " PNGs (" << scene.render.width << "x"
+              << scene.render.height << ", " << scene.render.interfaces << " interfaces) to " << a.fa.dir << ", "
+              << o.png->frames().mean_render_ms() << " ms per render\n";
+  if (o.exporter) {
+    FrameWriter& w = o.exporter->writer();
+    w.finish();
+    std::cout << "  export         " << w.frames_written() << " frames to " << a.ex.path
+              << " (XDMF sidecar for ParaView next to it); the run waited " << w.seconds_waited()
+              << " s on the writer\n";
+  }
+}
+
+// The output flags checked against each other, and the files they name.
+void check_outputs(const RunArgs& a) {
+  const ExportArgs& ex = a.ex;
+  if (ex.path.empty() && !ex.fields.empty()) throw std::runtime_error("--export-fields needs --export FILE");
+  check_distinct_files({{"scene file", a.scene_path}, {"--export", ex.path}, {"--metrics-csv", a.metrics_csv},
+                        {"--summary-json", a.summary_json}, {"--frames-dir", a.fa.dir},
+                        {"the export's XDMF sidecar", ex.path.empty() || xdmf_path(ex.path) == ex.path
+                                                          ? std::string()  // refused by FrameWriter, by name
+                                                          : xdmf_path(ex.path)}});
+}
+
+// A run stopped by a guard (or a failed write) still leaves a summary that
+// says so, where the file opened before the run was left empty.
+void write_stopped_summary(std::ofstream& summary, const std::string& error, const RunArgs& a, Backend b,
+                           const Solver& solver, const Scene& scene) {
+  if (!summary.is_open()) return;
+  summary << nlohmann::json{{"status", "stopped"}, {"error", error}, {"scene", a.scene_path},
+                            {"backend", backend_name(b)}, {"steps", solver.steps()},
+                            {"sim_time_s", solver.time()}, {"spacing_m", scene.sph.spacing}}
+                 .dump(2)
+          << "\n";
+}
+
+int cmd_run(RunArgs a) {
+  if (a.fa.dir.empty() && (!a.fa.size.empty() || a.fa.every > 0))
+    throw std::runtime_error("--size and --frames-every need --frames-dir DIR");
+  add_frame_overrides(a.fa, a.sets);
+  const ResolvedScene rs = resolve_scene(load_scene(a.scene_path, a.sets));
+  const Scene& scene = rs.scene;
+  std::set<std::string> export_fields = parse_export_fields(a.ex.fields);
+  check_outputs(a);
+  RunOutputs out;
+  if (!a.ex.path.empty()) out.exporter = std::make_unique<ExportSink>(a.ex.every, std::move(export_fields), rs.params);
+  if (!a.fa.dir.empty()) out.png = std::make_unique<PngSink>(a.fa.dir, scene.render.frames_every);
+  if (!a.metrics_csv.empty()) out.metrics = std::make_unique<MetricsSink>(a.metrics_csv, scene, rs.params);
+  if (!a.summary_json.empty()) out.summary = open_output("--summary-json", a.summary_json);
+  const Backend b = choose_backend(a.backend, std::cout);
+  // The sinks say what they need; the stages follow from that.
+  const StageNeeds needs = needs_of(scene, out.sinks());
+  auto solver = make_solver(rs, b, needs);
+  auto field = make_field(rs, b, needs);
+  if (out.png) out.png->open(scene, b, field->setup());
+  if (out.exporter) {  // created before the run: an unwritable path fails before any step
+    try {
+      out.exporter->open(a.ex.path, export_header(scene, b, *solver), scene.export_.gzip);
+    } catch (const FrameFileError& e) {
+      throw std::runtime_error(std::string("--export: ") + e.what());
+    }
+  }
+  print_start(rs, a.scene_path, *solver);
+
+  RunOptions opt;
+  opt.progress = !a.quiet;
+  opt.field = field.get();
+  opt.sinks = out.sinks();
+  RunSummary r;
+  try {
+    r = run_scene(scene, *solver, opt, std::cout);
+  } catch (const std::exception& e) {
+    write_stopped_summary(out.summary, e.what(), a, b, *solver, scene);
+    throw;  // the error being reported; a summary that could not be written is not checked
+  }
+  if (out.png) out.png->frames().finish();  // the last PNGs are still being written
+  if (out.metrics) out.metrics->finish();
+  print_summary(r, std::cout);
+  print_outputs(out, a, scene);
+  if (!a.summary_json.empty()) write_json(out.summary, completed_json(r, a, scene), "--summary-json", a.summary_json);
+  return 0;
+}
+
+}  // namespace
+
+CLI::App* add_run_command(CLI::App& app, int& exit_code) {
+  auto a = std::make_shared<RunArgs>();
+  auto* run = app.add_subcommand("run", "simulate a scene");
+  run->add_option("scene", a->scene_path, "scene JSON file")->required();
+  run->add_option("--backend", a->backend, "auto | cpu | cuda (auto: CUDA when a device is present)");
+  run->add_option("--set", a->sets, "override a scene value by its dotted path, e.g. --set sph.spacing=0.02");
+  run->add_option("--metrics-csv", a->metrics_csv, "write time, surge front, kinetic energy per output interval");
+  run->add_option("--summary-json", a->summary_json, "write the run summary as JSON");
+  run->add_flag("--quiet", a->quiet, "no progress lines");
+  run->add_option("--export", a->ex.path, "write frames to this HDF5 file (docs/formats.md)");
+  run->add_option("--export-every", a->ex.every, "export every K-th output frame (default 1)")
+      ->check(CLI::Range(1, 1000000));
+  run->add_option("--export-fields", a->ex.fields,
+                  "comma-separated: velocity,density,pressure,presence,field (position is always written)");
+  run->add_option("--frames-dir", a->fa.dir, "render PNG frames into this directory (docs/rendering.md)");
+  run->add_option("--frames-every", a->fa.every, "a PNG every K-th output frame (default: render.frames_every)")
+      ->check(CLI::Range(1, 1000000));
+  run->add_option("--size", a->fa.size, "PNG size WIDTHxHEIGHT (default: render.width x render.height)");
+  run->callback([a, &exit_code] { exit_code = cmd_run(*a); });
+  return run;
+}
+
+}  // namespace sphray::cli

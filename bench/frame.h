@@ -1,0 +1,71 @@
+// `sphray bench frame`: whole frames of the dam break, headless: SPH substeps,
+// the density field and the raycast, each timed with device events after a
+// warm-up, medians over the measured frames (and the frame's wall time).
+// `sphray bench render`: the raycaster's image error (PSNR against a reference
+// rendered with a very small step and 8 interfaces from the naive field)
+// against its run time, over step size, interfaces and field builder.
+#pragma once
+
+#include <iosfwd>
+#include <string>
+#include <vector>
+
+#include <nlohmann/json.hpp>
+
+#include "field/field.h"
+#include "sph/solver.h"
+
+namespace sphray {
+
+struct BenchFrameOptions {
+  std::vector<size_t> sizes;  // target fluid particle counts (bench_field_scene: 64^3 up to 200k, else 256^3)
+  int width = 1920, height = 1080;
+  int interfaces = 4;
+  int substeps = 5;           // SPH steps per frame
+  std::string builder = "presence";
+  int warmup = 5;
+  int frames = 30;
+  double collapse = 2.5;      // frames start at T = t sqrt(2g/a) = collapse
+  std::string png_dir;        // write the last frame of each size here (empty: none)
+  std::vector<std::string> overrides;
+};
+
+struct BenchFrameRow {
+  size_t particles = 0;
+  int nx = 0, ny = 0, nz = 0;
+  int width = 0, height = 0, interfaces = 0, substeps = 0;
+  std::string builder;
+  double sim_ms = 0, field_ms = 0, render_ms = 0, total_ms = 0, wall_ms = 0;  // medians per frame
+  double fps = 0;  // 1000 / wall_ms
+};
+
+std::vector<BenchFrameRow> bench_frame(Backend b, const BenchFrameOptions& opt, std::ostream& log);
+nlohmann::json to_json(const std::vector<BenchFrameRow>& rows, Backend b, const BenchFrameOptions& opt);
+void print_table(const std::vector<BenchFrameRow>& rows, std::ostream& out);
+
+struct BenchRenderOptions {
+  size_t particles = 125000;
+  int width = 960, height = 540;
+  double reference_step = 0.05;  // voxels
+  std::vector<double> steps{0.5, 0.25, 0.125};
+  std::vector<int> interfaces{1, 2, 4, 8};
+  int warmup = 3;
+  int frames = 10;
+  double collapse = 2.5;
+  std::string png_dir;  // the reference and the default-setting image
+  std::vector<std::string> overrides;
+};
+
+struct BenchRenderRow {
+  std::string builder;
+  double step = 0;
+  int interfaces = 0;
+  double render_ms = 0, field_ms = 0;  // medians
+  double psnr_db = 0;                  // against the reference
+};
+
+std::vector<BenchRenderRow> bench_render(Backend b, const BenchRenderOptions& opt, std::ostream& log);
+nlohmann::json to_json(const std::vector<BenchRenderRow>& rows, Backend b, const BenchRenderOptions& opt);
+void print_table(const std::vector<BenchRenderRow>& rows, std::ostream& out);
+
+}  // namespace sphray

@@ -1,0 +1,146 @@
+// CPU backend: the per-element functors run in an OpenMP loop, and
+// sort/reduce go through Thrust's OpenMP system (docs/design.md, "One
+// source, two backends").
+#pragma once
+
+#include <chrono>
+#include <cstdint>
+#include <cstring>
+#include <stdexcept>
+#include <string>
+#include <functional>
+#include <vector>
+
+#include <thrust/iterator/counting_iterator.h>
+#include <thrust/reduce.h>
+#include <thrust/sequence.h>
+#include <thrust/sort.h>
+#include <thrust/binary_search.h>
+#include <thrust/gather.h>
+#include <thrust/copy.h>
+#include <thrust/fill.h>
+#include <thrust/count.h>
+#include <thrust/transform_reduce.h>
+#if defined(_OPENMP)
+#include <thrust/system/omp/execution_policy.h>
+#else
+#include <thrust/system/cpp/execution_policy.h>
+#endif
+
+#include "device.h"
+#include "hd.h"
+#include "kernel_times.h"
+
+namespace sphray::cpu_backend {
+
+constexpr Backend kBackend = Backend::Cpu;
+
+template <class T>
+using Vector = std::vector<T>;
+
+template <class T>
+T* raw(Vector<T>& v) { return v.data(); }
+template <class T>
+const T* raw(const Vector<T>& v) { return v.data(); }
+
+// Threads the device keeps in flight at once (layout choices of the field splats).
+inline uint32_t resident_threads() { return 1; }
+
+inline auto policy() {
+#if defined(_OPENMP)
+  return thrust::omp::par;
+#else
+  return thrust::cpp::par;
+#endif
+}
+
+// Stable sort of keys[0, n) with their values (end_bit: the bits the keys use,
+// which CUB's radix sort of the CUDA backend limits itself to).
+inline void sort_pairs(Vector<uint32_t>& keys, Vector<uint32_t>& values, uint32_t n, int /*end_bit*/) {
+  thrust::stable_sort_by_key(policy(), keys.begin(), keys.begin() + n, values.begin());
+}
+
+// f(i) for i in [0, n) on all cores; `name` labels its time while kernel
+// timing is on (kernel_times.h).
+template <class F>
+void parallel_for(const char* name, uint32_t n, const F& f) {
+  const bool timed = kernel_timing();
+  const auto t0 = timed ? std::chrono::steady_clock::now() : std::chrono::steady_clock::time_point{};
+#pragma omp parallel for schedule(static)
+  for (int64_t i = 0; i < int64_t(n); ++i) f(uint32_t(i));
+  if (timed)
+    add_kernel_time(name, std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count());
+}
+
+// *out = op-reduction of f(0), ..., f(n - 1) and init (the CUDA backend's
+// leaves it on the device).
+template <class T, class F, class Op>
+void transform_reduce_into(uint32_t n, const F& f, const Op& op, const T& init, T* out) {
+  *out = thrust::transform_reduce(policy(), thrust::counting_iterator<uint32_t>(0), thrust::counting_iterator<uint32_t>(n),
+                                  f, init, op);
+}
+
+// The CUDA backend's read-back of a device value; here a copy.
+template <class T>
+class ReadBack {
+ public:
+  void start(const T* value) { value_ = *value; }
+  const T& value() const { return value_; }
+
+ private:
+  T value_{};
+};
+
+// The CUDA backend's copies that the run does not wait for; here copies.
+class AsyncDownload {
+ public:
+  void begin() {}
+  template <class T>
+  void copy(const Vector<T>& src, size_t n, Vector<T>&, T* host) {
+    thrust::copy(src.begin(), src.begin() + n, host);
+  }
+  std::function<void()> done() { return {}; }
+};
+
+template <class T>
+void upload(Vector<T>& dst, const std::vector<T>& src) { dst.assign(src.begin(), src.end()); }
+
+template <class T>
+std::vector<T> download(const Vector<T>& v, size_t n) { return std::vector<T>(v.begin(), v.begin() + n); }
+
+template <class T>
+T read_one(const Vector<T>& v, size_t i) { return v[i]; }
+
+// The wall time of a step's named stages (the CPU backend is synchronous):
+// start(), end_of(stage) after each; ms(stage) is that stage's time.
+class StageClock {
+ public:
+  void start() {
+    n_ = 0;
+    record("");
+  }
+  void end_of(const char* stage) { record(stage); }
+  void finish() {}
+  double ms(const char* stage) const {
+    const int k = index_of(stage);
+    return std::chrono::duration<double, std::milli>(t_[k] - t_[k - 1]).count();
+  }
+
+ private:
+  static constexpr int kMax = 8;
+  void record(const char* stage) {
+    if (n_ == kMax) throw std::logic_error("StageClock: more than 7 stages");
+    names_[n_] = stage;
+    t_[n_++] = std::chrono::steady_clock::now();
+  }
+  int index_of(const char* stage) const {
+    for (int k = 1; k < n_; ++k)
+      if (std::strcmp(names_[k], stage) == 0) return k;
+    throw std::logic_error(std::string("StageClock: no stage '") + stage + "'");
+  }
+  std::chrono::steady_clock::time_point t_[kMax];
+  const char* names_[kMax] = {};
+  int n_ = 0;
+};
+
+}  // namespace sphray::cpu_backend

@@ -1,0 +1,271 @@
+// The three density-field builders as per-particle / per-voxel functors, one
+// source for both backends (docs/design.md). docs/field.md describes each and
+// what its counters mean. Counters are compiled in only when asked for
+// (Count = true), so a timed build does not pay for them.
+#pragma once
+
+#include <cstdint>
+
+#include "core/atomics.h"
+#include "sph/params.h"
+#include "volume.h"
+
+namespace sphray {
+
+// Per-element counters, [kNumCounters][n] element-major.
+enum FieldCounter : uint32_t { kPairs = 0, kTouched = 1, kAtomics = 2, kSkipped = 3, kNumCounters = 4 };
+
+struct CounterSink {
+  uint32_t* counts;  // null when not counting
+  uint32_t n;
+  SPHRAY_HD SPHRAY_FORCEINLINE void put(uint32_t i, uint32_t pairs, uint32_t touched, uint32_t atomics,
+                                        uint32_t skipped) const {
+    counts[kPairs * n + i] = pairs;
+    counts[kTouched * n + i] = touched;
+    counts[kAtomics * n + i] = atomics;
+    counts[kSkipped * n + i] = skipped;
+  }
+};
+
+SPHRAY_HD SPHRAY_FORCEINLINE void voxel_coords(const VolumeGeom& v, uint32_t idx, int& i, int& j, int& k) {
+  i = int(idx % uint32_t(v.nx));
+  const uint32_t t = idx / uint32_t(v.nx);
+  j = int(t % uint32_t(v.ny));
+  k = int(t / uint32_t(v.ny));
+}
+
+// Visits the voxels (i, j, k) of a box, shared by the G threads of one particle
+// (lane 0..G-1 takes every G-th voxel): G = 1 is one thread per particle; with
+// G = 32 a warp works on one particle, so a particle's chain of dependent
+// memory round trips (the presence splat reads each voxel before it writes)
+// is G times shorter. Plain index math: the CPU runs the same code.
+template <int G, class F>
+SPHRAY_HD SPHRAY_FORCEINLINE void for_each_box_voxel(uint32_t lane, int x0, int x1, int y0, int y1, int z0, int z1,
+                                                     F&& f) {
+  if (x0 > x1 || y0 > y1 || z0 > z1) return;
+  if (G == 1) {
+    for (int k = z0; k <= z1; ++k)
+      for (int j = y0; j <= y1; ++j)
+        for (int i = x0; i <= x1; ++i) f(i, j, k);
+  } else {
+    const uint32_t wx = uint32_t(x1 - x0 + 1), wy = uint32_t(y1 - y0 + 1);
+    const uint32_t count = wx * wy * uint32_t(z1 - z0 + 1);
+    for (uint32_t v = lane; v < count; v += uint32_t(G)) {
+      const uint32_t t = v / wx;
+      f(x0 + int(v - t * wx), y0 + int(t % wy), z0 + int(t / wy));
+    }
+  }
+}
+
+// naive: every particle adds its full isotropic falloff to every voxel whose
+// centre lies within R (one thread per particle, one atomic add per voxel; the
+// volume is zeroed before). The baseline of Yasuda et al.'s Table 1.
+template <bool Count, int G>
+struct NaiveSplat {
+  VolumeGeom vol;
+  FieldShape shape;
+  const Float4* pos;
+  float* field;
+  CounterSink sink;  // per thread (particle x lane)
+
+  SPHRAY_HD void operator()(uint32_t t) const {
+    const uint32_t p = t / uint32_t(G), lane = t % uint32_t(G);
+    const Vec3f u = vol.to_voxels(xyz(pos[p]));
+    const float R = shape.radius, R2 = R * R;
+    int x0, x1, y0, y1, z0, z1;
+    voxel_span(u.x, R, R, vol.nx, x0, x1);
+    voxel_span(u.y, R, R, vol.ny, y0, y1);
+    voxel_span(u.z, R, R, vol.nz, z0, z1);
+    uint32_t pairs = 0, adds = 0;
+    for_each_box_voxel<G>(lane, x0, x1, y0, y1, z0, z1, [&](int i, int j, int k) {
+      const float dx = float(i) + 0.5f - u.x, dy = float(j) + 0.5f - u.y, dz = float(k) + 0.5f - u.z;
+      const float r2 = dx * dx + dy * dy + dz * dz;
+      if (Count) ++pairs;
+      if (r2 < R2) {
+        atomic_add(field + vol.index(i, j, k), shape.falloff(r2));
+        if (Count) ++adds;
+      }
+    });
+    if (Count) sink.put(t, pairs, adds, adds, 0);
+  }
+};
+
+// presence, pass 1 (coarse fill, Yasuda et al. sec. 4.2.1): every voxel reads
+// its SPH cell's particle count and becomes `coarse` (just above the iso
+// value) or 0; this pass also initialises the volume. With refine = 0 a voxel
+// is a cell and "holds a particle" is exactly count >= 1 (full_count = 1).
+// With finer voxels a cell's count no longer says which of its voxels hold
+// particles, so only cells at least `full_count` particles full (liquid at
+// rest fills a cell with (cell / dx)^3) are filled whole; pass 2 marks the
+// occupied voxels of the others.
+struct CoarseFill {
+  VolumeGeom vol;
+  GridGeom grid;
+  const uint32_t* offsets;
+  float coarse;  // value of an occupied cell (refine = 0)
+  float full;    // value of a full cell (refine > 0)
+  uint32_t full_count;
+  float* field;
+
+  // One thread per run of 2^refine voxels along x that share a cell: one
+  // count read and one index computation for all of them.
+  SPHRAY_HD uint32_t num_items() const { return uint32_t(vol.num_voxels() >> vol.refine); }
+
+  SPHRAY_HD void operator()(uint32_t t) const {
+    const int w = 1 << vol.refine;
+    const uint32_t runs = uint32_t(vol.nx) >> vol.refine;
+    const int i0 = int(t % runs) * w;
+    const uint32_t jk = t / runs;
+    const int j = int(jk % uint32_t(vol.ny)), k = int(jk / uint32_t(vol.ny));
+    const uint32_t c = vol.cell_key(grid, i0, j, k);
+    const float value = offsets[c + 1] - offsets[c] >= full_count ? (vol.refine == 0 ? coarse : full) : 0.0f;
+    float* out = field + vol.index(i0, j, k);
+    for (int i = 0; i < w; ++i) out[i] = value;
+  }
+};
+
+// presence, pass 2 (refine > 0 only): the voxel that holds a particle is
+// inside (iso radius >= half the voxel diagonal), so it becomes `coarse` too.
+// Every writer writes the same value, so a plain (relaxed) store will do.
+struct MarkOccupied {
+  VolumeGeom vol;
+  float coarse;
+  const Float4* pos;
+  float* field;
+
+  SPHRAY_HD void operator()(uint32_t p) const {
+    const Vec3f u = vol.to_voxels(xyz(pos[p]));
+    const int i = int(std::floor(u.x)), j = int(std::floor(u.y)), k = int(std::floor(u.z));
+    if (i < 0 || j < 0 || k < 0 || i >= vol.nx || j >= vol.ny || k >= vol.nz) return;
+    float* cell = field + vol.index(i, j, k);
+    if (load_relaxed(cell) < coarse) store_relaxed(cell, coarse);  // a full cell's voxel already holds more
+  }
+};
+
+// presence, pass 3 (fine splat, sec. 4.2.2-4.2.4): each particle adds its
+// falloff over a box whose half-extent toward each of the six directions
+// shrinks with its presence there (FieldShape::extent: a deep particle
+// touches almost nothing, a lone one keeps the full sphere of radius R),
+// skips voxels already at or above the clip (saturation) value, and leaves
+// none past it (an atomic add, and a second one that takes back any
+// overshoot; see below). Without presence (null) every extent is R.
+template <bool Count, int G>
+struct PresenceSplat {
+  VolumeGeom vol;
+  FieldShape shape;
+  const Float4* pos;
+  const float* presence;  // [6][n] (+x,-x,+y,-y,+z,-z) or null
+  uint32_t n;
+  float* field;
+  CounterSink sink;
+  // Full cells hold the clip value (CoarseFill): a splat box that lies in full
+  // cells only would find every voxel saturated, so it is skipped after
+  // reading the (at most 8, shared and cached) cell counts instead of its voxels.
+  GridGeom grid;
+  const uint32_t* offsets;
+  uint32_t full_count;  // 0: full cells are not saturated, no cell test
+
+  SPHRAY_HD SPHRAY_FORCEINLINE bool all_full(int x0, int x1, int y0, int y1, int z0, int z1) const {
+    if (full_count == 0 || x0 > x1 || y0 > y1 || z0 > z1) return false;
+    const int s = vol.refine;
+    for (int cz = z0 >> s; cz <= z1 >> s; ++cz)
+      for (int cy = y0 >> s; cy <= y1 >> s; ++cy)
+        for (int cx = x0 >> s; cx <= x1 >> s; ++cx) {
+          const uint32_t c = vol.cell_key(grid, cx << s, cy << s, cz << s);
+          if (offsets[c + 1] - offsets[c] < full_count) return false;
+        }
+    return true;
+  }
+
+  SPHRAY_HD SPHRAY_FORCEINLINE float extent(uint32_t p, uint32_t d) const {
+    return presence ? shape.extent(presence[d * n + p]) : shape.radius;
+  }
+
+  SPHRAY_HD void operator()(uint32_t t) const {
+    const uint32_t p = t / uint32_t(G), lane = t % uint32_t(G);
+    const Vec3f u = vol.to_voxels(xyz(pos[p]));
+    const float R2 = shape.radius * shape.radius, clip = shape.clip;
+    int x0, x1, y0, y1, z0, z1;
+    voxel_span(u.x, extent(p, 1), extent(p, 0), vol.nx, x0, x1);
+    voxel_span(u.y, extent(p, 3), extent(p, 2), vol.ny, y0, y1);
+    voxel_span(u.z, extent(p, 5), extent(p, 4), vol.nz, z0, z1);
+    uint32_t pairs = 0, touched = 0, atomics = 0, skipped = 0;
+    if (!all_full(x0, x1, y0, y1, z0, z1)) {
+      for_each_box_voxel<G>(lane, x0, x1, y0, y1, z0, z1, [&](int i, int j, int k) {
+        const float dx = float(i) + 0.5f - u.x, dy = float(j) + 0.5f - u.y, dz = float(k) + 0.5f - u.z;
+        const float r2 = dx * dx + dy * dy + dz * dz;
+        if (Count) ++pairs;
+        if (!(r2 < R2)) return;
+        const float f = shape.falloff(r2);
+        float* cell = field + vol.index(i, j, k);
+        const float seen = load_relaxed(cell);
+        if (Count) ++touched;
+        if (seen >= clip) {
+          if (Count) ++skipped;
+          return;
+        }
+        // Add at most what fills the voxel to the clip as seen; whatever a
+        // concurrent add pushed past it comes off again. The final value is
+        // exactly min(clip, sum) (docs/field.md has the argument), with one
+        // atomic add per voxel, plus one only where the voxel saturates.
+        const float add = std::fmin(f, clip - seen);
+        const float before = atomic_fetch_add(cell, add);
+        if (Count) ++atomics;
+        const float over = before + add - clip;
+        if (over > 0.0f) {
+          atomic_add(cell, -std::fmin(over, add));
+          if (Count) ++atomics;
+        }
+      });
+    }
+    if (Count) sink.put(t, pairs, touched, atomics, skipped);
+  }
+};
+
+// gather: one thread per voxel sums the falloff of the particles stored in the
+// SPH cells that its sphere of radius R overlaps; plain stores, no atomics,
+// no zeroing. It computes the naive field (up to summation order).
+template <bool Count>
+struct GatherField {
+  VolumeGeom vol;
+  GridGeom grid;
+  FieldShape shape;
+  const uint32_t* offsets;
+  const Float4* pos;
+  float* field;
+  CounterSink sink;
+
+  SPHRAY_HD void operator()(uint32_t v) const {
+    int i, j, k;
+    voxel_coords(vol, v, i, j, k);
+    const float R = shape.radius;
+    // Cells overlapped by the cube [centre - R, centre + R] (in voxels, then cells).
+    const float cx = float(i) + 0.5f, cy = float(j) + 0.5f, cz = float(k) + 0.5f;
+    const float per = float(1 << vol.refine);
+    auto cell_of = [&](float c, int axis) { return vol.cell0[axis] + int(std::floor(c / per)); };
+    const int gx0 = cell_of(cx - R, 0) < 0 ? 0 : cell_of(cx - R, 0);
+    const int gx1 = cell_of(cx + R, 0) >= grid.nx ? grid.nx - 1 : cell_of(cx + R, 0);
+    const int gy0 = cell_of(cy - R, 1) < 0 ? 0 : cell_of(cy - R, 1);
+    const int gy1 = cell_of(cy + R, 1) >= grid.ny ? grid.ny - 1 : cell_of(cy + R, 1);
+    const int gz0 = cell_of(cz - R, 2) < 0 ? 0 : cell_of(cz - R, 2);
+    const int gz1 = cell_of(cz + R, 2) >= grid.nz ? grid.nz - 1 : cell_of(cz + R, 2);
+    float sum = 0.0f;
+    uint32_t pairs = 0;
+    for (int z = gz0; z <= gz1; ++z)
+      for (int y = gy0; y <= gy1; ++y) {
+        const uint32_t row = (uint32_t(z) * uint32_t(grid.ny) + uint32_t(y)) * uint32_t(grid.nx);
+        const uint32_t end = offsets[row + uint32_t(gx1) + 1u];
+        for (uint32_t q = offsets[row + uint32_t(gx0)]; q < end; ++q) {
+          const Vec3f u = vol.to_voxels(xyz(pos[q]));
+          const float dx = cx - u.x, dy = cy - u.y, dz = cz - u.z;
+          const float r2 = dx * dx + dy * dy + dz * dz;
+          if (Count) ++pairs;
+          sum += shape.falloff(r2);
+        }
+      }
+    field[v] = sum;
+    if (Count) sink.put(v, pairs, 1, 0, 0);
+  }
+};
+
+}  // namespace sphray

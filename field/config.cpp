@@ -1,0 +1,41 @@
+#include "config.h"
+
+#include <stdexcept>
+
+namespace sphray {
+
+const char* field_kind_name(FieldKind k) {
+  switch (k) {
+    case FieldKind::Naive: return "naive";
+    case FieldKind::Presence: return "presence";
+    case FieldKind::Gather: return "gather";
+  }
+  return "?";
+}
+
+FieldKind parse_field_kind(const std::string& name) {
+  if (name == "naive") return FieldKind::Naive;
+  if (name == "presence") return FieldKind::Presence;
+  if (name == "gather") return FieldKind::Gather;
+  throw std::invalid_argument("unknown field builder '" + name + "' (naive, presence or gather)");
+}
+
+FieldConfig read_field_config(const ConfigReader& r) {
+  r.only({"builder", "refine", "radius", "core", "clip", "min_extent", "shrink_from", "full_fraction", "full_value"});
+  FieldConfig c;
+  c.builder = parse_field_kind(r.string("builder", field_kind_name(c.builder), {"naive", "presence", "gather"}));
+  const double refine = r.number("refine", c.refine, 0, 2);
+  if (refine != int(refine)) r.fail("refine", r.at("refine"), "must be 0, 1 or 2 (voxels per cell edge = 2^refine)");
+  c.refine = int(refine);
+  c.radius = r.number("radius", c.radius, 1.0, 8.0);
+  c.core = r.number("core", c.core, 0.05, 4.0);
+  c.clip = r.number("clip", c.clip, 1.01, 1e3);
+  c.min_extent = r.number("min_extent", c.min_extent, 0.0, 8.0);
+  if (c.min_extent > c.radius) r.fail("min_extent", r.at("min_extent"), "must not exceed field.radius");
+  c.shrink_from = r.number("shrink_from", c.shrink_from, 0.0, 0.95);
+  c.full_fraction = r.number("full_fraction", c.full_fraction, 0.1, 2.0);
+  c.full_value_clip = r.string("full_value", c.full_value_clip ? "clip" : "coarse", {"clip", "coarse"}) == "clip";
+  return c;
+}
+
+}  // namespace sphray

@@ -1,0 +1,31 @@
+// The scene's "field" section (docs/field.md, docs/scenes.md): which builder
+// makes the density field and the falloff it splats, with the defaults in
+// one place.
+#pragma once
+
+#include <string>
+
+#include "core/config_reader.h"
+
+namespace sphray {
+
+enum class FieldKind { Naive, Presence, Gather };
+const char* field_kind_name(FieldKind k);
+FieldKind parse_field_kind(const std::string& name);  // throws std::invalid_argument
+
+struct FieldConfig {
+  bool given = false;                     // the scene has a "field" section: built at every output frame
+  FieldKind builder = FieldKind::Presence;
+  int refine = 2;                         // voxels per SPH cell edge = 2^refine
+  double radius = 2.0;                    // influence radius R [voxels]
+  double core = 0.5;                      // finite core of the inverse-square falloff [voxels]
+  double clip = 4.0;                      // saturation value as a multiple of the iso value
+  double min_extent = 1.0;                // presence builder: extent toward a fully surrounded side [voxels]
+  double shrink_from = 0.5;               // presence builder: a side keeps its full extent up to this presence
+  double full_fraction = 0.9;             // presence coarse fill (refine > 0): share of (cell/dx)^3 that fills a cell
+  bool full_value_clip = true;            // ... and the value it gets: saturated ("clip") or just inside ("coarse")
+};
+
+FieldConfig read_field_config(const ConfigReader& r);
+
+}  // namespace sphray

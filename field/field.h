@@ -1,0 +1,54 @@
+// The density field as the host sees it: the volume geometry and falloff,
+// and one builder interface over both backends (builders.h, field_impl.inl). docs/field.md describes the method and its numbers.
+#pragma once
+
+#include <cstdint>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "config.h"
+#include "volume.h"
+#include "sph/solver.h"
+
+namespace sphray {
+
+struct FieldSetup {
+  VolumeGeom geom;
+  FieldShape shape;
+  uint32_t full_count = 1;  // coarse fill: a cell with at least this many particles is filled whole
+  float full_fill = 0;      // ... with this value (refine > 0)
+};
+
+// What a build did (counted only when asked; see docs/field.md).
+struct FieldCounts {
+  bool counted = false;
+  uint64_t init_writes = 0;  // voxels written by the zero / coarse fill
+  uint64_t pairs = 0;        // particle-voxel distance evaluations
+  uint64_t touched = 0;      // voxel reads or writes by the splat / gather
+  uint64_t atomics = 0;      // atomic read-modify-writes issued (CAS retries included)
+  uint64_t skipped = 0;      // splat visits that found the voxel saturated
+};
+
+class FieldBuilder {
+ public:
+  virtual ~FieldBuilder() = default;
+  virtual Backend backend() const = 0;
+  virtual const FieldSetup& setup() const = 0;
+  virtual FieldKind kind() const = 0;  // fixed when the builder is made
+  // Builds the volume from a solver's particles (same backend). `count` adds
+  // the counters of FieldCounts (slower; not for timing). `group`: threads per
+  // particle for the splats, 1 or 32 (0: the backend's choice, docs/field.md).
+  virtual void build(const ParticleView& particles, bool count = false, int group = 0) = 0;
+  virtual double last_ms() const = 0;  // device time of the last build (CUDA events / wall clock on CPU)
+  virtual const FieldCounts& last_counts() const = 0;
+  virtual const float* data() const = 0;  // the volume, x fastest, in the backend's memory
+  virtual std::vector<float> download() const = 0;
+  virtual size_t device_bytes() const = 0;
+};
+
+std::unique_ptr<FieldBuilder> make_cpu_field_builder(const FieldSetup& s, FieldKind kind);
+std::unique_ptr<FieldBuilder> make_cuda_field_builder(const FieldSetup& s, FieldKind kind);  // throws if CUDA is unavailable
+std::unique_ptr<FieldBuilder> make_field_builder(Backend b, const FieldSetup& s, FieldKind kind);
+
+}  // namespace sphray

@@ -1,0 +1,120 @@
+// The field builders' driver, written once for both backends. Included by
+// field_cpu.cpp and field_cuda.cu inside their backend namespace (which
+// supplies Vector, raw, policy, parallel_for, download, StageClock, kBackend).
+
+struct CounterToU64 {
+  const uint32_t* c;
+  SPHRAY_HD uint64_t operator()(uint32_t i) const { return c[i]; }
+};
+
+// Launches over n items the functor that make(count_tag, group_tag) returns,
+// for the four instantiations (counted or not; 1 or 32 threads per particle).
+template <class Make>
+void launch_variant(const char* name, uint32_t n, bool count, int group, Make&& make) {
+  using G1 = std::integral_constant<int, 1>;
+  using G32 = std::integral_constant<int, 32>;
+  if (count) {
+    if (group == 32) parallel_for(name, n, make(std::true_type{}, G32{}));
+    else parallel_for(name, n, make(std::true_type{}, G1{}));
+  } else {
+    if (group == 32) parallel_for(name, n, make(std::false_type{}, G32{}));
+    else parallel_for(name, n, make(std::false_type{}, G1{}));
+  }
+}
+
+class FieldBuilderImpl final : public FieldBuilder {
+ public:
+  FieldBuilderImpl(const FieldSetup& s, FieldKind kind) : setup_(s), kind_(kind) { field_.resize(size_t(s.geom.num_voxels())); }
+
+  Backend backend() const override { return kBackend; }
+  const FieldSetup& setup() const override { return setup_; }
+  FieldKind kind() const override { return kind_; }
+  double last_ms() const override { return ms_; }
+  const FieldCounts& last_counts() const override { return counts_; }
+  const float* data() const override { return raw(field_); }
+  size_t device_bytes() const override { return field_.size() * sizeof(float) + counters_.size() * sizeof(uint32_t); }
+  std::vector<float> download() const override { return sphray::SPHRAY_BK::download(field_, field_.size()); }
+
+  void build(const ParticleView& pv, bool count, int group) override {
+    const FieldKind kind = kind_;
+    if (pv.backend != kBackend)
+      throw std::invalid_argument(std::string("field builder on the ") + backend_name(kBackend) +
+                                  " backend was given particles of the " + backend_name(pv.backend) + " backend");
+    // Threads per particle: one on the CPU and for naive. The presence splat
+    // reads each voxel before it adds, a chain of round trips per thread: when
+    // the particles alone would not fill the GPU twice over, a warp shares each
+    // particle's voxels (bench field measures both; docs/field.md).
+    if (group == 0)
+      group = kind == FieldKind::Presence && kBackend == Backend::Cuda && pv.n < 2 * resident_threads() ? 32 : 1;
+    if (group != 1 && group != 32) throw std::invalid_argument("field builder: threads per particle must be 1 or 32");
+    const VolumeGeom& vol = setup_.geom;
+    const FieldShape& shape = setup_.shape;
+    const uint32_t voxels = uint32_t(vol.num_voxels());
+    const uint64_t items64 = kind == FieldKind::Gather ? uint64_t(voxels) : uint64_t(pv.n) * uint64_t(group);
+    if (items64 > 0xffffffffull) throw std::invalid_argument("field builder: too many particles for 32 threads each");
+    const uint32_t items = uint32_t(items64);
+    CounterSink sink{nullptr, items};
+    if (count) {
+      if (counters_.size() < size_t(kNumCounters) * items) counters_.resize(size_t(kNumCounters) * items);
+      sink.counts = raw(counters_);
+    }
+    float* f = raw(field_);
+    const uint32_t full = saturated_full_count();
+    clock_.start();
+    switch (kind) {
+      case FieldKind::Naive:
+        thrust::fill(policy(), field_.begin(), field_.end(), 0.0f);
+        launch_variant("naive_splat", items, count, group, [&](auto c, auto g) {
+          return NaiveSplat<decltype(c)::value, decltype(g)::value>{vol, shape, pv.pos, f, sink};
+        });
+        break;
+      case FieldKind::Presence: {
+        const CoarseFill fill{vol, pv.grid, pv.offsets, shape.coarse, setup_.full_fill, setup_.full_count, f};
+        parallel_for("field_fill", fill.num_items(), fill);
+        if (vol.refine > 0) parallel_for("field_mark_occupied", pv.n, MarkOccupied{vol, shape.coarse, pv.pos, f});
+        launch_variant("presence_splat", items, count, group, [&](auto c, auto g) {
+          return PresenceSplat<decltype(c)::value, decltype(g)::value>{
+              vol, shape, pv.pos, pv.presence, pv.n, f, sink, pv.grid, pv.offsets, full};
+        });
+        break;
+      }
+      case FieldKind::Gather:
+        launch_variant("gather_field", items, count, 1, [&](auto c, auto) {
+          return GatherField<decltype(c)::value>{vol, pv.grid, shape, pv.offsets, pv.pos, f, sink};
+        });
+        break;
+    }
+    clock_.end_of("field");
+    clock_.finish();
+    ms_ = clock_.ms("field");
+    counts_ = FieldCounts{};
+    counts_.init_writes = kind == FieldKind::Gather ? 0 : voxels;
+    if (count) {
+      uint64_t total[kNumCounters];
+      for (uint32_t c = 0; c < kNumCounters; ++c)
+        total[c] = thrust::transform_reduce(policy(), thrust::counting_iterator<uint32_t>(0),
+                                            thrust::counting_iterator<uint32_t>(items),
+                                            CounterToU64{raw(counters_) + size_t(c) * items}, uint64_t(0),
+                                            thrust::plus<uint64_t>());
+      counts_.pairs = total[kPairs];
+      counts_.touched = total[kTouched];
+      counts_.atomics = total[kAtomics];
+      counts_.skipped = total[kSkipped];
+      counts_.counted = true;
+    }
+  }
+
+ private:
+  // Full cells are saturated when the coarse fill writes the clip value into them (refine > 0).
+  uint32_t saturated_full_count() const {
+    return setup_.geom.refine > 0 && setup_.full_fill >= setup_.shape.clip ? setup_.full_count : 0u;
+  }
+
+  FieldSetup setup_;
+  FieldKind kind_;
+  Vector<float> field_;
+  Vector<uint32_t> counters_;
+  StageClock clock_;
+  double ms_ = 0;
+  FieldCounts counts_;
+};

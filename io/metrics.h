@@ -1,0 +1,58 @@
+// Quantities measured on a particle state, and their comparison with
+// experiments: the surge front of a dam break (Martin & Moyce 1952).
+#pragma once
+
+#include <string>
+#include <vector>
+
+#include "sph/solver.h"
+
+namespace sphray {
+
+// Leading edge of the liquid along +x, measured from back_wall_x [m]: the
+// foremost particle centre plus half a spacing (a particle's own extent), so a
+// column of width a at rest reads exactly a.
+double surge_front(const HostParticles& p, double back_wall_x, double spacing);
+
+double kinetic_energy(const HostParticles& p, double particle_mass);
+
+struct Curve {
+  std::vector<double> x, y;
+};
+
+// Reads a two-column CSV (lines starting with '#' and one header line skipped).
+Curve read_csv_curve(const std::string& path);
+
+// Linear interpolation of a curve sampled at increasing x; clamps at the ends.
+double interpolate(const Curve& c, double x);
+
+// RMS of (sim(T) - exp(T)) / exp(T) over the experimental points with T <= sim's last T.
+struct CurveError {
+  double rms_relative = 0, max_relative = 0;
+  size_t points = 0;
+};
+CurveError relative_error(const Curve& sim, const Curve& experiment);
+
+// A density field against a reference field (the naive builder's), both on
+// the same nx x ny x nz voxels, classified inside where value >= iso
+// (docs/field.md, "Error"):
+// - misclassified share: voxels whose inside/outside differs, over the voxels
+//   within two voxels (Chebyshev) of the reference surface (a voxel with a
+//   face neighbour on the other side); differences farther away (holes, say)
+//   are counted separately;
+// - distance between the iso-surfaces in voxels: the surface points where the
+//   field crosses iso along voxel edges (linear interpolation, as a trilinear
+//   sampler sees it), each matched to the nearest point of the other surface,
+//   both ways; mean and max (capped at kMaxSurfaceDistance voxels, beyond which
+//   a point counts as unmatched).
+struct FieldError {
+  static constexpr double kMaxSurfaceDistance = 4.0;
+  uint64_t band = 0, misclassified_band = 0, misclassified_other = 0;
+  uint64_t ref_points = 0, test_points = 0, unmatched = 0;
+  double mean_distance = 0, max_distance = 0;
+  double misclassified_share() const { return band ? double(misclassified_band) / double(band) : 0.0; }
+};
+FieldError compare_fields(int nx, int ny, int nz, const std::vector<float>& ref, const std::vector<float>& test,
+                          float iso);
+
+}  // namespace sphray

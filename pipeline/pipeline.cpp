@@ -1,0 +1,234 @@
+#include "pipeline.h"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <iomanip>
+#include <ostream>
+#include <sstream>
+#include <stdexcept>
+
+#include "setup.h"
+
+namespace sphray {
+
+Backend choose_backend(const std::string& name, std::ostream& log) {
+  if (name == "cpu") return Backend::Cpu;
+  if (name == "cuda") {
+    if (!cuda_available())
+      throw std::runtime_error("--backend cuda: no CUDA device is available (or sphray was built without CUDA)");
+    return Backend::Cuda;
+  }
+  if (name != "auto") throw std::runtime_error("--backend '" + name + "': must be auto, cpu or cuda");
+  if (cuda_available()) {
+    log << "backend: cuda (" << cuda_device_name() << ")\n";
+    return Backend::Cuda;
+  }
+  log << "backend: cpu (no CUDA device found)\n";
+  return Backend::Cpu;
+}
+
+StageNeeds needs_of(const Scene& s, const std::vector<OutputSink*>& sinks) {
+  FrameNeeds ever;
+  for (const OutputSink* k : sinks) {
+    const FrameNeeds n = k->needs_ever();
+    ever.field = ever.field || n.field;
+    ever.presence = ever.presence || n.presence;
+  }
+  StageNeeds n;
+  n.field = s.field.given || ever.field;
+  // The presence builder reads presence once per frame: only the step that
+  // reaches the frame computes it (sph.presence forces every step, for studies).
+  if (s.sph.presence) n.presence = PresenceMode::EveryStep;
+  else if ((n.field && s.field.builder == FieldKind::Presence) || ever.presence) n.presence = PresenceMode::AtUntil;
+  return n;
+}
+
+std::unique_ptr<Solver> make_solver(const ResolvedScene& r, Backend b, const StageNeeds& needs) {
+  check_fits(r, b, needs.field);
+  const SolverInput in = make_solver_input(r, needs.presence);
+  return b == Backend::Cuda ? make_cuda_solver(in) : make_cpu_solver(in);
+}
+
+std::unique_ptr<FieldBuilder> make_field(const ResolvedScene& r, Backend b, const StageNeeds& needs) {
+  if (!needs.field) return nullptr;
+  return make_field_builder(b, make_field_setup(r), r.scene.field.builder);
+}
+
+namespace {
+
+std::string format_seconds(double s) {
+  std::ostringstream os;
+  os << std::fixed << std::setprecision(s < 10 ? 1 : 0) << s << " s";
+  return os.str();
+}
+
+// The step statistics a run keeps. Step sizes count the steps the solver
+// chose freely: the last step before an output time is shortened to land on
+// it, and counted in the mean it made the mean read below the min.
+struct StepTally {
+  StageTimes sum;
+  double dt_sum = 0;
+  uint64_t free_steps = 0;
+  double last_free_dt = 0;  // the progress line's dt
+
+  void add(const Solver& solver, bool free, RunSummary& r) {
+    const StageTimes& st = solver.last_stage_times();
+    sum.grid += st.grid; sum.pairs += st.pairs; sum.integrate += st.integrate;
+    const StepLimits& l = solver.last_limits();
+    if (free) {
+      dt_sum += l.dt;
+      last_free_dt = l.dt;
+      ++free_steps;
+      r.min_dt = std::min(r.min_dt, double(l.dt));
+    }
+    r.max_speed = std::max(r.max_speed, l.max_speed);
+    r.particle_steps += solver.num_fluid();
+  }
+};
+
+// The summary's totals and means, once the run has ended.
+void finish_summary(RunSummary& r, const Solver& solver, const StepTally& tally, const FieldBuilder* field,
+                    double field_ms) {
+  r.steps = solver.steps();
+  r.sim_time = solver.time();
+  r.fluid_end = solver.num_fluid();
+  r.removed = solver.num_removed();
+  r.clamped = solver.num_clamped();
+  if (r.steps) {
+    const double k = 1.0 / double(r.steps);
+    r.mean_stage_ms = {tally.sum.grid * k, tally.sum.pairs * k, tally.sum.integrate * k};
+  }
+  // No free step (every step shortened, an output interval below dt): the
+  // mean and min of all steps.
+  r.mean_dt = tally.free_steps ? tally.dt_sum / double(tally.free_steps)
+                               : (r.steps ? r.sim_time / double(r.steps) : 0.0);
+  if (!tally.free_steps) r.min_dt = r.mean_dt;
+  if (field) {
+    r.field_builder = field_kind_name(field->kind());
+    r.field_ms_mean = r.field_builds ? field_ms / double(r.field_builds) : 0.0;
+    const VolumeGeom& g = field->setup().geom;
+    r.field_dims[0] = g.nx; r.field_dims[1] = g.ny; r.field_dims[2] = g.nz;
+  }
+}
+
+// What the sinks need at a frame, together.
+FrameNeeds sinks_need(const std::vector<OutputSink*>& sinks, int frame) {
+  FrameNeeds all;
+  for (const OutputSink* k : sinks) {
+    const FrameNeeds n = k->needs(frame);
+    all.field = all.field || n.field;
+    all.presence = all.presence || n.presence;
+  }
+  return all;
+}
+
+}  // namespace
+
+double advance_frame(Solver& solver, int substeps, bool presence, double until) {
+  double ms = 0;
+  for (int k = 0; k < substeps && solver.time() < until; ++k) {
+    solver.set_presence(presence && k == substeps - 1 ? PresenceMode::EveryStep : PresenceMode::Off);
+    solver.step(until);
+    ms += solver.last_stage_times().total();
+  }
+  return ms;
+}
+
+RunSummary run_scene(const Scene& s, Solver& solver, const RunOptions& opt, std::ostream& log) {
+  using clock = std::chrono::steady_clock;
+  RunSummary r;
+  r.backend = solver.backend();
+  r.fluid_start = solver.num_fluid();
+  const double end = s.run.end_time, every = s.run.output_interval;
+  const auto t0 = clock::now();
+  auto last_print = t0;
+  int frame = 0;
+  double field_ms = 0;
+  // The field at frame k: every frame for a scene with a "field" section,
+  // else where a sink needs it. Presence toward frame k (when the solver
+  // computes it only where needed): where the field is built by the
+  // presence builder, or a sink needs it.
+  auto field_at = [&](int k) { return opt.field && (s.field.given || sinks_need(opt.sinks, k).field); };
+  auto presence_at = [&](int k) {
+    return (field_at(k) && opt.field->kind() == FieldKind::Presence) || sinks_need(opt.sinks, k).presence;
+  };
+  const bool presence_by_frame = solver.presence_mode() == PresenceMode::AtUntil;
+  auto output = [&] {
+    if (field_at(frame)) {
+      const ParticleView v = solver.view();
+      if (opt.field->kind() == FieldKind::Presence && !v.presence) ++r.field_without_presence;
+      opt.field->build(v);
+      field_ms += opt.field->last_ms();
+      ++r.field_builds;
+    }
+    for (OutputSink* k : opt.sinks) k->write(solver, opt.field, frame);
+  };
+  output();
+  StepTally tally;
+
+  // Every second, and at the end; also between output times, which may be
+  // far apart (render --time T takes one step of output to T).
+  auto progress = [&](bool last) {
+    const auto now = clock::now();
+    if (!opt.progress || (!last && std::chrono::duration<double>(now - last_print).count() < opt.progress_seconds)) return;
+    last_print = now;
+    const double wall = std::chrono::duration<double>(now - t0).count();
+    const double eta = solver.time() > 0 ? wall * (end - solver.time()) / solver.time() : 0.0;
+    log << "  t = " << std::fixed << std::setprecision(4) << solver.time() << " / " << end << " s  step "
+        << solver.steps() << "  dt " << std::scientific << std::setprecision(2)
+        << (tally.last_free_dt > 0 ? tally.last_free_dt : double(solver.last_limits().dt))
+        << " s  " << (wall > 0 ? r.particle_steps / wall : 0.0) << " particle-steps/s  ETA "
+        << format_seconds(eta) << std::defaultfloat << "\n";
+    log.flush();
+  };
+
+  while (solver.time() < end - 1e-12) {
+    const double next_output = std::min(end, (frame + 1) * every);
+    if (presence_by_frame) solver.set_presence(presence_at(frame + 1) ? PresenceMode::AtUntil : PresenceMode::Off);
+    while (solver.time() < next_output - 1e-12) {
+      solver.step(next_output);
+      const bool free = solver.time() < next_output - 1e-12;  // not the step shortened to land on the output time
+      tally.add(solver, free, r);
+      if (free) progress(false);  // the last step's line comes after its output
+    }
+    ++frame;
+    output();
+    progress(solver.time() >= end - 1e-12);
+  }
+  r.wall_seconds = std::chrono::duration<double>(clock::now() - t0).count();
+  finish_summary(r, solver, tally, opt.field, field_ms);
+  return r;
+}
+
+void print_summary(const RunSummary& r, std::ostream& log) {
+  log << std::defaultfloat << std::setprecision(4);
+  log << "summary (" << backend_name(r.backend) << "):\n"
+      << "  simulated      " << r.sim_time << " s in " << r.steps << " steps (dt mean " << r.mean_dt << " s, min "
+      << r.min_dt << " s, of the steps not shortened to meet an output time)\n"
+      << "  wall time      " << r.wall_seconds << " s ("
+      << (r.wall_seconds > 0 ? double(r.particle_steps) / r.wall_seconds : 0.0) << " particle-steps/s)\n"
+      << "  particles      " << r.fluid_start << " fluid at start, " << r.fluid_end << " at end; "
+      << r.removed << " left through the open top and were removed\n"
+      << "  wall clamps    " << r.clamped << " particle-steps put back on a wall face";
+  const double clamp_share = r.particle_steps ? double(r.clamped) / double(r.particle_steps) : 0.0;
+  if (r.clamped) log << " (" << 100 * clamp_share << "% of " << r.particle_steps << ")";
+  log << "\n";
+  if (clamp_share > kWallClampShareBound)
+    log << "  warning        the wall guard, not the walls' pressure, held the liquid on more than "
+        << 100 * kWallClampShareBound << "% of particle-steps: wall layers thinner than the kernel support "
+        << "(sph.boundary_layers below \"auto\"), or steps too large for the flow (lower sph.cfl)\n";
+  log << "  max speed      " << r.max_speed << " m/s\n"
+      << "  ms per step    grid (with the pair masks) " << r.mean_stage_ms.grid
+      << ", pairs (forces, density rate, presence where needed) " << r.mean_stage_ms.pairs << ", integrate "
+      << r.mean_stage_ms.integrate << "\n";
+  if (r.field_builds)
+    log << "  field          " << r.field_builder << " builder, " << r.field_dims[0] << "x" << r.field_dims[1] << "x"
+        << r.field_dims[2] << " voxels, " << r.field_builds << " builds, " << r.field_ms_mean << " ms per build"
+        << (r.field_without_presence ? " (" + std::to_string(r.field_without_presence) +
+                                           " without presence, e.g. at t = 0: full extents)"
+                                     : std::string())
+        << "\n";
+}
+
+}  // namespace sphray

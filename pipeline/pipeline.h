@@ -1,0 +1,116 @@
+// The pipeline: makes only the stages a scene and its outputs need, and runs
+// them: SPH steps to each output time, the density field where an output
+// needs it, the outputs (sinks), progress lines and the run's summary.
+#pragma once
+
+#include <functional>
+#include <iosfwd>
+#include <memory>
+#include <string>
+#include <utility>
+#include <vector>
+
+#include "field/field.h"
+#include "io/scene.h"
+#include "setup.h"
+#include "sph/solver.h"
+
+namespace sphray {
+
+// "auto" picks CUDA when a device is present, else CPU; says which on log.
+Backend choose_backend(const std::string& name, std::ostream& log);
+
+// What the scene's later stages need from the solver.
+struct StageNeeds {
+  PresenceMode presence = PresenceMode::Off;
+  bool field = false;  // build the density field at output frames
+};
+
+// What an output needs at an output frame.
+struct FrameNeeds {
+  bool field = false;     // the density field, built from the frame's particles
+  bool presence = false;  // presence, computed by the step that reaches the frame
+};
+
+// An output of a run (PNG frames, the HDF5 export, the metrics CSV, a test's
+// probe), written at every output frame: t = 0, every output interval and the
+// end. It declares what it needs; the pipeline makes only the stages some
+// sink (or the scene) needs, and builds the field and computes presence only
+// for the frames where one of them needs it.
+class OutputSink {
+ public:
+  virtual ~OutputSink() = default;
+  virtual FrameNeeds needs(int frame) const = 0;
+  // What it needs at some frame: which stages the run must have.
+  virtual FrameNeeds needs_ever() const = 0;
+  // `field`: built for this frame when some sink needs it, else null or stale.
+  virtual void write(const Solver& solver, const FieldBuilder* field, int frame) = 0;
+};
+
+// A sink written as a function, needing `needs` at the frames where `at`
+// says so (every frame when null).
+class FunctionSink final : public OutputSink {
+ public:
+  using Write = std::function<void(const Solver&, const FieldBuilder*, int frame)>;
+  explicit FunctionSink(Write write, FrameNeeds needs = {}, std::function<bool(int frame)> at = nullptr)
+      : write_(std::move(write)), needs_(needs), at_(std::move(at)) {}
+  FrameNeeds needs(int frame) const override { return !at_ || at_(frame) ? needs_ : FrameNeeds{}; }
+  FrameNeeds needs_ever() const override { return needs_; }
+  void write(const Solver& s, const FieldBuilder* f, int frame) override {
+    if (!at_ || at_(frame)) write_(s, f, frame);
+  }
+
+ private:
+  Write write_;
+  FrameNeeds needs_;
+  std::function<bool(int)> at_;
+};
+
+// The stages a scene and its sinks need: the field when the scene has a
+// "field" section or a sink needs it; presence on every step (sph.presence),
+// on the steps that reach the frames where the presence builder or a sink
+// needs it, or never.
+StageNeeds needs_of(const Scene& s, const std::vector<OutputSink*>& sinks = {});
+
+std::unique_ptr<Solver> make_solver(const ResolvedScene& r, Backend b, const StageNeeds& needs);
+// The scene's field builder, or null when no stage needs a field.
+std::unique_ptr<FieldBuilder> make_field(const ResolvedScene& r, Backend b, const StageNeeds& needs);
+
+struct RunOptions {
+  bool progress = true;
+  double progress_seconds = 1.0;  // between progress lines (and at the end)
+  // Built before the sinks are written at the frames where the scene (a
+  // "field" section: every frame) or a sink needs it.
+  FieldBuilder* field = nullptr;
+  std::vector<OutputSink*> sinks;
+};
+
+// The share of particle-steps the wall guard may put back on a wall face
+// before the summary warns (and the stress tests fail): the walls should hold
+// the liquid by their pressure, the guard is a safety net.
+constexpr double kWallClampShareBound = 0.005;
+
+struct RunSummary {
+  Backend backend{};
+  size_t fluid_start = 0, fluid_end = 0, removed = 0, boundary = 0;
+  uint64_t clamped = 0, steps = 0;
+  uint64_t particle_steps = 0;  // fluid particles summed over the steps
+  double sim_time = 0, wall_seconds = 0;
+  double mean_dt = 0, min_dt = 1e300;
+  StageTimes mean_stage_ms;
+  double max_speed = 0;
+  uint64_t field_builds = 0, field_without_presence = 0;  // presence builds that fell back to full extents
+  double field_ms_mean = 0;
+  std::string field_builder;
+  int field_dims[3] = {0, 0, 0};
+};
+
+// One displayed frame of simulation: `substeps` steps (never past `until`),
+// presence computed on the last one only when asked for (the field builder
+// reads it once per frame). Returns the steps' device milliseconds.
+double advance_frame(Solver& solver, int substeps, bool presence, double until);
+
+RunSummary run_scene(const Scene& s, Solver& solver, const RunOptions& opt, std::ostream& log);
+void print_summary(const RunSummary& r, std::ostream& log);
+
+}  // namespace sphray

@@ -1,0 +1,307 @@
+#include "setup.h"
+
+#include <unistd.h>
+
+#include <algorithm>
+#include <cmath>
+#include <fstream>
+#include <sstream>
+#include <string>
+
+#include "nsearch/pair_masks.h"
+#include "sph/eos.h"
+
+namespace sphray {
+
+namespace {
+
+Vec3f to_f(Vec3d v) { return {float(v.x), float(v.y), float(v.z)}; }
+
+int lattice_count(double size, double dx) { return std::max(1, int(std::floor(size / dx + 1e-6))); }
+
+// Overlapping fluid blocks fill their union once: a particle of block b is
+// left out where an earlier block already has liquid, i.e. when it lies
+// inside an earlier block's box or less than half a spacing outside it (the
+// earlier block's outermost particles sit half a spacing to one spacing inside
+// its faces, so what is kept stays at least 3/4 of a spacing from them).
+// Blocks whose corners share one dx lattice join with no seam.
+bool covered_before(const std::vector<FluidBlock>& blocks, size_t b, Vec3d p, double dx) {
+  const double m = 0.49 * dx;
+  for (size_t a = 0; a < b; ++a) {
+    const Box& q = blocks[a].box;
+    if (p.x > q.min.x - m && p.x < q.max.x + m && p.y > q.min.y - m && p.y < q.max.y + m && p.z > q.min.z - m &&
+        p.z < q.max.z + m)
+      return true;
+  }
+  return false;
+}
+
+// The free surface above a particle of block `own` at p, as a height along
+// `up`: the top of its own block, raised through every block stacked on it
+// (one that the vertical line through p enters at or below the surface found
+// so far, within half a spacing), so that a column standing on a bed of
+// liquid starts with the bed's particles under it at the column's full depth.
+double surface_above(const std::vector<FluidBlock>& blocks, size_t own, Vec3d p, Vec3d up, double dx) {
+  const double base = dot(p, up);
+  double surface = box_top(blocks[own].box, up);
+  for (bool raised = true; raised;) {
+    raised = false;
+    for (const auto& blk : blocks) {
+      double t_in, t_out;  // along the vertical through p (ray_box: a box wholly below p is no hit)
+      if (!ray_box(p, up, blk.box.min, blk.box.max, t_in, t_out)) continue;
+      if (base + t_in <= surface + 0.5 * dx && base + t_out > surface + 1e-12 * dx) {
+        surface = base + t_out;
+        raised = true;
+      }
+    }
+  }
+  return surface;
+}
+
+struct AxisCoords {
+  std::vector<double> c;
+  size_t wall_lo, inner;  // c = [wall_lo lower-wall coords][inner coords][upper-wall coords]
+};
+
+AxisCoords axis_coords(double lo, double hi, double dx, int layers, bool upper_wall) {
+  AxisCoords a;
+  for (int l = layers - 1; l >= 0; --l) a.c.push_back(lo - (l + 0.5) * dx);
+  a.wall_lo = a.c.size();
+  const int n = std::max(1, int(std::lround((hi - lo) / dx)));
+  const double s = (hi - lo) / n;
+  for (int k = 0; k < n; ++k) a.c.push_back(lo + (k + 0.5) * s);
+  a.inner = size_t(n);
+  if (upper_wall)
+    for (int l = 0; l < layers; ++l) a.c.push_back(hi + (l + 0.5) * dx);
+  return a;
+}
+
+bool is_wall(const AxisCoords& a, size_t k) { return k < a.wall_lo || k >= a.wall_lo + a.inner; }
+
+}  // namespace
+
+SphParams make_params(const Scene& s) {
+  SphParams p{};
+  const double dx = s.sph.spacing;
+  const SmoothingKernel<double> kernel = s.sph.smoothing_kernel();
+  p.kernel = SmoothingKernel<float>::make(s.sph.kernel, float(kernel.h));
+  p.rest_density = float(s.sph.rest_density);
+  p.particle_mass = float(s.sph.rest_density * dx * dx * dx);
+  double c0 = s.sph.speed_of_sound;
+  if (c0 <= 0) c0 = auto_speed_of_sound(s);  // weakly compressible: 10x the expected flow speed (scene.h)
+  p.speed_of_sound = float(c0);
+  p.tait_b = float(tait_b(c0, s.sph.rest_density));
+  p.viscosity_alpha = float(s.sph.viscosity_alpha);
+  p.density_diffusion = float(s.sph.density_diffusion);
+  p.gravity = to_f(s.gravity);
+  p.spacing = float(dx);
+  p.tank = {to_f(s.tank.min), to_f(s.tank.max)};
+  p.open_top = s.open_top;
+  p.presence_scale = float(0.5 / presence_lobe_on_lattice(kernel, dx));
+  return p;
+}
+
+double presence_lobe_on_lattice(const SmoothingKernel<double>& k, double dx) {
+  // sum over the half space i < 0 of a cubic lattice of dx^3 (-dW/dr / r) |i dx|
+  const int m = int(std::ceil(k.support() / dx));
+  double sum = 0;
+  for (int z = -m; z <= m; ++z)
+    for (int y = -m; y <= m; ++y)
+      for (int x = -m; x < 0; ++x) {
+        const double r = dx * std::sqrt(double(x * x + y * y + z * z));
+        if (r < k.support()) sum += dx * dx * dx * -k.dW_over_r(r) * (-x * dx);
+      }
+  return sum;
+}
+
+SceneSize measure_scene(const Scene& s) {
+  SceneSize z;
+  const double dx = s.sph.spacing;
+  const double support = s.sph.support_radius();
+  z.boundary_layers = s.sph.wall_layers();
+  for (const auto& b : s.fluid) {
+    const Vec3d e = b.box.max - b.box.min;
+    z.fluid += size_t(lattice_count(e.x, dx)) * lattice_count(e.y, dx) * lattice_count(e.z, dx);
+  }
+  const int L = z.boundary_layers;
+  const Vec3d e = s.tank.max - s.tank.min;
+  const double in_x = std::max(1.0, double(std::lround(e.x / dx))), in_y = std::max(1.0, double(std::lround(e.y / dx))),
+               in_z = std::max(1.0, double(std::lround(e.z / dx)));
+  const double all = (in_x + 2 * L) * (in_y + 2 * L) * (in_z + (s.open_top ? 1 : 2) * L);
+  z.boundary = size_t(all - in_x * in_y * in_z);
+
+  GridGeom& g = z.grid;
+  g.cell_size = float(support);
+  const double margin = L * dx + 0.5 * support;
+  const Vec3d lo = s.tank.min - Vec3d{margin, margin, margin};
+  Vec3d hi = s.tank.max + Vec3d{margin, margin, margin};
+  if (s.open_top) hi.z += e.z;  // room for splashes above the rim before they count as gone
+  g.origin = to_f(lo);
+  const double nx = std::ceil((hi.x - lo.x) / support), ny = std::ceil((hi.y - lo.y) / support),
+               nz = std::ceil((hi.z - lo.z) / support);
+  const double cells = nx * ny * nz;
+  z.cells = cells < 4e9 ? size_t(cells) : size_t(4e9);
+  g.nx = int(std::min(nx, 2e9));
+  g.ny = int(std::min(ny, 2e9));
+  g.nz = int(std::min(nz, 2e9));
+  // Per fluid particle: the solver's buffers (see SolverImpl: 8 x 16 bytes of
+  // state, scratch and pair-loop results, 48 of presence and its scratch, 18
+  // of ids, status, keys and order) plus sort scratch and the host-side copy,
+  // an export's staging copies (60: position, id, velocity, presence), the
+  // two pair masks (fluid and walls); the coarse + 2 slab tables and the two
+  // near-cell flags.
+  const size_t mask_bytes = 2 * (sizeof(PairWord) * pair_mask_capacity(support / dx) + sizeof(uint32_t));
+  z.bytes = z.fluid * (248 + 60 + mask_bytes) + z.boundary * 64 + z.cells * (4 + 8 * GridGeom::kSubX + 2);
+  return z;
+}
+
+ResolvedScene resolve_scene(const Scene& s) { return {s, make_params(s), measure_scene(s)}; }
+
+void check_fits(const ResolvedScene& r, Backend backend, bool field) {
+  const Scene& s = r.scene;
+  const SceneSize& z = r.size;
+  const double gib = 1024.0 * 1024.0 * 1024.0;
+  std::ostringstream os;
+  if (z.cells * GridGeom::kSubX >= 0xffffffffull || z.fluid >= 0x7fffffffull || z.boundary >= 0x7fffffffull) {
+    os << s.file << ": sph.spacing = " << s.sph.spacing << " gives " << z.fluid << " fluid particles, " << z.boundary
+       << " wall particles and " << z.cells << " grid cells: more than sphray can index (2^31 particles, 2^30 cells). "
+       << "Raise sph.spacing or shrink the tank.";
+    throw SceneError(os.str());
+  }
+  size_t bytes = z.bytes;
+  if (field) bytes += size_t(make_field_setup(r).geom.num_voxels()) * sizeof(float);
+  size_t avail = 0;
+  if (backend == Backend::Cuda) {
+    avail = cuda_free_memory();
+  } else {
+    // MemAvailable counts reclaimable page cache; free pages alone would refuse
+    // scenes on a machine that has merely read a lot of files.
+    std::ifstream meminfo("/proc/meminfo");
+    for (std::string key; meminfo >> key;) {
+      size_t kib = 0;
+      meminfo >> kib;
+      if (key == "MemAvailable:") { avail = kib * 1024; break; }
+      meminfo.ignore(64, '\n');
+    }
+    if (avail == 0) {
+      const long pages = sysconf(_SC_AVPHYS_PAGES), page = sysconf(_SC_PAGE_SIZE);
+      avail = pages > 0 && page > 0 ? size_t(pages) * size_t(page) : 0;
+    }
+  }
+  if (avail > 0 && bytes > avail * 0.9) {
+    os.precision(3);
+    os << s.file << ": sph.spacing = " << s.sph.spacing << " needs about " << bytes / gib << " GiB (" << z.fluid
+       << " fluid particles, " << z.boundary << " wall particles, " << z.cells << " grid cells"
+       << (field ? ", the density field" : "") << "), but the "
+       << backend_name(backend) << " backend has " << avail / gib << " GiB free. Raise sph.spacing or shrink the tank.";
+    throw SceneError(os.str());
+  }
+}
+
+SolverInput make_solver_input(const ResolvedScene& r, PresenceMode presence) {
+  const Scene& s = r.scene;
+  const SceneSize& z = r.size;
+  SolverInput in;
+  in.params = r.params;
+  in.grid = z.grid;
+  in.cfl = float(s.sph.cfl);
+  in.min_dt = float(s.run.min_dt);
+  in.max_dt = float(s.run.max_dt);
+  in.presence = presence;
+  const double dx = s.sph.spacing;
+  const double rho0 = s.sph.rest_density, b_tait = in.params.tait_b, g = length(s.gravity);
+  const Vec3d up = up_of(s);
+
+  in.fluid_pos_rho.reserve(z.fluid);
+  in.fluid_vel.reserve(z.fluid);
+  for (size_t b = 0; b < s.fluid.size(); ++b) {
+    const FluidBlock& blk = s.fluid[b];
+    const Vec3d e = blk.box.max - blk.box.min;
+    const int n[3] = {lattice_count(e.x, dx), lattice_count(e.y, dx), lattice_count(e.z, dx)};
+    const Vec3d start = blk.box.min + Vec3d{(e.x - n[0] * dx) / 2 + dx / 2, (e.y - n[1] * dx) / 2 + dx / 2,
+                                            (e.z - n[2] * dx) / 2 + dx / 2};
+    for (int k = 0; k < n[2]; ++k)
+      for (int j = 0; j < n[1]; ++j)
+        for (int i = 0; i < n[0]; ++i) {
+          const Vec3d p = start + Vec3d{i * dx, j * dx, k * dx};
+          if (covered_before(s.fluid, b, p, dx)) continue;
+          // Hydrostatic start (inverse Tait): no pressure wave from a fluid released at uniform density.
+          const double depth = std::max(0.0, surface_above(s.fluid, b, p, up, dx) - dot(p, up));
+          const double rho = tait_density(b_tait, rho0, rho0 * g * depth);
+          in.fluid_pos_rho.push_back({float(p.x), float(p.y), float(p.z), float(rho)});
+          in.fluid_vel.push_back({float(blk.velocity.x), float(blk.velocity.y), float(blk.velocity.z), 0.0f});
+        }
+  }
+
+  const int L = z.boundary_layers;
+  const AxisCoords ax = axis_coords(s.tank.min.x, s.tank.max.x, dx, L, true);
+  const AxisCoords ay = axis_coords(s.tank.min.y, s.tank.max.y, dx, L, true);
+  const AxisCoords az = axis_coords(s.tank.min.z, s.tank.max.z, dx, L, !s.open_top);
+  const float volume = float(dx * dx * dx);
+  in.boundary.reserve(z.boundary);
+  in.boundary_alpha.reserve(z.boundary);
+  // A wall particle is viscous unless every face it belongs to is free-slip
+  // (an edge between a free-slip and a viscous face stays viscous).
+  const float wall_alpha = float(s.sph.wall_viscosity_alpha < 0 ? s.sph.viscosity_alpha : s.sph.wall_viscosity_alpha);
+  auto face_of = [&](const AxisCoords& a, size_t k, int axis) { return k < a.wall_lo ? 2 * axis : 2 * axis + 1; };
+  for (size_t k = 0; k < az.c.size(); ++k)
+    for (size_t j = 0; j < ay.c.size(); ++j)
+      for (size_t i = 0; i < ax.c.size(); ++i) {
+        const bool wx = is_wall(ax, i), wy = is_wall(ay, j), wz = is_wall(az, k);
+        if (!(wx || wy || wz)) continue;
+        const bool viscous = (wx && !s.free_slip[face_of(ax, i, 0)]) || (wy && !s.free_slip[face_of(ay, j, 1)]) ||
+                             (wz && !s.free_slip[face_of(az, k, 2)]);
+        in.boundary.push_back({float(ax.c[i]), float(ay.c[j]), float(az.c[k]), volume});
+        in.boundary_alpha.push_back(viscous ? wall_alpha : 0.0f);
+      }
+  return in;
+}
+
+FieldSetup make_field_setup(const ResolvedScene& r) {
+  const Scene& s = r.scene;
+  const GridGeom& g = r.size.grid;
+  const FieldConfig& f = s.field;
+  FieldSetup out;
+  VolumeGeom& v = out.geom;
+  v.refine = f.refine;
+  const int per = 1 << f.refine;
+  v.voxel = g.cell_size / float(per);
+  const double lo[3] = {s.tank.min.x, s.tank.min.y, s.tank.min.z}, hi[3] = {s.tank.max.x, s.tank.max.y, s.tank.max.z};
+  const double o[3] = {g.origin.x, g.origin.y, g.origin.z};
+  const int n[3] = {g.nx, g.ny, g.nz};
+  int dims[3];
+  for (int a = 0; a < 3; ++a) {
+    int c0 = int(std::floor((lo[a] - o[a]) / g.cell_size));
+    // An open top keeps the grid's room above the rim: splashes there are still liquid.
+    int c1 = (a == 2 && s.open_top) ? n[a] : int(std::ceil((hi[a] - o[a]) / g.cell_size));
+    c0 = std::clamp(c0, 0, n[a] - 1);
+    c1 = std::clamp(c1, c0 + 1, n[a]);
+    v.cell0[a] = c0;
+    dims[a] = (c1 - c0) * per;
+  }
+  v.nx = dims[0]; v.ny = dims[1]; v.nz = dims[2];
+  v.origin = {g.origin.x + v.cell0[0] * g.cell_size, g.origin.y + v.cell0[1] * g.cell_size,
+              g.origin.z + v.cell0[2] * g.cell_size};
+  if (double(v.nx) * v.ny * v.nz >= 4294967295.0) {
+    std::ostringstream os;
+    os << s.file << ": field.refine = " << f.refine << " gives a " << v.nx << " x " << v.ny << " x " << v.nz
+       << " volume: more than 2^32 voxels. Lower field.refine or raise sph.spacing.";
+    throw SceneError(os.str());
+  }
+
+  FieldShape& sh = out.shape;
+  sh.radius = float(f.radius);
+  sh.core2 = float(f.core * f.core);
+  sh.offset = float(1.0 / (f.radius * f.radius + f.core * f.core));
+  sh.iso = float(1.0 / (0.75 + f.core * f.core) - sh.offset);  // f(sqrt(3)/2)
+  sh.coarse = sh.iso * (1.0f + 1.0f / 1024.0f);
+  sh.clip = float(f.clip) * sh.iso;
+  sh.min_extent = float(f.min_extent);
+  sh.shrink_from = float(f.shrink_from);
+  const double per_cell = std::pow(g.cell_size / s.sph.spacing, 3.0);
+  out.full_fill = f.full_value_clip ? sh.clip : sh.coarse;
+  out.full_count = f.refine == 0 ? 1u : uint32_t(std::max(1.0, std::ceil(f.full_fraction * per_cell - 1e-9)));
+  return out;
+}
+
+}  // namespace sphray

@@ -1,0 +1,45 @@
+// A validated scene resolved once for the stages the pipeline makes: the SPH
+// parameters of its kernels, its particle and grid counts, its memory
+// estimate; and from it the solver's initial state (the fluid lattice at
+// hydrostatic density, the wall particles, the grid) and the field's volume.
+#pragma once
+
+#include <cstddef>
+
+#include "field/field.h"
+#include "io/scene.h"
+#include "sph/solver.h"
+
+namespace sphray {
+
+struct SceneSize {
+  size_t fluid = 0, boundary = 0, cells = 0;
+  int boundary_layers = 0;
+  GridGeom grid{};
+  size_t bytes = 0;  // estimated memory of the solver's buffers
+};
+
+// A scene with what every stage derives from it, computed once.
+struct ResolvedScene {
+  Scene scene;
+  SphParams params;  // make_params
+  SceneSize size;    // measure_scene
+};
+ResolvedScene resolve_scene(const Scene& s);
+
+SphParams make_params(const Scene& s);
+// One presence lobe (sph/interaction.h) of a particle inside a full cubic
+// lattice of spacing dx: the value that presence is normalised by.
+double presence_lobe_on_lattice(const SmoothingKernel<double>& k, double dx);
+SceneSize measure_scene(const Scene& s);  // counts only; generates nothing
+SolverInput make_solver_input(const ResolvedScene& r, PresenceMode presence);
+
+// The volume over the SPH grid cells that overlap the tank, and the falloff,
+// from the scene's "field" section (defaults when it has none).
+FieldSetup make_field_setup(const ResolvedScene& r);
+
+// Throws SceneError when the scene (with its density field when `field`)
+// would need more memory than `backend` has free.
+void check_fits(const ResolvedScene& r, Backend backend, bool field = false);
+
+}  // namespace sphray

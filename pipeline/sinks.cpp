@@ -1,0 +1,59 @@
+#include "sinks.h"
+
+#include <cerrno>
+#include <cstring>
+#include <iomanip>
+#include <stdexcept>
+
+#include "io/export.h"
+#include "io/metrics.h"
+
+namespace sphray {
+
+std::string write_failure(const std::string& flag, const std::string& path) {
+  return flag + ": cannot write '" + path + "'" + (errno ? std::string(": ") + std::strerror(errno) : "");
+}
+
+void PngSink::open(const Scene& scene, Backend b, const FieldSetup& fs) {
+  frames_ = std::make_unique<FrameRenderer>(scene.render, scene.tank, b, fs, dir_, flag_);
+}
+
+void PngSink::write(const Solver& s, const FieldBuilder* field, int frame) {
+  if (frame % every_ == 0) frames_->write_frame(s.view(), *field, frame);
+}
+
+FrameNeeds ExportSink::needs(int frame) const { return frame % every_ == 0 ? needs_ever() : FrameNeeds{}; }
+
+void ExportSink::write(const Solver& s, const FieldBuilder* field, int frame) {
+  if (frame % every_ == 0) writer_->submit(capture_frame(s, prm_, fields_, field));
+}
+
+// Opened before the run, so that an unwritable path fails in a second, not
+// after the simulation (bad input).
+MetricsSink::MetricsSink(const std::string& path, const Scene& scene, const SphParams& prm, std::string flag)
+    : path_(path), flag_(std::move(flag)), back_wall_x_(scene.tank.min.x), spacing_(scene.sph.spacing),
+      mass_(prm.particle_mass) {
+  errno = 0;
+  csv_.open(path);
+  if (!csv_) throw std::runtime_error(write_failure(flag_, path));
+  csv_ << "time_s,steps,fluid_particles,front_m,kinetic_energy_J,max_speed_m_s\n" << std::setprecision(9);
+}
+
+// Flushed per row: a run followed live (tail -f) or killed leaves whole rows,
+// and a write error (a full disk) stops the run here rather than end with a
+// cut-off CSV and exit 0.
+void MetricsSink::write(const Solver& s, const FieldBuilder*, int) {
+  const HostParticles p = s.download();
+  errno = 0;
+  csv_ << s.time() << "," << s.steps() << "," << s.num_fluid() << "," << surge_front(p, back_wall_x_, spacing_) << ","
+       << kinetic_energy(p, mass_) << "," << s.last_limits().max_speed << "\n" << std::flush;
+  if (!csv_) throw OutputError(write_failure(flag_, path_));
+}
+
+void MetricsSink::finish() {
+  errno = 0;
+  csv_.close();
+  if (!csv_) throw OutputError(write_failure(flag_, path_));
+}
+
+}  // namespace sphray

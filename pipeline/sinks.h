@@ -1,0 +1,78 @@
+// The outputs of `sphray run` and `sphray render` as sinks of the run loop
+// (pipeline.h): PNG frames, the HDF5 export, the metrics CSV. Each says what
+// it needs at a frame; the pipeline derives the stages from that.
+#pragma once
+
+#include <fstream>
+#include <memory>
+#include <set>
+#include <string>
+
+#include "io/frames_h5.h"
+#include "pipeline.h"
+#include "render/frame_sink.h"
+
+namespace sphray {
+
+// PNG frames into a directory, every `every`-th output frame
+// (render.frames_every). Its renderer is made by open(), once the field's
+// volume is known; the directory is checked then, before the run.
+class PngSink final : public OutputSink {
+ public:
+  PngSink(std::string dir, int every, std::string flag = "--frames-dir")
+      : dir_(std::move(dir)), flag_(std::move(flag)), every_(every) {}
+  void open(const Scene& scene, Backend b, const FieldSetup& fs);
+  FrameRenderer& frames() { return *frames_; }
+  FrameNeeds needs(int frame) const override { return {frame % every_ == 0, false}; }
+  FrameNeeds needs_ever() const override { return {true, false}; }
+  void write(const Solver& s, const FieldBuilder* field, int frame) override;
+
+ private:
+  std::string dir_, flag_;
+  int every_;
+  std::unique_ptr<FrameRenderer> frames_;
+};
+
+// HDF5 frames (--export), every `every`-th output frame, with the datasets
+// in `fields` (io/export.h). Its file is created by open(), before the run.
+class ExportSink final : public OutputSink {
+ public:
+  ExportSink(int every, std::set<std::string> fields, const SphParams& prm)
+      : every_(every), fields_(std::move(fields)), prm_(prm) {}
+  void open(const std::string& path, const FileHeader& header, int gzip) {
+    writer_ = std::make_unique<FrameWriter>(path, header, gzip);
+  }
+  FrameWriter& writer() { return *writer_; }
+  FrameNeeds needs(int frame) const override;
+  FrameNeeds needs_ever() const override { return {fields_.count("field") > 0, fields_.count("presence") > 0}; }
+  void write(const Solver& s, const FieldBuilder* field, int frame) override;
+
+ private:
+  int every_;
+  std::set<std::string> fields_;
+  SphParams prm_;
+  std::unique_ptr<FrameWriter> writer_;
+};
+
+// The metrics CSV (--metrics-csv): time, steps, particles, surge front,
+// kinetic energy and the largest speed per output frame, flushed per row.
+// `flag` names the option in messages.
+class MetricsSink final : public OutputSink {
+ public:
+  MetricsSink(const std::string& path, const Scene& scene, const SphParams& prm, std::string flag = "--metrics-csv");
+  FrameNeeds needs(int) const override { return {}; }
+  FrameNeeds needs_ever() const override { return {}; }
+  void write(const Solver& s, const FieldBuilder* field, int frame) override;
+  // Closes the file; a write error is an OutputError.
+  void finish();
+
+ private:
+  std::ofstream csv_;
+  std::string path_, flag_;
+  double back_wall_x_, spacing_, mass_;
+};
+
+// "FLAG: cannot write 'PATH': reason", the reason from errno when a write set it.
+std::string write_failure(const std::string& flag, const std::string& path);
+
+}  // namespace sphray

@@ -1,0 +1,45 @@
+// The PNG sink of `run --frames-dir` and `render`: renders a solver's current
+// particles from the field built for them and writes the image.
+#pragma once
+
+#include <memory>
+#include <string>
+
+#include "core/background.h"
+#include "render.h"
+
+namespace sphray {
+
+class FrameRenderer {
+ public:
+  // `dir` (may be empty when only render_to is used) is created; a directory
+  // that cannot be written is an error here, before any simulation, naming
+  // the option that gave it (`flag`).
+  FrameRenderer(const RenderSettings& rs, const Box& tank, Backend b, const FieldSetup& fs, const std::string& dir,
+                const std::string& flag = "--frames-dir");
+  ~FrameRenderer();  // writes what is queued; a failure is reported by finish()
+  // Renders dir/frame_NNNNNN.png; the PNG is encoded and written on a
+  // background thread (BackgroundQueue), so the run does not wait for it.
+  // Throws std::runtime_error if an earlier write failed.
+  void write_frame(const ParticleView& pv, const FieldBuilder& field, int frame);
+  void render_to(const ParticleView& pv, const FieldBuilder& field, const std::string& png_path);  // written at once
+  // Waits for the queued PNGs; throws std::runtime_error naming a failed write.
+  void finish();
+  int frames_written() const { return written_ + int(png_ ? png_->done() : 0); }
+  double mean_render_ms() const { return renders_ ? render_ms_ / renders_ : 0.0; }
+  const std::string& dir() const { return dir_; }
+
+ private:
+  Image render(const ParticleView& pv, const FieldBuilder& field);  // the image, its time counted
+
+  std::unique_ptr<Renderer> renderer_;
+  RenderSettings rs_;
+  Camera cam_;
+  Environment env_;
+  std::string dir_, flag_;  // flag_: the option that named dir_, for messages
+  int written_ = 0, renders_ = 0;
+  double render_ms_ = 0;
+  std::unique_ptr<BackgroundQueue> png_;  // with a directory: the PNG writer
+};
+
+}  // namespace sphray

@@ -1,0 +1,363 @@
+// The raycaster, once for both backends: one ray per pixel through the
+// density volume (field/volume.h), to the iso-surface and through it.
+//
+// All tracing is in voxel units (voxel centres at integer + 0.5, the frame of
+// VolumeGeom::to_voxels): the field is sampled there and the march step is a
+// fraction of a voxel. Per ray (docs/rendering.md has the reasoning):
+//  1. clip to the volume box; march with a step of at most half a voxel,
+//     jumping over SPH cells whose field is known to be zero (occupancy below);
+//  2. at a sign change of f - iso, refine between the last two samples: linear
+//     interpolation, then secant (regula falsi) steps that keep the bracket;
+//  3. normal from the central-difference gradient of the trilinear field;
+//  4. split with Schlick's Fresnel (Schlick 1994): the reflected part goes to
+//     the environment, the refracted part (Snell, index `ior`) is followed; a
+//     ray that cannot leave (total internal reflection) is reflected whole;
+//  5. repeat up to `interfaces` interfaces; Beer-Lambert absorption on every
+//     segment inside the liquid; the last ray goes to the environment.
+// Every contribution is weight x environment colour, and the weights of one
+// ray sum to at most 1 (exactly 1 without absorption): tests check it.
+// The optics are in optics.h, the camera and the surroundings in environment.h.
+#pragma once
+
+#include <cmath>
+#include <cstdint>
+
+#include "core/hd.h"
+#include "core/vec.h"
+#include "environment.h"
+#include "field/volume.h"
+#include "optics.h"
+
+namespace sphray {
+
+// Trilinear field lookup between voxel centres; zero outside the volume.
+struct TrilinearField {
+  const float* f;
+  int nx, ny, nz;
+
+  SPHRAY_HD SPHRAY_FORCEINLINE float at(int i, int j, int k) const {
+    if (i < 0 || j < 0 || k < 0 || i >= nx || j >= ny || k >= nz) return 0.0f;
+    return f[(size_t(k) * size_t(ny) + size_t(j)) * size_t(nx) + size_t(i)];
+  }
+  SPHRAY_HD SPHRAY_FORCEINLINE float operator()(Vec3f u) const {
+    const float x = u.x - 0.5f, y = u.y - 0.5f, z = u.z - 0.5f;
+    const float fx = std::floor(x), fy = std::floor(y), fz = std::floor(z);
+    const int i = int(fx), j = int(fy), k = int(fz);
+    const float a = x - fx, b = y - fy, c = z - fz;
+    const float c00 = at(i, j, k) * (1 - a) + at(i + 1, j, k) * a;
+    const float c10 = at(i, j + 1, k) * (1 - a) + at(i + 1, j + 1, k) * a;
+    const float c01 = at(i, j, k + 1) * (1 - a) + at(i + 1, j, k + 1) * a;
+    const float c11 = at(i, j + 1, k + 1) * (1 - a) + at(i + 1, j + 1, k + 1) * a;
+    return (c00 * (1 - b) + c10 * b) * (1 - c) + (c01 * (1 - b) + c11 * b) * c;
+  }
+};
+
+// Which SPH cells of the volume may hold field above zero: a cell whose
+// neighbourhood within `reach` cells has no particle has f = 0 everywhere in
+// it (no splat or gather reaches it, and neither does a trilinear lookup).
+struct Occupancy {
+  const uint8_t* occ;  // per volume cell, x fastest; null: every cell may be occupied
+  int cx, cy, cz;      // volume cells per axis
+  int cell;            // voxels per cell edge
+
+  SPHRAY_HD SPHRAY_FORCEINLINE bool empty_at(Vec3f u) const {
+    if (!occ) return false;
+    const int i = int(std::floor(u.x)) / cell, j = int(std::floor(u.y)) / cell, k = int(std::floor(u.z)) / cell;
+    if (u.x < 0.0f || u.y < 0.0f || u.z < 0.0f || i >= cx || j >= cy || k >= cz) return true;
+    return occ[(size_t(k) * size_t(cy) + size_t(j)) * size_t(cx) + size_t(i)] == 0;
+  }
+  // Distance along d from u to the far side of u's cell.
+  SPHRAY_HD SPHRAY_FORCEINLINE float cell_exit(Vec3f u, Vec3f d) const {
+    const float c = float(cell);
+    const float uu[3] = {u.x, u.y, u.z}, dd[3] = {d.x, d.y, d.z};
+    float t = 1e30f;
+    for (int k = 0; k < 3; ++k) {
+      if (dd[k] == 0.0f) continue;
+      const float base = std::floor(uu[k] / c) * c;
+      const float wall = dd[k] > 0.0f ? base + c : base;
+      const float tk = (wall - uu[k]) / dd[k];
+      t = tk < t ? tk : t;
+    }
+    return t;
+  }
+};
+
+// The per-cell occupancy functor: one thread per volume cell.
+struct BuildOccupancy {
+  VolumeGeom vol;
+  GridGeom grid;
+  const uint32_t* offsets;
+  int reach;  // cells
+  uint8_t* occ;
+
+  SPHRAY_HD void operator()(uint32_t c) const {
+    const int cx = vol.nx >> vol.refine, cy = vol.ny >> vol.refine;
+    const int i = int(c % uint32_t(cx)), j = int((c / uint32_t(cx)) % uint32_t(cy)), k = int(c / uint32_t(cx * cy));
+    uint8_t any = 0;
+    for (int dk = -reach; dk <= reach && !any; ++dk)
+      for (int dj = -reach; dj <= reach && !any; ++dj)
+        for (int di = -reach; di <= reach && !any; ++di) {
+          const int gx = vol.cell0[0] + i + di, gy = vol.cell0[1] + j + dj, gz = vol.cell0[2] + k + dk;
+          if (gx < 0 || gy < 0 || gz < 0 || gx >= grid.nx || gy >= grid.ny || gz >= grid.nz) continue;
+          const uint32_t key = (uint32_t(gz) * uint32_t(grid.ny) + uint32_t(gy)) * uint32_t(grid.nx) + uint32_t(gx);
+          any = offsets[key + 1] > offsets[key];
+        }
+    occ[c] = any;
+  }
+};
+
+struct TraceSettings {
+  float iso;
+  float step;        // march step [voxels], at most 0.5
+  int interfaces;    // 1 .. 8
+  float ior;         // liquid / air
+  Rgb absorption;    // Beer-Lambert coefficient per voxel of path
+  int secant_steps;  // after the linear interpolation
+};
+
+// What a test may watch (the renderer passes NoTrace: compiled away).
+struct NoTrace {
+  SPHRAY_HD void segment(Vec3f, Vec3f, bool) const {}
+  SPHRAY_HD void interface(Vec3f, Vec3f, Vec3f, bool, float) const {}
+  SPHRAY_HD void contribution(Rgb) const {}
+};
+
+template <class Field>
+struct Tracer {
+  Field field;
+  Occupancy occupancy;
+  Vec3f box_hi;  // the volume box is [0, box_hi] in voxels
+  Environment env;
+  TraceSettings ts;
+
+  // March from o along d for at most t_max, looking for f crossing iso in
+  // the direction that leaves the current side (inside: f >= iso). Returns
+  // the refined distance, or -1 when no crossing comes before t_max.
+  SPHRAY_HD float find_crossing(Vec3f o, Vec3f d, float t_max, bool inside) const {
+    const float iso = ts.iso;
+    float t = 0.0f;
+    float g = field(o) - iso;
+    // `inside` is what the last interface decided, not the sign of g here: a
+    // ray that starts on the surface looks for the next crossing out of its state.
+    while (t < t_max) {
+      if (!inside && occupancy.empty_at(o + d * t)) {
+        t += occupancy.cell_exit(o + d * t, d) + 1e-3f;
+        if (t >= t_max) return -1.0f;
+        g = field(o + d * t) - iso;
+        continue;
+      }
+      float tn = t + ts.step;
+      if (tn > t_max) tn = t_max;
+      const float gn = field(o + d * tn) - iso;
+      const bool crossed = inside ? gn < 0.0f : gn >= 0.0f;
+      if (crossed) {
+        // linear interpolation between the two samples, then regula falsi
+        float ta = t, ga = g, tb = tn, gb = gn;
+        float tm = ga != gb ? ta + (tb - ta) * (ga / (ga - gb)) : tb;
+        for (int s = 0; s < ts.secant_steps; ++s) {
+          const float gm = field(o + d * tm) - iso;
+          if ((gm >= 0.0f) == (ga >= 0.0f)) { ta = tm; ga = gm; }
+          else { tb = tm; gb = gm; }
+          if (ga == gb) break;
+          tm = ta + (tb - ta) * (ga / (ga - gb));
+        }
+        return tm;
+      }
+      t = tn;
+      g = gn;
+    }
+    return -1.0f;
+  }
+
+  // Outward normal (toward lower field) at u.
+  SPHRAY_HD Vec3f normal(Vec3f u) const {
+    const float h = 0.5f;
+    const Vec3f gr{field(u + Vec3f{h, 0, 0}) - field(u - Vec3f{h, 0, 0}),
+                   field(u + Vec3f{0, h, 0}) - field(u - Vec3f{0, h, 0}),
+                   field(u + Vec3f{0, 0, h}) - field(u - Vec3f{0, 0, h})};
+    const float l2 = dot(gr, gr);
+    if (!(l2 > 0.0f)) return Vec3f{0, 0, 0};
+    return gr * (-1.0f / std::sqrt(l2));
+  }
+
+  // The colour seen along the ray o + t d (o, d in voxel units, d unit).
+  template <class Watch = NoTrace>
+  SPHRAY_HD Rgb trace(Vec3f o, Vec3f d, const Watch& watch = Watch{}) const {
+    Rgb colour{0, 0, 0}, w{1, 1, 1};
+    Vec3f p, entry_n;
+    bool on_face;
+    if (!enter(o, d, p, entry_n, on_face)) {
+      watch.contribution(w);
+      return env(o, d);
+    }
+    bool inside = field(p) >= ts.iso;
+    int k = 0;
+    if (inside && on_face) {
+      // The liquid touches the face it enters through (the tank's glass):
+      // an interface with the face's normal, not the field's.
+      inside = false;
+      interface_at(p, entry_n, d, inside, w, colour, watch);
+      ++k;
+    }
+    bool stopped = false;  // on the floor or an opaque wall (wall_face)
+    int wall_face = 4;
+    for (; k < ts.interfaces && !stopped; ++k) {
+      float b0, b1;
+      ray_box(p, d, Vec3f{0, 0, 0}, box_hi, b0, b1);
+      const float t_box = b1 > 0.0f ? b1 : 0.0f;
+      // The tank face the ray would leave through: an opaque one stops it; past
+      // a glass one there is no liquid; the top lets it go on.
+      float t_wall = 1e30f, t_glass = 1e30f;
+      int face = 5;
+      if (env.in_tank(p)) {
+        float te;
+        face = env.exit_face(p, d, te);
+        if (env.opaque(face)) t_wall = te;
+        else if (face < 4) t_glass = te;
+      }
+      float t_max = t_wall < t_box ? t_wall : t_box;
+      t_max = t_glass < t_max ? t_glass : t_max;
+      const float th = find_crossing(p, d, t_max, inside);
+      const float len = th >= 0.0f ? th : t_max;
+      watch.segment(p, p + d * len, inside);
+      if (inside) absorb(w, len);
+      if (th < 0.0f) {
+        if (t_wall <= t_box && t_wall <= t_glass) {  // the tank stops the ray: the environment at the wall
+          p = p + d * t_wall;
+          wall_face = face;
+          stopped = true;
+          break;
+        }
+        if (t_glass < t_box) {  // at the glass: out of the liquid through it, or already in air
+          p = p + d * t_glass;
+          if (!inside) break;
+          interface_at(p, face_normal(face), d, inside, w, colour, watch);
+          if (!inside) break;  // refracted out of the tank: nothing more to meet
+          continue;            // totally reflected back into the liquid
+        }
+        if (!inside) break;  // left the volume: the environment
+        // still inside at the box: leave through the tank's glass
+        p = p + d * t_max;
+        interface_at(p, box_face_normal(p), d, inside, w, colour, watch);
+        continue;
+      }
+      p = p + d * th;
+      Vec3f n = normal(p);
+      if (n.x == 0.0f && n.y == 0.0f && n.z == 0.0f) n = -d;
+      interface_at(p, n, d, inside, w, colour, watch);
+    }
+    watch.contribution(w);
+    // A ray that met no interface looks at the environment from its own
+    // origin (the volume box reaches below the floor, where the ground would
+    // otherwise be seen from underneath).
+    if (stopped) return colour + w * env.surface(wall_face, p, d);
+    return colour + w * env(k == 0 ? o : p, d);
+  }
+
+ private:
+  // Where the ray o + t d starts looking for liquid: on the volume box (or at
+  // o inside it) and within the tank's walls. The liquid stays within them:
+  // a ray that starts in the volume's margin goes on to where it enters them
+  // (through glass: an opaque wall or the floor seen from outside is the
+  // environment's). False when the ray can meet no liquid. `on_face`: p lies
+  // on a face the ray entered through, whose normal is `entry_n`.
+  SPHRAY_HD SPHRAY_FORCEINLINE bool enter(Vec3f o, Vec3f d, Vec3f& p, Vec3f& entry_n, bool& on_face) const {
+    float t0, t1;
+    if (!ray_box(o, d, Vec3f{0, 0, 0}, box_hi, t0, t1)) return false;
+    p = t0 > 0.0f ? o + d * t0 : o;
+    entry_n = box_face_normal(p);
+    on_face = t0 > 0.0f;
+    if (env.within_walls(p)) return true;
+    float e0, e1;
+    const Vec3f hi{env.tank_hi.x, env.tank_hi.y, box_hi.z + 1.0f};
+    if (!ray_box(p, d, env.tank_lo, hi, e0, e1) || e1 <= 0.0f) return false;
+    p = p + d * (e0 > 0.0f ? e0 : 0.0f);
+    const int face = nearest_face(p, env.tank_lo, env.tank_hi, 5);
+    if (face < 4 && env.opaque(face)) return false;  // an opaque wall from outside: no liquid seen through it
+    entry_n = face_normal(face);
+    on_face = true;
+    return true;
+  }
+
+  SPHRAY_HD Vec3f box_face_normal(Vec3f p) const { return face_normal(nearest_face(p, Vec3f{0, 0, 0}, box_hi)); }
+
+  SPHRAY_HD void absorb(Rgb& w, float len) const {
+    w.r *= std::exp(-ts.absorption.r * len);
+    w.g *= std::exp(-ts.absorption.g * len);
+    w.b *= std::exp(-ts.absorption.b * len);
+  }
+
+  // One interface at p with outward normal n_out: the reflected part to the
+  // environment, the refracted part followed (d, inside, w updated). Total
+  // internal reflection keeps everything inside.
+  template <class Watch>
+  SPHRAY_HD void interface_at(Vec3f& p, Vec3f n_out, Vec3f& d, bool& inside, Rgb& w, Rgb& colour,
+                              const Watch& watch) const {
+    const Vec3f n = dot(n_out, d) < 0.0f ? n_out : -n_out;  // facing the incoming ray
+    const float n1 = inside ? ts.ior : 1.0f, n2 = inside ? 1.0f : ts.ior;
+    const float cos_i = -dot(n, d);
+    Vec3f r;
+    float cos_t;
+    const Vec3f refl = reflect(d, n);
+    if (!refract(d, n, n1 / n2, r, cos_t)) {  // total internal reflection
+      watch.interface(p, n, refl, true, 1.0f);
+      d = refl;
+      return;
+    }
+    const float F = schlick(n1, n2, n1 <= n2 ? cos_i : cos_t);
+    const Rgb wr = w * F;
+    watch.contribution(wr);
+    colour = colour + wr * env(p, refl);
+    watch.interface(p, n, r, false, F);
+    w = w * (1.0f - F);
+    d = normalized(r);
+    inside = !inside;
+  }
+};
+
+// sRGB-ish encoding of a linear colour to 8 bits (gamma 2.2, clamped).
+SPHRAY_HD SPHRAY_FORCEINLINE uint32_t encode_rgba8(Rgb c) {
+  auto q = [](float v) {
+    v = v < 0.0f ? 0.0f : (v > 1.0f ? 1.0f : v);
+    return uint32_t(std::pow(v, 1.0f / 2.2f) * 255.0f + 0.5f);
+  };
+  return q(c.r) | (q(c.g) << 8) | (q(c.b) << 16) | (255u << 24);
+}
+
+// One thread per pixel, in 8 x 8 tiles (neighbouring threads trace
+// neighbouring rays: coherent branches and field reads): camera ray (world)
+// to voxel units, trace, encode.
+struct PixelTiles {
+  static constexpr int kTile = 8;
+  int width, height;
+  SPHRAY_HD SPHRAY_FORCEINLINE int tiles_x() const { return (width + kTile - 1) / kTile; }
+  SPHRAY_HD SPHRAY_FORCEINLINE uint32_t items() const {
+    return uint32_t(tiles_x()) * uint32_t((height + kTile - 1) / kTile) * uint32_t(kTile * kTile);
+  }
+  // Pixel of item idx; false outside the image (the last row and column of tiles).
+  SPHRAY_HD SPHRAY_FORCEINLINE bool pixel(uint32_t idx, int& x, int& y) const {
+    const uint32_t tile = idx / uint32_t(kTile * kTile), in = idx % uint32_t(kTile * kTile);
+    x = int(tile % uint32_t(tiles_x())) * kTile + int(in % kTile);
+    y = int(tile / uint32_t(tiles_x())) * kTile + int(in / kTile);
+    return x < width && y < height;
+  }
+};
+
+template <class Field>
+struct RaycastPixels {
+  Camera cam;
+  Tracer<Field> tracer;
+  Vec3f origin;  // volume origin [m]
+  float inv_voxel;
+  uint32_t* rgba;  // width x height, row 0 at the top
+
+  SPHRAY_HD void operator()(uint32_t idx) const {
+    int x, y;
+    if (!PixelTiles{cam.width, cam.height}.pixel(idx, x, y)) return;
+    const Vec3f d = cam.direction(float(x) + 0.5f, float(y) + 0.5f);
+    const Vec3f o = (cam.eye - origin) * inv_voxel;
+    rgba[size_t(y) * size_t(cam.width) + size_t(x)] = encode_rgba8(tracer.trace(o, d));
+  }
+};
+
+}  // namespace sphray

@@ -1,0 +1,83 @@
+#include "render.h"
+
+#include <cmath>
+
+
+namespace sphray {
+
+namespace {
+
+Vec3f to_f(Vec3d v) { return {float(v.x), float(v.y), float(v.z)}; }
+
+
+}  // namespace
+
+Camera look_at(Vec3d eye, Vec3d target, double fov_deg, int width, int height) {
+  Camera c{};
+  const Vec3d f = (target - eye) * (1.0 / length(target - eye));
+  Vec3d right{f.y, -f.x, 0.0};  // f x (0, 0, 1)
+  if (length(right) < 1e-9) right = {1, 0, 0};  // looking straight up or down
+  right = right * (1.0 / length(right));
+  const Vec3d up{right.y * f.z - right.z * f.y, right.z * f.x - right.x * f.z, right.x * f.y - right.y * f.x};
+  c.eye = to_f(eye);
+  c.forward = to_f(f);
+  c.right = to_f(right);
+  c.up = to_f(up);
+  c.tan_half_fov = float(std::tan(fov_deg * M_PI / 360.0));
+  c.width = width;
+  c.height = height;
+  return c;
+}
+
+void camera_points(const Box& tank, const RenderSettings& r, Vec3d& eye, Vec3d& target) {
+  eye = r.eye;
+  target = r.target;
+  if (length(eye - target) > 0) return;
+  // Three-quarter view from the front (-y), a little to the right and above,
+  // far enough that the whole tank fits the field of view.
+  const Vec3d lo = tank.min, hi = tank.max, size = hi - lo;
+  target = {lo.x + 0.5 * size.x, lo.y + 0.5 * size.y, lo.z + 0.3 * size.z};
+  Vec3d dir{0.3, -1.0, 0.55};
+  dir = dir * (1.0 / length(dir));
+  const double tan_half = std::tan(r.fov * M_PI / 360.0), aspect = double(r.width) / double(r.height);
+  eye = target + dir * (0.5 * length(size) / std::min(tan_half, tan_half * aspect) * 0.95);
+}
+
+Camera make_camera(const Box& tank, const RenderSettings& r) {
+  Vec3d eye, target;
+  camera_points(tank, r, eye, target);
+  return look_at(eye, target, r.fov, r.width, r.height);
+}
+
+Environment make_environment(const Box& tank, const VolumeGeom& vol, const Camera& cam) {
+  const Vec3d size = tank.max - tank.min;
+  Environment e{};
+  e.tank_lo = vol.to_voxels(to_f(tank.min));
+  e.tank_hi = vol.to_voxels(to_f(tank.max));
+  e.tile = float(std::max(size.x, size.y) / 16.0 / vol.voxel);
+  e.sun = normalized(Vec3f{0.45f, 0.25f, 0.86f});
+  // a wall is glass when the camera is on its outer side
+  e.glass = (cam.eye.x < tank.min.x ? 1 : 0) | (cam.eye.x > tank.max.x ? 2 : 0) |
+            (cam.eye.y < tank.min.y ? 4 : 0) | (cam.eye.y > tank.max.y ? 8 : 0);
+  return e;
+}
+
+TraceSettings make_trace_settings(const RenderSettings& r, const FieldSetup& fs) {
+  const double v = fs.geom.voxel;
+  return TraceSettings{fs.shape.iso,
+                       r.step,
+                       r.interfaces,
+                       r.ior,
+                       Rgb{float(r.absorption.x * v), float(r.absorption.y * v), float(r.absorption.z * v)},
+                       r.secant_steps};
+}
+
+std::unique_ptr<Renderer> make_renderer(Backend b) {
+  return b == Backend::Cuda ? make_cuda_renderer() : make_cpu_renderer();
+}
+
+#if !defined(SPHRAY_HAVE_CUDA)
+std::unique_ptr<Renderer> make_cuda_renderer() { throw_no_cuda(); }
+#endif
+
+}  // namespace sphray

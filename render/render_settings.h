@@ -1,0 +1,27 @@
+// What a render asks for: the scene's "render" section (docs/scenes.md),
+// with its defaults in one place. Kept apart from render.h so that the scene
+// does not pull in the renderer.
+#pragma once
+
+#include "core/config_reader.h"
+#include "core/vec.h"
+
+namespace sphray {
+
+struct RenderSettings {
+  int width = 640, height = 360;
+  int interfaces = 4;       // interfaces followed per ray, 1 .. 8
+  float step = 0.5f;        // march step [voxels], (0, 0.5]
+  int secant_steps = 3;     // after the linear interpolation of a hit
+  float ior = 1.33f;        // refractive index of the liquid
+  Vec3d absorption{1.2, 0.35, 0.2};  // Beer-Lambert [1/m], r g b
+  bool skip_empty = true;   // empty-space skipping over unoccupied SPH cells
+  // Camera [m]; eye == target means "auto" (a three-quarter view of the tank).
+  Vec3d eye{0, 0, 0}, target{0, 0, 0};
+  double fov = 40;          // vertical, degrees
+  int frames_every = 1;     // --frames-dir: a PNG every K-th output frame
+};
+
+RenderSettings read_render_settings(const ConfigReader& r);
+
+}  // namespace sphray

@@ -1,0 +1,9 @@
+#include "solver.h"
+
+namespace sphray {
+
+#if !defined(SPHRAY_HAVE_CUDA)
+std::unique_ptr<Solver> make_cuda_solver(const SolverInput&) { throw_no_cuda(); }
+#endif
+
+}  // namespace sphray

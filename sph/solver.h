@@ -1,0 +1,126 @@
+// The SPH solver as the host sees it: one interface, two backends built from
+// one source (sph/solver_impl.inl). The pipeline and the tests only talk
+// to this interface.
+#pragma once
+
+#include <array>
+#include <cstdint>
+#include <functional>
+#include <memory>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+#include "core/device.h"
+#include "core/host_memory.h"
+#include "nsearch/grid.h"
+#include "integrate.h"  // StepLimits
+#include "params.h"
+
+namespace sphray {
+
+// When the pair loop also computes particle presence: never, every step, or
+// only on a step that may reach the time its step() call was given (the last
+// one or two steps before an output frame, whose field builder reads it).
+enum class PresenceMode { Off, EveryStep, AtUntil };
+
+// A run that cannot go on (non-finite value, time step below its floor).
+struct SimulationError : std::runtime_error {
+  using std::runtime_error::runtime_error;
+};
+
+struct SolverInput {
+  SphParams params;
+  GridGeom grid;
+  std::vector<Float4> fluid_pos_rho;  // x, y, z, initial density
+  std::vector<Float4> fluid_vel;      // vx, vy, vz, - (the solver keeps p / rho^2 in w)
+  std::vector<Float4> boundary;       // x, y, z, volume
+  std::vector<float> boundary_alpha;  // wall viscosity per boundary particle (0 = free slip)
+  // Step control, from the scene (sph.cfl, run.min_dt, run.max_dt; their
+  // defaults are the scene's).
+  float cfl = 0;
+  float min_dt = 0;  // a step below this is an error
+  float max_dt = 0;
+  PresenceMode presence = PresenceMode::Off;  // only when a later stage needs it
+  // Words per particle kept in each pair mask (nsearch/pair_masks.h); -1:
+  // pair_mask_capacity of the support. A particle needing more is served by
+  // the direct loop (the tests use 0 and 1 to check that path).
+  int pair_mask_words = -1;
+};
+
+// Host copy of the fluid state, in the solver's current (sorted) order.
+struct HostParticles {
+  std::vector<uint32_t> id;  // index in the initial particle list
+  std::vector<Vec3f> pos, vel;
+  std::vector<float> density;
+  std::vector<std::array<float, 6>> presence;  // empty when presence is off
+};
+
+// The solver's current fluid state where its backend keeps it (device pointers
+// on CUDA), for later stages that run on the same backend (the field builder).
+// Valid until the next step. Particles are sorted by cell and `offsets` matches
+// their positions exactly (the grid is rebuilt at the end of every step).
+struct ParticleView {
+  Backend backend{};
+  uint32_t n = 0;
+  const Float4* pos = nullptr;        // x, y, z, density
+  const uint32_t* offsets = nullptr;  // grid.num_cells() + 1
+  const float* presence = nullptr;    // [6][n] (+x,-x,+y,-y,+z,-z); null unless the last step computed it
+  GridGeom grid{};
+};
+
+// Device buffers copied as they are (sorted order, no conversion), for sinks
+// that convert on another thread (the HDF5 export).
+// Pinned where the backend provides it (host_memory.h).
+struct RawParticles {
+  PinnedVector<Float4> pos;      // x, y, z, density
+  PinnedVector<Float4> vel;      // vx, vy, vz, - (empty unless asked for)
+  PinnedVector<uint32_t> id;
+  PinnedVector<float> presence;  // [6][n] (empty unless asked for and computed)
+  // Call before reading: the copies may still be running (CUDA). Empty: done.
+  std::function<void()> ready;
+};
+
+// Milliseconds of the last step. pairs: the wall pressure and the one
+// neighbour loop of forces, density rate and presence (interaction.h);
+// integrate: the step-size reduction and the kick/density/drift; grid: the
+// sort, the cell tables and the next step's pair masks.
+struct StageTimes {
+  double grid = 0, pairs = 0, integrate = 0;
+  double total() const { return grid + pairs + integrate; }
+};
+
+class Solver {
+ public:
+  virtual ~Solver() = default;
+  virtual Backend backend() const = 0;
+  // Advances one adaptive step, never past `until` [s]. Throws SimulationError.
+  virtual void step(double until) = 0;
+  virtual double time() const = 0;
+  virtual uint64_t steps() const = 0;
+  virtual size_t num_fluid() const = 0;       // particles still in the run
+  virtual size_t num_removed() const = 0;     // left the grid (open top) and dropped
+  virtual uint64_t num_clamped() const = 0;   // particle-steps put back on a wall face
+  virtual const StepLimits& last_limits() const = 0;
+  virtual const StageTimes& last_stage_times() const = 0;
+  // Presence is computed by the steps that follow as the mode says (its
+  // buffers are allocated on the first mode other than Off); has_presence()
+  // says whether the last step computed it.
+  virtual void set_presence(PresenceMode mode) = 0;
+  virtual PresenceMode presence_mode() const = 0;
+  virtual bool has_presence() const = 0;
+  virtual ParticleView view() const = 0;
+  virtual size_t device_bytes() const = 0;    // buffers this solver holds
+  virtual HostParticles download() const = 0;
+  virtual void download_raw(RawParticles& out, bool velocity, bool presence) const = 0;
+  virtual std::vector<Vec3f> boundary_positions() const = 0;  // the static wall particles
+  // Cell offsets of the fluid grid (num_cells + 1): cell c holds sorted particles
+  // [offsets[c], offsets[c+1]); its particle count is the difference.
+  virtual std::vector<uint32_t> download_cell_offsets() const = 0;
+};
+
+std::unique_ptr<Solver> make_cpu_solver(const SolverInput& in);
+std::unique_ptr<Solver> make_cuda_solver(const SolverInput& in);  // throws if CUDA is unavailable
+
+
+}  // namespace sphray

@@ -1,0 +1,30 @@
+// CUDA build of the SPH solver: the shared implementation on the CUDA backend.
+#include "core/launch_cuda.cuh"
+#include "stages.h"
+
+#define SPHRAY_BK cuda_backend
+namespace sphray::cuda_backend {
+#include "solver_impl.inl"
+}  // namespace sphray::cuda_backend
+
+namespace sphray {
+
+std::unique_ptr<Solver> make_cuda_solver(const SolverInput& in) {
+  if (!cuda_available()) throw std::runtime_error("the CUDA backend was asked for, but no CUDA device is present");
+  // The export's snapshots in page-locked memory: their copies off the device
+  // run about twice as fast (host_memory.h). Installed once per process.
+  static const bool pinned = [] {
+    set_pinned_provider({[](size_t bytes) -> void* {
+                           void* p = nullptr;
+                           if (cudaMallocHost(&p, bytes) == cudaSuccess) return p;
+                           cudaGetLastError();  // not left for the next launch check to find
+                           return nullptr;
+                         },
+                         [](void* p) { cudaFreeHost(p); }});
+    return true;
+  }();
+  (void)pinned;
+  return std::make_unique<cuda_backend::SolverImpl>(in);
+}
+
+}  // namespace sphray

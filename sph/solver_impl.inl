@@ -1,0 +1,356 @@
+// One SPH step, written once for both backends. Included by solver_cpu.cpp and
+// solver_cuda.cu inside their backend namespace (which supplies Vector, raw,
+// policy, parallel_for, transform_reduce_into, ReadBack, upload, download, read_one,
+// StageClock and kBackend).
+// Stages: grid, pairs (forces, density rate and presence in one neighbour
+// loop, interaction.h), integrate (integrate.h says why in that order). The
+// grid is rebuilt at the end of a step (and once at construction), so between
+// steps the cell table matches the positions exactly: the field builder reads
+// both as they are (view()).
+
+// Its dependencies come from stages.h, included first outside the namespace.
+
+#include "nsearch/sort.inl"
+
+// The particle data into the new sorted order, one kernel for all of it
+// (one read of the order): out[i] = in[order[i]] for the first n_new sorted
+// particles. Presence, when there is one, [6][n_old] -> [6][n_new].
+struct GatherParticles {
+  const uint32_t* order;
+  ConstParticleArrays in;  // presence null: none to carry
+  uint32_t n_old;
+  ParticleArrays out;
+  uint32_t n_new;
+  SPHRAY_HD void operator()(uint32_t i) const {
+    const uint32_t j = order[i];
+    out.pos[i] = in.pos[j];
+    out.vel[i] = in.vel[j];
+    out.flow[i] = in.flow[j];
+    out.id[i] = in.id[j];
+    out.status[i] = in.status[j];
+    if (in.presence)
+      for (uint32_t k = 0; k < 6; ++k) out.presence[k * n_new + i] = in.presence[k * n_old + j];
+  }
+};
+
+class SolverImpl final : public Solver {
+ public:
+  explicit SolverImpl(const SolverInput& in)
+      : prm_(in.params), grid_(in.grid), cfl_(in.cfl), min_dt_(in.min_dt), max_dt_(in.max_dt),
+        n_(uint32_t(in.fluid_pos_rho.size())) {
+    const size_t n = n_, cells = size_t(grid_.num_cells()) + 1, slabs = size_t(grid_.num_fine_cells()) + 1;
+    upload(pos_, in.fluid_pos_rho);
+    upload(vel_, in.fluid_vel);
+    flow_ = vel_;  // u = v until there is an acceleration to predict with
+    std::vector<uint32_t> ids(n);
+    for (size_t i = 0; i < n; ++i) ids[i] = uint32_t(i);
+    upload(id_, ids);
+    pos_tmp_.resize(n); vel_tmp_.resize(n); flow_tmp_.resize(n); id_tmp_.resize(n);
+    accel_.resize(n); rate_grad_.resize(n);
+    status_.assign(n, uint8_t(kStatusOk)); status_tmp_.resize(n);
+    keys_.resize(n); order_.resize(n); offsets_.resize(cells); fine_offsets_.resize(slabs);
+    mask_words_ = in.pair_mask_words >= 0 ? uint32_t(in.pair_mask_words)
+                                          : pair_mask_capacity(double(prm_.kernel.support()) / double(prm_.spacing));
+    fluid_pairs_.resize(size_t(mask_words_) * n);
+    boundary_pairs_.resize(size_t(mask_words_) * n);
+    fluid_pair_count_.resize(n);
+    boundary_pair_count_.resize(n);
+    parallel_for("pressure_term", n_, PressureTermOf{prm_, raw(pos_), raw(flow_)});
+    set_presence(in.presence);
+
+    // Static walls: sorted by the same grid once.
+    const uint32_t nb = uint32_t(in.boundary.size());
+    Vector<Float4> boundary_in;
+    upload(boundary_in, in.boundary);
+    Vector<float> alpha_in;
+    upload(alpha_in, in.boundary_alpha);
+    Vector<uint32_t> bkeys(nb), border(nb);
+    boundary_.resize(nb);
+    boundary_alpha_.resize(nb);
+    wall_.resize(nb);
+    boundary_offsets_.resize(slabs);
+    parallel_for("wall_keys", nb, KeyOf<Float4>{grid_, raw(boundary_in), raw(bkeys)});
+    sort_and_offsets(grid_, nb, bkeys, border, boundary_offsets_, nullptr);
+    thrust::gather(policy(), border.begin(), border.end(), boundary_in.begin(), boundary_.begin());
+    thrust::gather(policy(), border.begin(), border.end(), alpha_in.begin(), boundary_alpha_.begin());
+    boundary_near_.resize(grid_.num_cells());
+    fluid_near_.resize(grid_.num_cells());
+    parallel_for("wall_cells_near", grid_.num_cells(), CellsNear{grid_, raw(boundary_offsets_), raw(boundary_near_)});
+    build_grid();
+  }
+
+  Backend backend() const override { return kBackend; }
+  double time() const override { return t_; }
+  uint64_t steps() const override { return steps_; }
+  size_t num_fluid() const override { return n_; }
+  size_t num_removed() const override { return removed_; }
+  uint64_t num_clamped() const override {
+    // Clamps of the last integration are not yet in clamped_total_.
+    return clamped_total_ + uint64_t(thrust::count(policy(), status_.begin(), status_.begin() + n_, uint8_t(kStatusClamped)));
+  }
+  const StepLimits& last_limits() const override { return limits_; }
+  const StageTimes& last_stage_times() const override { return times_; }
+  bool has_presence() const override { return presence_valid_; }
+  PresenceMode presence_mode() const override { return presence_mode_; }
+  void set_presence(PresenceMode mode) override {
+    presence_mode_ = mode;
+    if (mode != PresenceMode::Off && presence_.size() < 6 * size_t(n_)) {  // allocated on first use only
+      presence_.resize(6 * size_t(n_));
+      presence_tmp_.resize(6 * size_t(n_));
+    }
+  }
+  ParticleView view() const override {
+    return {kBackend, n_, raw(pos_), raw(offsets_), presence_valid_ ? raw(presence_) : nullptr, grid_};
+  }
+
+  size_t device_bytes() const override {
+    auto b = [](const auto& v) { return v.size() * sizeof(typename std::decay_t<decltype(v)>::value_type); };
+    return b(pos_) + b(vel_) + b(flow_) + b(pos_tmp_) + b(vel_tmp_) + b(flow_tmp_) + b(accel_) + b(rate_grad_) + b(presence_) + b(presence_tmp_) + b(id_) +
+           b(id_tmp_) + b(status_) + b(status_tmp_) + b(keys_) + b(order_) + b(offsets_) + b(fine_offsets_) + b(boundary_) +
+           b(boundary_alpha_) + b(wall_) + b(boundary_offsets_) + b(fluid_pairs_) + b(boundary_pairs_) +
+           b(fluid_pair_count_) + b(boundary_pair_count_) + b(fluid_near_) + b(boundary_near_) + b(snap_pos_) +
+           b(snap_vel_) + b(snap_id_) + b(snap_presence_);
+  }
+
+  // Stage order: pairs (wall pressure, then one neighbour loop for the
+  // acceleration, the density rate and presence), the step size from their
+  // extremes, integrate (kick, density, drift), grid.
+  void step(double until) override {
+    // Presence is computed in the pair loop, before dt is known: on every
+    // step that may reach `until` (dt can only be smaller than the bound).
+    const bool presence_now = presence_mode_ == PresenceMode::EveryStep ||
+                              (presence_mode_ == PresenceMode::AtUntil && t_ + dt_bound() >= until - 1e-12);
+    clock_.start();
+    if (prm_.kernel.type == KernelType::WendlandC2) pairs<KernelType::WendlandC2>(presence_now);
+    else pairs<KernelType::CubicSpline>(presence_now);
+    presence_valid_ = presence_now;
+    clock_.end_of("pairs");
+    // The step's size is chosen on the device (integrate.h, ChooseStep), so
+    // that nothing waits for the host between the reduction and the kick; the
+    // host reads the decision once the step's work is done, and raises its
+    // error then (a refused step moves no particle).
+    StepControl* control = raw(control_);
+    transform_reduce_into(n_, StepStatsOf{raw(pos_), raw(vel_), raw(accel_), raw(status_)}, CombineStepStats(),
+                          kEmptyStepStats, &control->stats);
+    parallel_for("choose_step", 1, ChooseStep{step_rule(), min_dt_, std::max(until - t_, 0.0), control, raw(pos_), raw(vel_),
+                               raw(accel_), raw(id_)});
+    parallel_for("advance", n_, Advance{prm_, control, raw(pos_), raw(vel_), raw(flow_), raw(accel_), raw(rate_grad_), raw(status_)});
+    control_read_.start(control);
+    clock_.end_of("integrate");
+    build_grid();
+    clock_.end_of("grid");
+    clock_.finish();
+    const StepControl& c = control_read_.value();
+    if (c.outcome == kStepBadParticle) throw SimulationError(describe_bad_particle(c));
+    if (c.outcome == kStepSupersonic) throw SimulationError(describe_supersonic(c));
+    clamped_total_ += c.stats.clamped;
+    limits_ = c.limits;
+    if (c.outcome == kStepBelowFloor) throw SimulationError(describe_dt_floor());
+    times_ = {clock_.ms("grid"), clock_.ms("pairs"), clock_.ms("integrate")};
+    t_ += limits_.dt;
+    ++steps_;
+  }
+
+  HostParticles download() const override {
+    HostParticles h;
+    h.id = sphray::SPHRAY_BK::download(id_, n_);
+    const auto p = sphray::SPHRAY_BK::download(pos_, n_), v = sphray::SPHRAY_BK::download(vel_, n_);
+    h.pos.resize(n_); h.vel.resize(n_); h.density.resize(n_);
+    for (size_t i = 0; i < n_; ++i) {
+      h.pos[i] = xyz(p[i]);
+      h.vel[i] = xyz(v[i]);
+      h.density[i] = p[i].w;
+    }
+    if (presence_valid_) {
+      const auto pr = sphray::SPHRAY_BK::download(presence_, 6 * size_t(n_));
+      h.presence.resize(n_);
+      for (size_t i = 0; i < n_; ++i)
+        for (size_t k = 0; k < 6; ++k) h.presence[i][k] = pr[k * n_ + i];
+    }
+    return h;
+  }
+
+  // On CUDA the copies run behind the next steps (AsyncDownload): out.ready
+  // waits for them.
+  void download_raw(RawParticles& out, bool velocity, bool presence) const override {
+    snapshot_.begin();
+    auto copy = [&](const auto& src, auto& staging, auto& dst, size_t n) {
+      dst.resize(n);  // pinned memory on CUDA (host_memory.h)
+      if (n) snapshot_.copy(src, n, staging, dst.data());
+    };
+    copy(pos_, snap_pos_, out.pos, n_);
+    copy(id_, snap_id_, out.id, n_);
+    if (velocity) copy(vel_, snap_vel_, out.vel, n_);
+    else out.vel.clear();
+    if (presence && presence_valid_) copy(presence_, snap_presence_, out.presence, 6 * size_t(n_));
+    else out.presence.clear();
+    out.ready = snapshot_.done();
+  }
+
+  std::vector<Vec3f> boundary_positions() const override {
+    const auto b = sphray::SPHRAY_BK::download(boundary_, boundary_.size());
+    std::vector<Vec3f> out(b.size());
+    for (size_t k = 0; k < b.size(); ++k) out[k] = xyz(b[k]);
+    return out;
+  }
+
+  std::vector<uint32_t> download_cell_offsets() const override {
+    return sphray::SPHRAY_BK::download(offsets_, offsets_.size());
+  }
+
+ private:
+  template <bool P, bool Direct, KernelType K>
+  Interaction<P, Direct, K> pair_stage() {
+    const WallsIn walls{raw(boundary_offsets_), raw(boundary_), raw(wall_), raw(boundary_alpha_)};
+    const PairOut out{raw(accel_), raw(rate_grad_), P ? raw(presence_) : nullptr};
+    return {prm_, grid_, fluid_in(), walls, fluid_pairs(), boundary_pairs(), out, n_};
+  }
+
+  // The sorted fluid as the neighbour loops read it.
+  FluidIn fluid_in() const { return {raw(fine_offsets_), raw(pos_), raw(flow_)}; }
+
+  // The pairs stage: the wall pressure, then the pair loop. The kernel type K
+  // is a template parameter of both loops (kernel.h, W_for and dW_over_r_for).
+  template <KernelType K>
+  void pairs(bool presence) {
+    parallel_for("wall_pressure", uint32_t(boundary_.size()),
+                 WallPressure<K>{prm_, grid_, fluid_in(), raw(fluid_near_), raw(boundary_), raw(wall_)});
+    if (presence) pair_launches<true, K>();
+    else pair_launches<false, K>();
+  }
+
+  // The pair loop is two launches: the pair masks, then the direct loop for
+  // the particles whose masks overflowed (nsearch/pair_masks.h; usually none).
+  template <bool P, KernelType K>
+  void pair_launches() {
+    parallel_for("pair_loop", n_, pair_stage<P, false, K>());
+    parallel_for("pair_loop_direct", n_, pair_stage<P, true, K>());
+  }
+
+  PairMask fluid_pairs() { return {raw(fluid_pairs_), raw(fluid_pair_count_), n_, mask_words_}; }
+  PairMask boundary_pairs() { return {raw(boundary_pairs_), raw(boundary_pair_count_), n_, mask_words_}; }
+
+  void build_grid() {
+    parallel_for("fluid_keys", n_, KeyOf<Float4>{grid_, raw(pos_), raw(keys_)});
+    sort_and_offsets(grid_, n_, keys_, order_, fine_offsets_, &offsets_);
+    // Particles outside the grid (only possible through an open top: Advance
+    // keeps them inside a closed tank, whose grid holds its walls besides)
+    // sorted last: drop them. Reading their count waits for the sort, so a
+    // closed tank does not.
+    const uint32_t active = prm_.open_top ? read_one(offsets_, grid_.num_cells()) : n_;
+    const ConstParticleArrays in{raw(pos_), raw(vel_), raw(flow_), raw(id_), raw(status_),
+                                 presence_valid_ ? raw(presence_) : nullptr};
+    const ParticleArrays out{raw(pos_tmp_), raw(vel_tmp_), raw(flow_tmp_), raw(id_tmp_), raw(status_tmp_),
+                             raw(presence_tmp_)};
+    parallel_for("gather_particles", active, GatherParticles{raw(order_), in, n_, out, active});
+    pos_.swap(pos_tmp_);
+    vel_.swap(vel_tmp_);
+    flow_.swap(flow_tmp_);
+    id_.swap(id_tmp_);
+    status_.swap(status_tmp_);
+    if (presence_valid_) presence_.swap(presence_tmp_);
+    removed_ += n_ - active;
+    n_ = active;
+    parallel_for("fluid_cells_near", grid_.num_cells(), CellsNear{grid_, raw(fine_offsets_), raw(fluid_near_)});
+    // The pair masks of the next step's pair loop (nsearch/pair_masks.h), at these positions.
+    const float support2 = prm_.kernel.support() * prm_.kernel.support();
+    parallel_for("fluid_pair_masks", n_, BuildPairMask{grid_, raw(fine_offsets_), raw(pos_), raw(pos_), support2, true, fluid_pairs()});
+    parallel_for("wall_pair_masks", n_, BuildPairMask{grid_, raw(boundary_offsets_), raw(boundary_), raw(pos_), support2, false,
+                                   boundary_pairs(), raw(boundary_near_)});
+  }
+
+  // The viscous limit of dt: 0.125 h^2 / nu with the 3D equivalent viscosity of
+  // the artificial one (Monaghan 2005).
+  double dt_viscous() const {
+    const double h = prm_.kernel.h, nu_art = prm_.viscosity_alpha * h * prm_.speed_of_sound / 10.0;
+    return nu_art > 0 ? 0.125 * h * h / nu_art : std::numeric_limits<double>::infinity();
+  }
+
+  // An upper bound of the next dt: the step rule at zero speed and acceleration.
+  double dt_bound() const { return step_rule().limits(kEmptyStepStats).dt; }
+
+  StepRule step_rule() const {
+    return {double(prm_.kernel.h), double(prm_.speed_of_sound), cfl_, max_dt_, dt_viscous()};
+  }
+
+  // The message of a step refused for a dt below its floor (limits_ holds
+  // what bounded it).
+  std::string describe_dt_floor() const {
+    const StepLimits& l = limits_;
+    const char* by = l.dt_force < l.dt_cfl ? "the force limit" : "the CFL (sound speed) limit";
+    std::ostringstream os;
+    os << "time step " << l.dt << " s fell below the floor run.min_dt = " << min_dt_ << " s at t = " << t_
+       << " s (step " << steps_ << "), bounded by " << by << ": max speed " << l.max_speed
+       << " m/s, max acceleration " << l.max_accel << " m/s^2. The scene is too stiff or unstable at this "
+       << "resolution; raise sph.spacing, lower the speed of sound or check the initial state.";
+    return os.str();
+  }
+
+  std::string describe_supersonic(const StepControl& c) const {
+    const Float4 p = c.bad_pos, v = c.bad_vel;
+    std::ostringstream os;
+    os << "particle " << c.bad_id << " (initial index) moves at " << c.limits.max_speed
+       << " m/s, faster than the speed of sound c0 = " << prm_.speed_of_sound << " m/s, at step " << steps_
+       << " (t = " << t_ << " s), position (" << p.x << ", " << p.y << ", " << p.z << "), velocity (" << v.x << ", "
+       << v.y << ", " << v.z << "), density " << p.w << ". A weakly compressible fluid holds only well below its "
+       << "speed of sound; the run is stopped rather than continued with meaningless results. Raise "
+       << "sph.speed_of_sound (\"auto\" takes 10x the flow speed the scene can be expected to reach).";
+    return os.str();
+  }
+
+  std::string describe_bad_particle(const StepControl& c) const {
+    const Float4 p = c.bad_pos, v = c.bad_vel, a = c.bad_accel;
+    const uint32_t id = c.bad_id;
+    const char* what = !all_finite(xyz(p))   ? "position"
+                       : !std::isfinite(p.w) ? "density"
+                       : p.w <= 0            ? "density (not positive)"
+                       : !all_finite(xyz(v)) ? "velocity"
+                       : !all_finite(xyz(a)) ? "acceleration"
+                                             : "density rate";
+    std::ostringstream os;
+    os << "non-finite or invalid " << what << " at step " << steps_ << " (t = " << t_ << " s) in particle " << id
+       << " (initial index): position (" << p.x << ", " << p.y << ", " << p.z << "), density " << p.w
+       << ", velocity (" << v.x << ", " << v.y << ", " << v.z << "), acceleration (" << a.x << ", " << a.y
+       << ", " << a.z << "). The run is stopped rather than continued with garbage.";
+    return os.str();
+  }
+
+  SphParams prm_;
+  GridGeom grid_;
+  double cfl_, min_dt_, max_dt_;
+  uint32_t n_;
+  PresenceMode presence_mode_ = PresenceMode::Off;
+  bool presence_valid_ = false;
+  double t_ = 0;
+  uint64_t steps_ = 0;
+  size_t removed_ = 0;
+  uint64_t clamped_total_ = 0;
+  StepLimits limits_;
+  StageTimes times_;
+  StageClock clock_;
+  // The step's decision on the device (ChooseStep) and its copy for the host.
+  Vector<StepControl> control_ = Vector<StepControl>(1);
+  ReadBack<StepControl> control_read_;
+  // download_raw's staging buffers and copies (allocated by the first export).
+  mutable AsyncDownload snapshot_;
+  mutable Vector<Float4> snap_pos_, snap_vel_;
+  mutable Vector<uint32_t> snap_id_;
+  mutable Vector<float> snap_presence_;
+
+  // vel_: the exact velocity; flow_: what the pair loop reads of a neighbour,
+  // u (the predicted kicked velocity) and p / rho^2 (integrate.h).
+  Vector<Float4> pos_, vel_, flow_, pos_tmp_, vel_tmp_, flow_tmp_, accel_, rate_grad_, boundary_;
+  Vector<float> presence_, presence_tmp_, boundary_alpha_;
+  Vector<WallState> wall_;
+  // offsets_: coarse cell table (view(), the field builder, the raycaster);
+  // fine_offsets_ and boundary_offsets_: slab tables of the neighbour loops (grid.h).
+  Vector<uint32_t> id_, id_tmp_, keys_, order_, offsets_, fine_offsets_, boundary_offsets_;
+  // Pair masks of every fluid particle against the fluid and the walls (nsearch/pair_masks.h).
+  uint32_t mask_words_ = 0;
+  Vector<PairWord> fluid_pairs_, boundary_pairs_;
+  Vector<uint32_t> fluid_pair_count_, boundary_pair_count_;
+  Vector<uint8_t> status_, status_tmp_;
+  // Per grid cell: whether fluid (updated with the grid) or wall particles
+  // (static) lie in the 27 cells around it (CellsNear, grid.h).
+  Vector<uint8_t> fluid_near_, boundary_near_;
+};

@@ -1,0 +1,15 @@
+// Everything solver_impl.inl needs, included once outside the backend namespace.
+#pragma once
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <sstream>
+#include <string>
+#include <type_traits>
+
+#include "boundary.h"
+#include "integrate.h"
+#include "interaction.h"
+#include "nsearch/grid.h"
+#include "solver.h"
