@@ -114,9 +114,6 @@ class Solver {
   virtual HostParticles download() const = 0;
   virtual void download_raw(RawParticles& out, bool velocity, bool presence) const = 0;
   virtual std::vector<Vec3f> boundary_positions() const = 0;  // the static wall particles
-  // Cell offsets of the fluid grid (num_cells + 1): cell c holds sorted particles
-  // [offsets[c], offsets[c+1]); its particle count is the difference.
-  virtual std::vector<uint32_t> download_cell_offsets() const = 0;
 };
 
 std::unique_ptr<Solver> make_cpu_solver(const SolverInput& in);

@@ -194,10 +194,6 @@ class SolverImpl final : public Solver {
     return out;
   }
 
-  std::vector<uint32_t> download_cell_offsets() const override {
-    return sphray::SPHRAY_BK::download(offsets_, offsets_.size());
-  }
-
  private:
   template <bool P, bool Direct, KernelType K>
   Interaction<P, Direct, K> pair_stage() {
