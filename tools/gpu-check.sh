@@ -1,10 +1,13 @@
 #!/usr/bin/env bash
-# One call on the GPU machine (see shared/device/README.md): configure with CUDA,
-# build on all cores, run the cpu and gpu tests, the benchmarks and the CUDA
-# validation runs, leaving JSON and the test log under $OUT (at most 8 files
-# come back from the device tool; build logs stay in $B). Steps can be chosen:
-#   tools/gpu-check.sh [build] [test] [sanitize] [main] [bench] [field] [ncu-field] [export] [frame] [render] [validate] [viewer]
-#   (default: build test main bench validate; FIELD_SIZES picks the sizes of `field`)
+# One call on the GPU machine: configure with CUDA, build on all cores, run
+# the cpu and gpu tests, the benchmarks and the CUDA validation runs, leaving
+# JSON and the test log under $OUT (at most 8 files come back from the device
+# tool; build logs stay in $B). Steps can be chosen:
+#   tools/gpu-check.sh [build] [test] [sanitize] [main] [bench] [kernels] [field] [ncu-field] [export] [frame]
+#                      [render] [validate] [viewer] [compare]
+#   (default: build test main bench validate; FIELD_SIZES picks the sizes of `field`; `compare` builds the
+#   source tree in REF_TAR (git archive REV -o .ref/ref.tar, carried) and runs bench sim, field and frame
+#   with it and with this tree in turn)
 set -uo pipefail
 OUT=${OUT:-$PWD/gpu-out}
 mkdir -p "$OUT"
@@ -12,7 +15,7 @@ steps=${*:-build test main bench validate}
 has() { [[ " $steps " == *" $1 "* ]]; }
 B=build-gpu
 
-# Debian packages the GPU machine lacks (stb), carried in .devdeps (shared/device/README.md)
+# Debian packages the GPU machine lacks (stb), carried in .devdeps (apt-get download libstb-dev libstb0)
 if ls .devdeps/*.deb > /dev/null 2>&1; then
   for f in .devdeps/*.deb; do dpkg -x "$f" /opt/deps; done
   export CPATH=/opt/deps/usr/include${CPATH:+:$CPATH} CMAKE_PREFIX_PATH=/opt/deps/usr${CMAKE_PREFIX_PATH:+:$CMAKE_PREFIX_PATH}
@@ -29,7 +32,7 @@ if has build; then
 fi
 if has test; then
   echo "== tests (${TEST_LABEL:-all})"
-  ctest --test-dir $B --output-on-failure ${TEST_LABEL:+-L $TEST_LABEL} 2>&1 | tee "$OUT/ctest.log" | tail -25
+  ctest --test-dir $B --output-on-failure -j "${TEST_JOBS:-4}" ${TEST_LABEL:+-L $TEST_LABEL} 2>&1 | tee "$OUT/ctest.log" | tail -25
 fi
 if has sanitize; then
   echo "== compute-sanitizer on the gpu tests"
@@ -46,6 +49,10 @@ if has bench; then
   echo "== bench sim, h = 1.3 dx"
   $B/sphray bench sim --backend cuda --set sph.smoothing_ratio=1.3 --json "$OUT/bench_sim_h13.json" 2>&1 \
     | grep -v warm-up
+fi
+if has kernels; then
+  echo "== bench sim --kernels (ms per step by launch name)"
+  $B/sphray bench sim --backend cuda --kernels --json "$OUT/bench_sim_kernels.json" 2>&1 | grep -v warm-up
 fi
 if has field; then
   echo "== bench field (${FIELD_SIZES:-all sizes})"
@@ -133,4 +140,30 @@ if has viewer; then
     done
     kill $xpid; tail -5 "$OUT/xvfb.log"
   ) fi
+fi
+if has compare; then
+  # The same benchmarks with the reference tree and this one, in turn on the
+  # same machine (stage medians; the reference printed first in each pair).
+  R=build-ref
+  echo "== compare with ${REF_TAR:-.ref/ref.tar}: build"
+  rm -rf ref-src && mkdir -p ref-src && tar -xf "${REF_TAR:-.ref/ref.tar}" -C ref-src
+  if [ ! -x $R/sphray ]; then
+    cmake -S ref-src -B $R -G Ninja -DCMAKE_BUILD_TYPE=Release -DCMAKE_CUDA_ARCHITECTURES=90 -DSPHRAY_TESTS=OFF \
+      -DSPHRAY_VIEWER=OFF > $R-configure.log 2>&1 && ninja -C $R sphray > $R-build.log 2>&1 ||
+      { tail -20 $R-build.log; exit 1; }
+  fi
+  for k in 1 2; do
+    for exe in $R/sphray $B/sphray; do
+      echo "-- bench sim 1M, $exe (run $k)"
+      $exe bench sim --backend cuda --sizes 1M 2>&1 | grep -E '^ +[0-9]+ +(on|off) '
+    done
+  done | tee "$OUT/compare_sim.log"
+  for exe in $R/sphray $B/sphray; do
+    echo "-- bench field ${CMP_FIELD_SIZES:-1M,4M}, $exe"
+    $exe bench field --backend cuda --sizes "${CMP_FIELD_SIZES:-1M,4M}" 2>&1 | grep -E '^ +[0-9]+ +[0-9]+\^3'
+  done | tee "$OUT/compare_field.log"
+  for exe in $R/sphray $B/sphray; do
+    echo "-- bench frame 125k,1M, $exe"
+    $exe bench frame --backend cuda --sizes 125k,1M 2>&1 | grep -E '^ +[0-9]+ +[0-9]+x[0-9]+'
+  done | tee "$OUT/compare_frame.log"
 fi
