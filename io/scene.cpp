@@ -105,7 +105,7 @@ double expected_flow_speed(const Scene& s) {
   }
   const double dx = s.sph.spacing;
   const double height = s.fluid.empty() ? dx : std::max(top - floor, dx);
-  const double g = length(s.gravity) > 0 ? length(s.gravity) : 9.81;
+  const double g = length(s.gravity) > 0 ? length(s.gravity) : kStandardGravity;
   return std::max(std::sqrt(g * height), vmax);
 }
 

@@ -16,6 +16,7 @@
 #include "field/config.h"
 #include "render/render_settings.h"
 #include "sph/config.h"
+#include "sph/eos.h"
 
 namespace sphray {
 
@@ -36,7 +37,7 @@ struct Scene {
   // (e.g. the side walls of a quasi-2D slab). Other walls are viscous.
   bool free_slip[6] = {false, false, false, false, false, false};
   std::vector<FluidBlock> fluid;
-  Vec3d gravity{0, 0, -9.81};
+  Vec3d gravity{0, 0, -kStandardGravity};
 
   SphConfig sph;        // the "sph" section (sph/config.h)
   FieldConfig field;    // the density field (field/config.h); built only when a later stage uses it

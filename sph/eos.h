@@ -1,7 +1,7 @@
-// Tait's equation of state of a weakly compressible liquid (Monaghan 1994,
-// after Batchelor 1967): p = B ((rho / rho0)^gamma - 1), B = c0^2 rho0 / gamma,
-// gamma = 7. In float on the device, in double for the initial state and the
-// tests' references.
+// The liquid's physical constants, and Tait's equation of state of a weakly
+// compressible liquid (Monaghan 1994, after Batchelor 1967):
+// p = B ((rho / rho0)^gamma - 1), B = c0^2 rho0 / gamma, gamma = 7. In float
+// on the device, in double for the initial state and the tests' references.
 #pragma once
 
 #include <cmath>
@@ -11,6 +11,9 @@
 namespace sphray {
 
 constexpr int kTaitGamma = 7;
+// [m/s^2]: a scene's gravity unless it gives one, and the g of the flow speed
+// a scene without gravity is expected to reach (io/scene.h).
+constexpr double kStandardGravity = 9.81;
 
 // B [Pa] from the speed of sound c0 [m/s] and the rest density rho0 [kg/m^3].
 template <class T>

@@ -21,6 +21,7 @@
 #include <cstdint>
 
 #include "params.h"
+#include "particles.h"
 
 namespace sphray {
 
@@ -107,10 +108,8 @@ struct ChooseStep {
   StepRule rule;
   double min_dt, remaining;
   StepControl* control;
-  const Float4* pos_rho;
-  const Float4* vel;
-  const Float4* accel;
-  const uint32_t* id;
+  ConstParticleArrays state;  // pos, vel, id: the bad particle's, for the message
+  PairIn pairs;
   SPHRAY_HD void operator()(uint32_t) const {
     StepControl& c = *control;
     c.limits = rule.limits(c.stats);
@@ -118,10 +117,10 @@ struct ChooseStep {
     if (bad || c.limits.max_speed > rule.speed_of_sound) {
       const uint32_t i = bad ? c.stats.first_bad & ~kBadDerived : c.stats.fastest;
       c.outcome = bad ? kStepBadParticle : kStepSupersonic;
-      c.bad_id = id[i];
-      c.bad_pos = pos_rho[i];
-      c.bad_vel = vel[i];
-      c.bad_accel = accel[i];
+      c.bad_id = state.id[i];
+      c.bad_pos = state.pos[i];
+      c.bad_vel = state.vel[i];
+      c.bad_accel = pairs.accel[i];
       return;
     }
     if (c.limits.dt < min_dt) {
@@ -140,12 +139,10 @@ struct ChooseStep {
 struct Advance {
   SphParams prm;
   const StepControl* control;
-  Float4* pos_rho;
-  Float4* vel;              // exact velocity (w unused)
-  Float4* flow;             // out: u = v' + dt a (the next loop's prediction of v''), p / rho'^2
-  const Float4* accel;      // a, R (interaction.h)
-  const Float4* rate_grad;  // G, -
-  uint8_t* status;          // out
+  // pos: x, density; vel: the exact velocity (w unused); out: flow, u = v' +
+  // dt a (the next loop's prediction of v''), p / rho'^2; status
+  ParticleArrays state;
+  PairIn pairs;  // a, R and G (interaction.h)
 
   SPHRAY_HD static void keep_inside(float& x, float& v, float lo, float hi, bool clamp_hi, uint8_t& st) {
     if (x < lo) { x = lo; if (v < 0.0f) v = 0.0f; st = kStatusClamped; }
@@ -155,9 +152,9 @@ struct Advance {
   SPHRAY_HD void operator()(uint32_t i) const {
     if (control->outcome != kStepOk) return;
     const float dt = float(control->limits.dt);
-    Float4 p = pos_rho[i];
-    Float4 v = vel[i];
-    const Float4 a = accel[i], g = rate_grad[i];
+    Float4 p = state.pos[i];
+    Float4 v = state.vel[i];
+    const Float4 a = pairs.accel[i], g = pairs.rate_grad[i];
     v.x += dt * a.x; v.y += dt * a.y; v.z += dt * a.z;
     const float rate = v.x * g.x + v.y * g.y + v.z * g.z + a.w;
     p.x += dt * v.x; p.y += dt * v.y; p.z += dt * v.z;
@@ -172,25 +169,23 @@ struct Advance {
     keep_inside(p.x, v.x, prm.tank.min.x, prm.tank.max.x, true, st);
     keep_inside(p.y, v.y, prm.tank.min.y, prm.tank.max.y, true, st);
     keep_inside(p.z, v.z, prm.tank.min.z, prm.tank.max.z, !prm.open_top, st);
-    pos_rho[i] = p;
-    vel[i] = v;
-    flow[i] = {v.x + dt * a.x, v.y + dt * a.y, v.z + dt * a.z, pressure_term(prm, p.w)};
-    status[i] = st;
+    state.pos[i] = p;
+    state.vel[i] = v;
+    state.flow[i] = {v.x + dt * a.x, v.y + dt * a.y, v.z + dt * a.z, pressure_term(prm, p.w)};
+    state.status[i] = st;
   }
 };
 
 struct StepStatsOf {
-  const Float4* pos_rho;
-  const Float4* vel;
-  const Float4* accel;
-  const uint8_t* status;
+  ConstParticleArrays state;
+  PairIn pairs;
 
   SPHRAY_HD StepStats operator()(uint32_t i) const {
-    const Float4 p = pos_rho[i], v = vel[i], a = accel[i];
-    const bool state = all_finite(xyz(p)) && std::isfinite(p.w) && all_finite(xyz(v)) && p.w > 0.0f;
+    const Float4 p = state.pos[i], v = state.vel[i], a = pairs.accel[i];
+    const bool finite = all_finite(xyz(p)) && std::isfinite(p.w) && all_finite(xyz(v)) && p.w > 0.0f;
     const bool derived = all_finite(xyz(a)) && std::isfinite(a.w);
-    const uint32_t bad = !state ? i : !derived ? i | kBadDerived : kNoBadParticle;
-    return {length2(xyz(v)), length2(xyz(a)), bad, status[i] == kStatusClamped ? 1u : 0u, i};
+    const uint32_t bad = !finite ? i : !derived ? i | kBadDerived : kNoBadParticle;
+    return {length2(xyz(v)), length2(xyz(a)), bad, state.status[i] == kStatusClamped ? 1u : 0u, i};
   }
 };
 

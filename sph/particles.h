@@ -35,4 +35,10 @@ struct FluidIn {
   const Float4* flow;       // u, p / rho^2
 };
 
+// What the pair loop left per fluid particle, as integration reads it.
+struct PairIn {
+  const Float4* accel;      // ax, ay, az, R (interaction.h)
+  const Float4* rate_grad;  // G, -
+};
+
 }  // namespace sphray

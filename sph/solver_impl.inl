@@ -130,11 +130,11 @@ class SolverImpl final : public Solver {
     // host reads the decision once the step's work is done, and raises its
     // error then (a refused step moves no particle).
     StepControl* control = raw(control_);
-    transform_reduce_into(n_, StepStatsOf{raw(pos_), raw(vel_), raw(accel_), raw(status_)}, CombineStepStats(),
-                          kEmptyStepStats, &control->stats);
-    parallel_for("choose_step", 1, ChooseStep{step_rule(), min_dt_, std::max(until - t_, 0.0), control, raw(pos_), raw(vel_),
-                               raw(accel_), raw(id_)});
-    parallel_for("advance", n_, Advance{prm_, control, raw(pos_), raw(vel_), raw(flow_), raw(accel_), raw(rate_grad_), raw(status_)});
+    transform_reduce_into(n_, StepStatsOf{const_state(), pair_results()}, CombineStepStats(), kEmptyStepStats,
+                          &control->stats);
+    parallel_for("choose_step", 1,
+                 ChooseStep{step_rule(), min_dt_, std::max(until - t_, 0.0), control, const_state(), pair_results()});
+    parallel_for("advance", n_, Advance{prm_, control, state(), pair_results()});
     control_read_.start(control);
     clock_.end_of("integrate");
     build_grid();
@@ -202,8 +202,15 @@ class SolverImpl final : public Solver {
     return {prm_, grid_, fluid_in(), walls, fluid_pairs(), boundary_pairs(), out, n_};
   }
 
-  // The sorted fluid as the neighbour loops read it.
+  // The views of the particle arrays that the kernels take (particles.h).
   FluidIn fluid_in() const { return {raw(fine_offsets_), raw(pos_), raw(flow_)}; }
+  ParticleArrays state() {
+    return {raw(pos_), raw(vel_), raw(flow_), raw(id_), raw(status_), presence_valid_ ? raw(presence_) : nullptr};
+  }
+  ConstParticleArrays const_state() const {
+    return {raw(pos_), raw(vel_), raw(flow_), raw(id_), raw(status_), presence_valid_ ? raw(presence_) : nullptr};
+  }
+  PairIn pair_results() const { return {raw(accel_), raw(rate_grad_)}; }
 
   // The pairs stage: the wall pressure, then the pair loop. The kernel type K
   // is a template parameter of both loops (kernel.h, W_for and dW_over_r_for).
@@ -234,11 +241,9 @@ class SolverImpl final : public Solver {
     // sorted last: drop them. Reading their count waits for the sort, so a
     // closed tank does not.
     const uint32_t active = prm_.open_top ? read_one(offsets_, grid_.num_cells()) : n_;
-    const ConstParticleArrays in{raw(pos_), raw(vel_), raw(flow_), raw(id_), raw(status_),
-                                 presence_valid_ ? raw(presence_) : nullptr};
     const ParticleArrays out{raw(pos_tmp_), raw(vel_tmp_), raw(flow_tmp_), raw(id_tmp_), raw(status_tmp_),
                              raw(presence_tmp_)};
-    parallel_for("gather_particles", active, GatherParticles{raw(order_), in, n_, out, active});
+    parallel_for("gather_particles", active, GatherParticles{raw(order_), const_state(), n_, out, active});
     pos_.swap(pos_tmp_);
     vel_.swap(vel_tmp_);
     flow_.swap(flow_tmp_);
