@@ -68,7 +68,8 @@ nlohmann::json completed_json(const RunSummary& r, const RunArgs& a, const Scene
                       {"fluid_start", r.fluid_start},    {"fluid_end", r.fluid_end},
                       {"removed", r.removed},            {"clamped", r.clamped},
                       {"particle_steps", r.particle_steps}, {"spacing_m", scene.sph.spacing},
-                      {"mean_dt_s", r.mean_dt},          {"max_speed_m_s", r.max_speed}};
+                      {"mean_dt_s", r.mean_dt},          {"max_speed_m_s", r.max_speed},
+                      {"realtime_factor", r.realtime_factor()}};
   if (r.field_builds)
     j["field"] = {{"builder", r.field_builder}, {"volume", r.field_dims}, {"builds", r.field_builds},
                   {"ms_per_build", r.field_ms_mean}, {"builds_without_presence", r.field_without_presence}};

@@ -65,7 +65,7 @@ std::vector<BenchSimRow> bench_sim(const std::string& scene_json, const std::str
           << " warm-up + " << opt.steps << " steps\n";
       log.flush();
       for (int k = 0; k < opt.warmup; ++k) solver->step(1e30);
-      std::vector<double> g, p, in, tot, wall;
+      std::vector<double> g, p, in, tot, wall, dt;
       for (int k = 0; k < opt.steps; ++k) {
         const auto start = std::chrono::steady_clock::now();
         solver->step(1e30);  // returns once the step's work is done (the stage clock waits for it)
@@ -73,10 +73,12 @@ std::vector<BenchSimRow> bench_sim(const std::string& scene_json, const std::str
         const StageTimes& t = solver->last_stage_times();
         g.push_back(t.grid); p.push_back(t.pairs); in.push_back(t.integrate);
         tot.push_back(t.total());
+        dt.push_back(solver->last_limits().dt);
       }
       row.median_ms = {median(g), median(p), median(in)};
       row.median_total_ms = median(tot);
       row.median_wall_ms = median(wall);
+      row.median_dt_s = median(dt);
       if (opt.kernels) row.kernels = kernel_times_per_step(*solver, opt.steps);
       rows.push_back(row);
     }
@@ -103,7 +105,9 @@ nlohmann::json to_json(const std::vector<BenchSimRow>& rows, Backend b, const Be
     j["rows"].push_back({{"particles", r.particles}, {"boundary_particles", r.boundary}, {"presence", r.presence},
                          {"grid_ms", r.median_ms.grid}, {"pairs_ms", r.median_ms.pairs},
                          {"integrate_ms", r.median_ms.integrate},
-                         {"total_ms", r.median_total_ms}, {"wall_ms", r.median_wall_ms}});
+                         {"total_ms", r.median_total_ms}, {"wall_ms", r.median_wall_ms}, {"dt_s", r.median_dt_s},
+                         {"steps_per_simulated_s", r.median_dt_s > 0 ? 1.0 / r.median_dt_s : 0.0},
+                         {"realtime_factor", r.realtime_factor()}});
   for (size_t k = 0; k < rows.size(); ++k)
     for (const KernelTime& kt : rows[k].kernels)
       j["rows"][k]["kernels_ms_per_step"][kt.name] = {{"ms", kt.ms}, {"launches", kt.launches}};
@@ -113,11 +117,13 @@ nlohmann::json to_json(const std::vector<BenchSimRow>& rows, Backend b, const Be
 void print_table(const std::vector<BenchSimRow>& rows, std::ostream& out) {
   out << std::setw(10) << "particles" << std::setw(10) << "presence" << std::setw(10) << "grid" << std::setw(10)
       << "pairs" << std::setw(11) << "integrate" << std::setw(10) << "total" << std::setw(9) << "wall"
-      << "   (median ms per step)\n";
+      << std::setw(10) << "dt [ms]" << std::setw(9) << "x real" << "   (median ms per step)\n";
   out << std::fixed << std::setprecision(3);
   for (const auto& r : rows)
     out << std::setw(10) << r.particles << std::setw(10) << (r.presence ? "on" : "off") << std::setw(10)
-        << r.median_ms.grid << std::setw(10) << r.median_ms.pairs << std::setw(11) << r.median_ms.integrate << std::setw(10) << r.median_total_ms << std::setw(9) << r.median_wall_ms << "\n";
+        << r.median_ms.grid << std::setw(10) << r.median_ms.pairs << std::setw(11) << r.median_ms.integrate
+        << std::setw(10) << r.median_total_ms << std::setw(9) << r.median_wall_ms << std::setw(10)
+        << 1e3 * r.median_dt_s << std::setw(9) << r.realtime_factor() << "\n";
   for (size_t k = 0; k + 1 < rows.size(); k += 2)
     if (!rows[k].presence && rows[k + 1].presence && rows[k].median_ms.pairs > 0)
       out << "  presence adds " << std::setprecision(1)
@@ -132,7 +138,8 @@ void print_table(const std::vector<BenchSimRow>& rows, std::ostream& out) {
   }
   out << "  grid: the sort, the cell tables and the pair masks; pairs: the wall pressure and the one neighbour\n"
       << "  loop of forces, density rate and presence; integrate: the step size and the kick, density and drift;\n"
-      << "  total: their sum; wall: the whole step on the host's clock (with the launches and waits between stages)\n";
+      << "  total: their sum; wall: the whole step on the host's clock (with the launches and waits between stages);\n"
+      << "  dt: the step the solver chose; x real: simulated seconds per wall second at that step (dt / wall)\n";
   out << std::defaultfloat;
 }
 

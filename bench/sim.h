@@ -34,6 +34,11 @@ struct BenchSimRow {
   // device waits for between them (launches, host round trips), i.e. what a
   // run pays per step.
   double median_wall_ms = 0;
+  double median_dt_s = 0;  // the step size the solver chose
+  // Simulated seconds per wall second at these steps: median dt over the
+  // median wall time of a step (the standing column's steps; a flowing
+  // liquid takes smaller ones).
+  double realtime_factor() const { return median_wall_ms > 0 ? median_dt_s / (1e-3 * median_wall_ms) : 0.0; }
   std::vector<KernelTime> kernels;  // with BenchSimOptions::kernels: ms per step by launch name
 };
 

@@ -178,8 +178,9 @@ RunSummary run_scene(const Scene& s, Solver& solver, const RunOptions& opt, std:
     log << "  t = " << std::fixed << std::setprecision(4) << solver.time() << " / " << end << " s  step "
         << solver.steps() << "  dt " << std::scientific << std::setprecision(2)
         << (tally.last_free_dt > 0 ? tally.last_free_dt : double(solver.last_limits().dt))
-        << " s  " << (wall > 0 ? r.particle_steps / wall : 0.0) << " particle-steps/s  ETA "
-        << format_seconds(eta) << std::defaultfloat << "\n";
+        << " s  " << (wall > 0 ? r.particle_steps / wall : 0.0) << " particle-steps/s  " << std::defaultfloat
+        << std::setprecision(3) << "x" << (wall > 0 ? solver.time() / wall : 0.0) << " real time  ETA "
+        << format_seconds(eta) << "\n";
     log.flush();
   };
 
@@ -207,7 +208,8 @@ void print_summary(const RunSummary& r, std::ostream& log) {
       << "  simulated      " << r.sim_time << " s in " << r.steps << " steps (dt mean " << r.mean_dt << " s, min "
       << r.min_dt << " s, of the steps not shortened to meet an output time)\n"
       << "  wall time      " << r.wall_seconds << " s ("
-      << (r.wall_seconds > 0 ? double(r.particle_steps) / r.wall_seconds : 0.0) << " particle-steps/s)\n"
+      << (r.wall_seconds > 0 ? double(r.particle_steps) / r.wall_seconds : 0.0) << " particle-steps/s, x"
+      << r.realtime_factor() << " real time: simulated seconds per wall second)\n"
       << "  particles      " << r.fluid_start << " fluid at start, " << r.fluid_end << " at end; "
       << r.removed << " left through the open top and were removed\n"
       << "  wall clamps    " << r.clamped << " particle-steps put back on a wall face";

@@ -96,6 +96,8 @@ struct RunSummary {
   uint64_t clamped = 0, steps = 0;
   uint64_t particle_steps = 0;  // fluid particles summed over the steps
   double sim_time = 0, wall_seconds = 0;
+  // Simulated seconds per wall second (1: the run keeps pace with real time).
+  double realtime_factor() const { return wall_seconds > 0 ? sim_time / wall_seconds : 0.0; }
   double mean_dt = 0, min_dt = 1e300;
   StageTimes mean_stage_ms;
   double max_speed = 0;

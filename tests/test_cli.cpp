@@ -177,6 +177,11 @@ TEST_CASE("sphray bench sim writes every row with its stages and its wall time",
     // host's clock around the whole call) is at least their sum, and so are
     // the medians.
     CHECK(wall >= total);
+    // Simulated seconds per wall second at the step the solver chose.
+    const double dt = row["dt_s"];
+    CHECK(dt > 0);
+    CHECK(double(row["steps_per_simulated_s"]) == Approx(1.0 / dt));
+    CHECK(double(row["realtime_factor"]) == Approx(dt / (1e-3 * wall)));
   }
   // Without --scene, the built-in copy of the same scene, from any directory
   // (the default was a path relative to the repository's root).

@@ -274,6 +274,40 @@ TEST_CASE("the run summary's particle-steps count the particles present at each 
   CHECK(rate * wall == Approx(double(present)).epsilon(2e-3));
 }
 
+TEST_CASE("the summary and the progress line give the real-time factor", "[sph][cpu]") {
+  const Scene s = load_scene(test::source_path("scenes/dam_break.json"),
+                             {"sph.spacing=0.05", "run.end_time=0.02", "run.output_interval=0.01"});
+  auto solver = make_cpu_solver(make_solver_input(resolve_scene(s), PresenceMode::Off));
+  RunOptions opt;
+  opt.progress_seconds = 0;
+  std::ostringstream log;
+  const RunSummary r = run_scene(s, *solver, opt, log);
+  REQUIRE(r.wall_seconds > 0);
+  CHECK(r.realtime_factor() == Approx(r.sim_time / r.wall_seconds));
+  // Each progress line's factor is its simulated time over the wall time so
+  // far: the wall time it implies lies within the run's.
+  std::istringstream lines(log.str());
+  int with_factor = 0;
+  for (std::string line; std::getline(lines, line);) {
+    double t = 0, x = 0;
+    const size_t at = line.find(" x");
+    if (std::sscanf(line.c_str(), "  t = %lf /", &t) != 1 || at == std::string::npos) continue;
+    REQUIRE(std::sscanf(line.c_str() + at, " x%lf real time", &x) == 1);
+    CHECK(x > 0);
+    CHECK(t / x <= r.wall_seconds * 1.01 + 1e-3);
+    ++with_factor;
+  }
+  CHECK(with_factor == int(r.steps));
+  std::ostringstream summary;
+  print_summary(r, summary);
+  const std::string text = summary.str();
+  const size_t at = text.find("particle-steps/s, x");
+  REQUIRE(at != std::string::npos);
+  double x = 0;
+  REQUIRE(std::sscanf(text.c_str() + at, "particle-steps/s, x%lf real time", &x) == 1);
+  CHECK(x == Approx(r.realtime_factor()).epsilon(1e-3));
+}
+
 TEST_CASE("the run's progress line comes between output times too", "[sph][cpu]") {
   // render --time T runs to T in one output interval; the progress line came
   // only at output times, so a long render said nothing until it ended.
