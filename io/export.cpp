@@ -54,7 +54,7 @@ void convert(Snapshot& s) {
   const bool big = n > 65536;
   // Half the cores: the run's thread (waiting on the device) and the writer
   // want theirs; with all of them the team waits on the thread that those
-  // displace (docs/benchmarks.md, "HDF5 export").
+  // displace (docs/notebook/benchmarks-history.md, "HDF5 export").
   const int team = std::max(1, std::min(omp_get_max_threads(), omp_get_num_procs() / 2));
   uint32_t max_id = 0;
 #pragma omp parallel for reduction(max : max_id) if (big) num_threads(team)

@@ -90,7 +90,7 @@ void dataset(hid_t loc, const char* name, hid_t mem_type, hid_t file_type, const
   if (total == 0) return;
   // Uncompressed, and the memory layout already the file's: the chunks go to
   // the file as they are (H5Dwrite_chunk), without HDF5's copy through its
-  // chunk cache, on one thread the writer's limit (docs/benchmarks.md).
+  // chunk cache, on one thread the writer's limit (docs/notebook/benchmarks-history.md).
   if (gzip == 0 && H5Tequal(mem_type, file_type) > 0) {
     const size_t row_bytes = size_t(H5Tget_size(file_type)) * size_t(total / dims[0]);
     std::vector<char> last;  // the final chunk, padded to its full size

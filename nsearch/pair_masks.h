@@ -106,7 +106,7 @@ inline uint32_t pair_mask_capacity(double support_over_dx) {
 // queries lie close together tests the whole 32 x 32 tile on the tensor
 // cores instead (tile_mma.h). Loading each lane's
 // own candidates instead (the CPU path below) makes 32 scattered reads per
-// candidate, and such a kernel is bound by the L1 cache (docs/benchmarks.md).
+// candidate, and such a kernel is bound by the L1 cache (docs/notebook/benchmarks-history.md).
 // A row whose lanes lie in different rows of the
 // grid (the union far longer than any lane's range) is built per lane. Either
 // way a lane's words hold its own neighbours in the order of for_each_neighbour;
@@ -119,8 +119,8 @@ struct BuildPairMask {
   // Registers per thread on the GPU (core/launch_cuda.cuh): the tensor-core
   // test keeps the warp's A fragments in registers; at 56 the kernel spills,
   // and under the file-wide 40 it spilled more. 72 rather than 64: faster
-  // despite the lower occupancy (docs/benchmarks.md), and the tile loaded
-  // ahead (below) spills at 64.
+  // despite the lower occupancy (docs/notebook/benchmarks-history.md), and
+  // the tile loaded ahead (below) spills at 64.
   static constexpr int kMaxRegisters = 72;
   GridGeom grid;
   const uint32_t* offsets;  // slab table of pts

@@ -4,7 +4,7 @@
 // half inputs, float accumulation) instead of 32 compares per lane of the
 // FMA test in pair_masks.h (BuildPairMask). That build is bound by issued
 // instructions, nearly all of them the test, which this one issues far fewer
-// of (docs/benchmarks.md has what it gains).
+// of (docs/notebook/benchmarks-history.md has what it gains).
 //
 // With y = (x_i - O) / s and t = (x_j - O) / s (O the centre of the warp's
 // bounding box, s the support radius), |y - t|^2 - reach = -2 y.t + |t|^2 + C

@@ -45,7 +45,7 @@
 // counts: walls are not liquid.
 //
 // Why one loop: on the GPU both loops were bound by the scattered 16-byte
-// neighbour loads (docs/benchmarks.md), and both loaded the same two per
+// neighbour loads (docs/notebook/benchmarks-history.md), and both loaded the same two per
 // neighbour; one loop loads them once.
 #pragma once
 
@@ -110,7 +110,7 @@ struct Interaction {
   // presence and 56 with it, above the file-wide cap of 40 (CMakeLists.txt),
   // under which both variants spill (presence's three more accumulators; the
   // fetched neighbour structs); measured against 40, 48, 56 and 64 in
-  // docs/benchmarks.md.
+  // docs/notebook/benchmarks-history.md.
   static constexpr int kMaxRegisters = WithPresence ? 56 : 48;
   SphParams prm;
   GridGeom grid;

@@ -1,4 +1,4 @@
-// Study for docs/benchmarks.md ("What 1 ms at 1M would still need"): a
+// Study for docs/notebook/benchmarks-history.md ("What 1 ms at 1M would still need"): a
 // cluster-pair scheme (GROMACS-style: clusters of C particles, every pair of
 // two clusters whose bounding boxes come within the support is evaluated)
 // against the pairs within the support. A jittered cubic lattice (spacing 1,
