@@ -108,6 +108,8 @@ void add_frame(CLI::App* bench, int& exit_code) {
   f->add_option("--height", o.height, "image height")->check(CLI::Range(16, 8192));
   f->add_option("--interfaces", o.interfaces, "interfaces per ray")->check(CLI::Range(1, 8));
   f->add_option("--substeps", o.substeps, "SPH steps per frame")->check(CLI::Range(1, 1000));
+  f->add_flag("--realtime", o.realtime,
+              "real-time playback: each frame advances by the previous frame's wall time (at most 1/30 s)");
   f->add_option("--builder", o.builder, "naive | presence | gather");
   f->add_option("--warmup", o.warmup, "warm-up frames")->check(CLI::Range(0, 10000));
   f->add_option("--frames", o.frames, "measured frames")->check(CLI::Range(1, 100000));

@@ -20,7 +20,8 @@ CLI::App* add_view_command(CLI::App& app, int& exit_code) {
   view->add_option("--backend", a->view.backend, "auto | cpu | cuda");
   view->add_option("--set", a->view.sets, "override a scene value, e.g. --set render.interfaces=8");
   view->add_option("--size", a->frames.size, "raycast image (and window) size WIDTHxHEIGHT");
-  view->add_option("--substeps", a->view.substeps, "SPH steps per frame (changeable in the panel)")
+  view->add_option("--substeps", a->view.substeps,
+                   "SPH steps per frame instead of real-time playback (changeable in the panel)")
       ->check(CLI::Range(1, 20));
   view->add_option("--frames", a->view.frames, "run this many frames, then exit")->check(CLI::Range(1, 1000000));
   view->add_option("--screenshot", a->view.screenshot, "with --frames: write the window's last frame as PNG");

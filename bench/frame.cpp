@@ -45,15 +45,26 @@ std::vector<BenchFrameRow> bench_frame(Backend b, const BenchFrameOptions& opt, 
     simulate_collapse(s, *solver, opt.collapse, log);
     const Camera cam = make_camera(s.tank, s.render);
     const Environment env = make_environment(s.tank, field->setup().geom, cam);
-    std::vector<double> sim, fld, ren, tot, wall;
+    std::vector<double> sim, fld, ren, tot, wall, steps;
+    double prev_wall_s = 0, sim_advanced = 0, wall_sum_s = 0;
     for (int f = 0; f < opt.warmup + opt.frames; ++f) {
       const auto t0 = std::chrono::steady_clock::now();
-      const double sim_ms = advance_frame(*solver, opt.substeps, kind == FieldKind::Presence, 1e30);
+      const double t_before = solver->time();
+      const uint64_t steps_before = solver->steps();
+      const double sim_ms =
+          opt.realtime ? advance_to(*solver, playback_target(t_before, prev_wall_s, opt.max_sim_per_frame, 1e30),
+                                    kind == FieldKind::Presence)
+                             .ms
+                       : advance_frame(*solver, opt.substeps, kind == FieldKind::Presence, 1e30);
       const ParticleView pv = solver->view();
       field->build(pv);
       renderer->render(field->data(), field->setup(), &pv, cam, env, s.render);
       const double w = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+      prev_wall_s = 1e-3 * w;
       if (f < opt.warmup) continue;
+      steps.push_back(double(solver->steps() - steps_before));
+      sim_advanced += solver->time() - t_before;
+      wall_sum_s += 1e-3 * w;
       sim.push_back(sim_ms);
       fld.push_back(field->last_ms());
       ren.push_back(renderer->last_ms());
@@ -68,8 +79,12 @@ std::vector<BenchFrameRow> bench_frame(Backend b, const BenchFrameOptions& opt, 
     r.sim_ms = median(sim); r.field_ms = median(fld); r.render_ms = median(ren);
     r.total_ms = median(tot); r.wall_ms = median(wall);
     r.fps = r.wall_ms > 0 ? 1000.0 / r.wall_ms : 0;
+    r.realtime = opt.realtime;
+    r.steps = median(steps);
+    r.realtime_factor = wall_sum_s > 0 ? sim_advanced / wall_sum_s : 0;
     log << "    sim " << std::fixed << std::setprecision(3) << r.sim_ms << " ms, field " << r.field_ms << " ms, render "
-        << r.render_ms << " ms, frame wall " << r.wall_ms << " ms (" << std::setprecision(1) << r.fps << " fps)\n"
+        << r.render_ms << " ms, frame wall " << r.wall_ms << " ms (" << std::setprecision(1) << r.fps << " fps, "
+        << std::setprecision(3) << r.steps << " steps a frame, x" << r.realtime_factor << " real time)\n"
         << std::defaultfloat;
     if (!opt.png_dir.empty())
       write_png(png_path(opt.png_dir, "bench_frame_" + std::to_string(target) + ".png"), renderer->download());
@@ -90,7 +105,9 @@ nlohmann::json to_json(const std::vector<BenchFrameRow>& rows, Backend b, const 
     j["rows"].push_back({{"particles", r.particles}, {"volume", {r.nx, r.ny, r.nz}}, {"width", r.width},
                          {"height", r.height}, {"interfaces", r.interfaces}, {"substeps", r.substeps},
                          {"builder", r.builder}, {"sim_ms", r.sim_ms}, {"field_ms", r.field_ms},
-                         {"render_ms", r.render_ms}, {"stages_ms", r.total_ms}, {"wall_ms", r.wall_ms}, {"fps", r.fps}});
+                         {"render_ms", r.render_ms}, {"stages_ms", r.total_ms}, {"wall_ms", r.wall_ms}, {"fps", r.fps},
+                         {"realtime", r.realtime}, {"steps_per_frame", r.steps},
+                         {"realtime_factor", r.realtime_factor}});
   return j;
 }
 
@@ -98,14 +115,16 @@ void print_table(const std::vector<BenchFrameRow>& rows, std::ostream& out) {
   out << std::setw(9) << "particles" << std::setw(13) << "volume" << std::setw(11) << "image" << std::setw(5) << "N"
       << std::setw(5) << "sub" << std::setw(10) << "builder" << std::setw(9) << "sim" << std::setw(9) << "field"
       << std::setw(9) << "render" << std::setw(9) << "stages" << std::setw(9) << "wall" << std::setw(8) << "fps"
-      << "   (median ms per frame)\n";
+      << std::setw(7) << "steps" << std::setw(9) << "x real" << "   (median ms per frame; x real: simulated / wall)\n";
   for (const auto& r : rows) {
     const std::string vol = std::to_string(r.nx) + "x" + std::to_string(r.ny) + "x" + std::to_string(r.nz);
     const std::string img = std::to_string(r.width) + "x" + std::to_string(r.height);
     out << std::setw(9) << r.particles << std::setw(13) << vol << std::setw(11) << img << std::setw(5) << r.interfaces
         << std::setw(5) << r.substeps << std::setw(10) << r.builder << std::fixed << std::setprecision(3)
         << std::setw(9) << r.sim_ms << std::setw(9) << r.field_ms << std::setw(9) << r.render_ms << std::setw(9)
-        << r.total_ms << std::setw(9) << r.wall_ms << std::setprecision(1) << std::setw(8) << r.fps << "\n"
+        << r.total_ms << std::setw(9) << r.wall_ms << std::setprecision(1) << std::setw(8) << r.fps
+        << std::setprecision(0) << std::setw(7) << r.steps << std::setprecision(3) << std::setw(9)
+        << r.realtime_factor << "\n"
         << std::defaultfloat;
   }
 }

@@ -21,7 +21,11 @@ struct BenchFrameOptions {
   std::vector<size_t> sizes;  // target fluid particle counts (bench_field_scene: 64^3 up to 200k, else 256^3)
   int width = 1920, height = 1080;
   int interfaces = 4;
-  int substeps = 5;           // SPH steps per frame
+  int substeps = 5;           // SPH steps per frame (unless realtime)
+  // Real-time playback (as the viewer's default): each frame advances the
+  // simulation by the previous frame's wall time, at most max_sim_per_frame.
+  bool realtime = false;
+  double max_sim_per_frame = 1.0 / 30.0;
   std::string builder = "presence";
   int warmup = 5;
   int frames = 30;
@@ -37,6 +41,9 @@ struct BenchFrameRow {
   std::string builder;
   double sim_ms = 0, field_ms = 0, render_ms = 0, total_ms = 0, wall_ms = 0;  // medians per frame
   double fps = 0;  // 1000 / wall_ms
+  bool realtime = false;
+  double steps = 0;            // median SPH steps per frame
+  double realtime_factor = 0;  // simulated seconds per wall second over the measured frames
 };
 
 std::vector<BenchFrameRow> bench_frame(Backend b, const BenchFrameOptions& opt, std::ostream& log);

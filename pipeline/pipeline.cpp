@@ -135,6 +135,22 @@ double advance_frame(Solver& solver, int substeps, bool presence, double until) 
   return ms;
 }
 
+double playback_target(double sim_time, double last_frame_wall_s, double max_sim_per_frame, double end) {
+  return std::min(end, sim_time + std::clamp(last_frame_wall_s, 0.0, max_sim_per_frame));
+}
+
+FrameAdvance advance_to(Solver& solver, double until, bool presence) {
+  FrameAdvance a;
+  // AtUntil: the solver computes presence on the step that may reach `until`.
+  solver.set_presence(presence ? PresenceMode::AtUntil : PresenceMode::Off);
+  while (solver.time() < until - 1e-12) {
+    solver.step(until);
+    a.ms += solver.last_stage_times().total();
+    ++a.steps;
+  }
+  return a;
+}
+
 RunSummary run_scene(const Scene& s, Solver& solver, const RunOptions& opt, std::ostream& log) {
   using clock = std::chrono::steady_clock;
   RunSummary r;

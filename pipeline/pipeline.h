@@ -112,6 +112,21 @@ struct RunSummary {
 // reads it once per frame). Returns the steps' device milliseconds.
 double advance_frame(Solver& solver, int substeps, bool presence, double until);
 
+// Real-time playback: a displayed frame advances the simulation by the wall
+// time of the previous frame, at most `max_sim_per_frame` seconds (so that a
+// machine too slow for real time plays slower instead of taking ever more
+// steps per frame), and never past `end`.
+double playback_target(double sim_time, double last_frame_wall_s, double max_sim_per_frame, double end);
+
+// What advance_to did.
+struct FrameAdvance {
+  double ms = 0;  // the steps' device milliseconds
+  int steps = 0;
+};
+// As many steps as reach `until` exactly (step() never passes it), presence
+// on the last one when asked for.
+FrameAdvance advance_to(Solver& solver, double until, bool presence);
+
 RunSummary run_scene(const Scene& s, Solver& solver, const RunOptions& opt, std::ostream& log);
 void print_summary(const RunSummary& r, std::ostream& log);
 

@@ -374,6 +374,26 @@ TEST_CASE("sphray render and --frames-dir report bad input with exit code 2", "[
   CHECK(has(r.output, "magic"));
 }
 
+TEST_CASE("bench frame --realtime advances each frame by the previous frame's wall time, at most 1/30 s", "[cli][cpu]") {
+  const std::string json = tmp + "/sphray_frame_realtime.json";
+  const Result r = run_cli("bench frame --backend cpu --sizes 2k --width 96 --height 54 --warmup 1 --frames 3 --realtime "
+                           "--collapse 0.5 --json " + json);
+  INFO(r.output);
+  REQUIRE(r.code == 0);
+  const nlohmann::json j = nlohmann::json::parse(slurp(json));
+  REQUIRE(j["rows"].size() == 1);
+  const auto& row = j["rows"][0];
+  CHECK(row["realtime"] == true);
+  CHECK(double(row["steps_per_frame"]) >= 1);
+  // The simulated time a frame adds is the previous frame's wall time, capped
+  // at 1/30 s; a CPU frame here takes longer than that, so every frame is
+  // capped and the run plays slower than real time.
+  const double x = row["realtime_factor"];
+  CHECK(x > 0);
+  CHECK(x < 1.0);
+  CHECK(x == Approx(1.0 / 30.0 / (1e-3 * double(row["wall_ms"]))).epsilon(0.5));
+}
+
 TEST_CASE("sphray view opens a real window under Xvfb and shows the liquid", "[viewer]") {
   if (!SPHRAY_TEST_VIEWER) {
     WARN("this sphray was built without the viewer (GLFW/GLEW/Dear ImGui not found): not tested");
@@ -386,7 +406,7 @@ TEST_CASE("sphray view opens a real window under Xvfb and shows the liquid", "[v
   const std::string xvfb = "xvfb-run -a -s '-screen 0 1024x768x24' ";
   std::filesystem::remove(tmp + "/sphray_view.png");
   std::filesystem::remove(tmp + "/sphray_view_empty.png");
-  const std::string cmd = xvfb + SPHRAY_EXE + " view --backend cpu --frames 4 --size 800x450 --screenshot ";
+  const std::string cmd = xvfb + SPHRAY_EXE + " view --backend cpu --frames 4 --substeps 2 --size 800x450 --screenshot ";
   Result r{std::system((cmd + tmp + "/sphray_view.png > " + tmp + "/sphray_view.log 2>&1").c_str()), ""};
   std::ifstream lf(tmp + "/sphray_view.log");
   std::stringstream ls;
@@ -410,7 +430,7 @@ TEST_CASE("sphray view opens a real window under Xvfb and shows the liquid", "[v
   // Resized after the first frame, the image follows the window (no stretched
   // fixed-size image): the screenshot has the new size and shows the scene.
   std::filesystem::remove(tmp + "/sphray_view_resized.png");
-  REQUIRE(std::system((xvfb + SPHRAY_EXE + " view --backend cpu --frames 8 --size 800x450 --resize 480x400 "
+  REQUIRE(std::system((xvfb + SPHRAY_EXE + " view --backend cpu --frames 8 --substeps 2 --size 800x450 --resize 480x400 "
                               "--screenshot " + tmp + "/sphray_view_resized.png > /dev/null 2>&1").c_str()) == 0);
   const sphray::Image c = sphray::read_png(tmp + "/sphray_view_resized.png");
   CHECK(c.width == 480);
@@ -418,13 +438,32 @@ TEST_CASE("sphray view opens a real window under Xvfb and shows the liquid", "[v
   std::set<uint32_t> colours_c(c.rgba.begin(), c.rgba.end());
   CHECK(colours_c.size() > 200);
   // and it is the image a window opened at that size shows (a stretched 800x450 image would not be)
-  REQUIRE(std::system((xvfb + SPHRAY_EXE + " view --backend cpu --frames 8 --size 480x400 "
+  REQUIRE(std::system((xvfb + SPHRAY_EXE + " view --backend cpu --frames 8 --substeps 2 --size 480x400 "
                               "--screenshot " + tmp + "/sphray_view_direct.png > /dev/null 2>&1").c_str()) == 0);
   const sphray::Image d = sphray::read_png(tmp + "/sphray_view_direct.png");
   REQUIRE(d.rgba.size() == c.rgba.size());
   const size_t resized_differ = sphray::pixels_differing(c, d, 20);
   INFO(resized_differ << " of " << c.rgba.size() << " pixels differ between the resized and the direct window");
   CHECK(resized_differ < c.rgba.size() / 100);
+
+  // The default: real-time playback, each frame advancing the simulation by
+  // the wall time of the one before (at most 1/30 s): after 6 frames the
+  // simulated time is positive and no more than 5 such frames.
+  const std::string rt_log = tmp + "/sphray_view_realtime.log";
+  REQUIRE(std::system((xvfb + SPHRAY_EXE + " view --backend cpu --frames 6 --size 320x180 > " + rt_log + " 2>&1").c_str()) ==
+          0);
+  const std::string rt = slurp(rt_log);
+  INFO(rt);
+  const size_t at = rt.find("real-time playback, x");
+  REQUIRE(at != std::string::npos);
+  double factor = 0, t_end = -1;
+  REQUIRE(std::sscanf(rt.c_str() + at, "real-time playback, x%lf real time", &factor) == 1);
+  CHECK(factor > 0);
+  const size_t t_at = rt.find(", t = ", at);
+  REQUIRE(t_at != std::string::npos);
+  REQUIRE(std::sscanf(rt.c_str() + t_at, ", t = %lf s", &t_end) == 1);
+  CHECK(t_end > 0);
+  CHECK(t_end <= 5.0 / 30.0 * (1 + 1e-5));  // the first frame has no previous one; t printed to 6 digits
 
   Result bad = run_cli("view --backend cpu --screenshot " + tmp + "/x.png");
   CHECK(bad.code == 2);

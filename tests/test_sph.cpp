@@ -331,3 +331,21 @@ TEST_CASE("the run's progress line comes between output times too", "[sph][cpu]"
   CHECK(times.back() == Approx(0.02));
   CHECK(std::is_sorted(times.begin(), times.end()));
 }
+
+TEST_CASE("real-time playback advances by the last frame's wall time, capped, to the step", "[sph][cpu]") {
+  CHECK(playback_target(1.0, 0.016, 1.0 / 30.0, 10.0) == Approx(1.016));
+  CHECK(playback_target(1.0, 0.5, 1.0 / 30.0, 10.0) == Approx(1.0 + 1.0 / 30.0));  // a slow frame: capped
+  CHECK(playback_target(9.99, 0.016, 1.0 / 30.0, 10.0) == 10.0);                 // never past the end
+  CHECK(playback_target(1.0, -1.0, 1.0 / 30.0, 10.0) == 1.0);
+  const Scene s = load_scene(test::source_path("scenes/dam_break.json"), {"sph.spacing=0.05"});
+  auto solver = make_cpu_solver(make_solver_input(resolve_scene(s), PresenceMode::Off));
+  const double target = playback_target(solver->time(), 0.02, 1.0 / 30.0, s.run.end_time);
+  const FrameAdvance a = advance_to(*solver, target, true);
+  CHECK(solver->time() == Approx(0.02).margin(1e-12));  // exactly the frame's wall time
+  CHECK(a.steps == int(solver->steps()));
+  CHECK(a.steps > 1);
+  CHECK(a.ms > 0);
+  CHECK(solver->has_presence());  // computed on the step that reached the target
+  const FrameAdvance none = advance_to(*solver, solver->time(), true);
+  CHECK(none.steps == 0);
+}

@@ -267,9 +267,14 @@ class Display {
 
 // What the panel shows and sets.
 struct PanelState {
+  bool realtime = true;  // real-time playback, or `substeps` steps per frame
   int substeps = 2, builder_index = 1;
   FieldKind kind = FieldKind::Presence;
   double sim_ms = 0, field_ms = 0, render_ms = 0, fps = 0;
+  int steps = 0;                  // SPH steps in the last frame
+  double frame_wall_s = 0;        // the last frame's wall time
+  double sim_advance_s = 0;       // simulated time the last frame advanced
+  double realtime_factor = 0;     // simulated seconds per wall second, smoothed
   std::string status;
 };
 
@@ -281,7 +286,9 @@ void draw_panel(PanelState& s, RenderSettings& rs, const Solver& solver, Backend
   ImGui::SetNextWindowCollapsed(w < 900, ImGuiCond_Once);  // a small window starts with the panel folded
   ImGui::Begin("sphray", nullptr, ImGuiWindowFlags_AlwaysAutoResize);
   ImGui::Text("%s backend, %zu particles, t = %.3f s", backend_name(b), solver.num_fluid(), solver.time());
-  ImGui::SliderInt("substeps / frame", &s.substeps, 1, 20);
+  ImGui::Text("solver WCSPH, %d steps this frame, x%.3f real time", s.steps, s.realtime_factor);
+  ImGui::Checkbox("real-time playback", &s.realtime);
+  if (!s.realtime) ImGui::SliderInt("substeps / frame", &s.substeps, 1, 20);
   const char* builders[] = {"naive", "presence", "gather"};
   if (ImGui::Combo("field builder", &s.builder_index, builders, 3)) s.kind = parse_field_kind(builders[s.builder_index]);
   ImGui::SliderInt("interfaces", &rs.interfaces, 1, 8);
@@ -296,11 +303,25 @@ void draw_panel(PanelState& s, RenderSettings& rs, const Solver& solver, Backend
 }
 
 // One displayed frame of simulation unless paused (or N: one step while
-// paused); a run stopped by a guard pauses with its message.
-void simulate(Solver& solver, PanelState& s, Controls& ctl, double end_time) {
+// paused): the steps that bring it to the previous frame's wall time (real-
+// time playback, at most `max_sim` seconds), or `substeps` steps. A run
+// stopped by a guard pauses with its message.
+void simulate(Solver& solver, PanelState& s, Controls& ctl, double end_time, double max_sim) {
+  s.steps = 0;
+  s.sim_advance_s = 0;
   if ((ctl.paused && !ctl.step_once) || solver.time() >= end_time) return;
+  const bool presence = s.kind == FieldKind::Presence;
+  const double t0 = solver.time();
   try {
-    s.sim_ms = advance_frame(solver, s.substeps, s.kind == FieldKind::Presence, end_time);
+    if (s.realtime && !ctl.step_once) {
+      const FrameAdvance a = advance_to(solver, playback_target(t0, s.frame_wall_s, max_sim, end_time), presence);
+      s.sim_ms = a.ms;
+      s.steps = a.steps;
+    } else {
+      const uint64_t before = solver.steps();
+      s.sim_ms = advance_frame(solver, ctl.step_once ? 1 : s.substeps, presence, end_time);
+      s.steps = int(solver.steps() - before);
+    }
   } catch (const SimulationError& e) {
     s.status = std::string("stopped: ") + e.what();
     ctl.paused = true;
@@ -342,7 +363,8 @@ int run_viewer(const ViewOptions& opt, std::ostream& log) {
 
   // The pipeline: every stage is needed here.
   PanelState s;
-  s.substeps = opt.substeps;
+  s.realtime = opt.substeps == 0;
+  s.substeps = opt.substeps > 0 ? opt.substeps : 2;
   s.kind = scene.field.builder;
   s.builder_index = int(s.kind);
   const StageNeeds needs{PresenceMode::Off, true};
@@ -369,7 +391,9 @@ int run_viewer(const ViewOptions& opt, std::ostream& log) {
       ctl.reset = false;
       s.status.clear();
     }
-    simulate(*solver, s, ctl, scene.run.end_time);
+    const double t_before = solver->time();
+    simulate(*solver, s, ctl, scene.run.end_time, opt.max_sim_per_frame);
+    s.sim_advance_s = solver->time() - t_before;
     const ParticleView pv = solver->view();
     if (field->kind() != s.kind) field = make_field_builder(b, field->setup(), s.kind);  // switched in the panel
     field->build(pv);
@@ -388,7 +412,10 @@ int run_viewer(const ViewOptions& opt, std::ostream& log) {
         log << "viewer: wrote " << opt.screenshot << " after " << frame << " frames\n";
       }
       log << "viewer: " << frame << " frames, " << s.fps << " fps at the end (sim " << s.sim_ms << " ms, field "
-          << s.field_ms << " ms, render " << s.render_ms << " ms in the last frame)\n";
+          << s.field_ms << " ms, render " << s.render_ms << " ms in the last frame); "
+          << (s.realtime ? "real-time playback, x" + std::to_string(s.realtime_factor) + " real time, "
+                         : "fixed substeps, ")
+          << s.steps << " steps in the last frame, t = " << solver->time() << " s\n";
       break;
     }
     glfwSwapBuffers(win.w);
@@ -396,6 +423,9 @@ int run_viewer(const ViewOptions& opt, std::ostream& log) {
     const double dt = std::chrono::duration<double>(now - last).count();
     last = now;
     s.fps = s.fps == 0 ? 1.0 / dt : 0.9 * s.fps + 0.1 / dt;
+    s.frame_wall_s = dt;
+    const double x = s.sim_advance_s / dt;
+    s.realtime_factor = s.realtime_factor == 0 ? x : 0.9 * s.realtime_factor + 0.1 * x;
   }
   return 0;
 }

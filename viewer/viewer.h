@@ -1,5 +1,7 @@
 // `sphray view`: the real-time dam break in a window (GLFW + GLEW + Dear
-// ImGui). Each frame: SPH substeps, the density field, the raycast; the image
+// ImGui). Each frame: the SPH steps that bring the simulation to the wall
+// time of the previous frame (or a fixed number of substeps), the density
+// field, the raycast; the image
 // reaches the screen through CUDA-OpenGL interop on CUDA (no copy through the
 // host) and by texture upload on the CPU. docs/rendering.md, "The viewer".
 #pragma once
@@ -16,7 +18,11 @@ struct ViewOptions {
   std::string backend = "auto";
   int frames = 0;          // > 0: run this many frames, then exit
   std::string screenshot;  // with frames: the window's last frame as PNG
-  int substeps = 2;
+  // > 0: this many SPH steps per frame; 0: real-time playback, each frame
+  // advancing the simulation by the wall time of the one before, at most
+  // max_sim_per_frame seconds (switchable in the panel).
+  int substeps = 0;
+  double max_sim_per_frame = 1.0 / 30.0;
   int resize_w = 0, resize_h = 0;  // > 0: resize the window to this after the first frame (tests)
 };
 
