@@ -53,7 +53,7 @@ std::vector<BenchFrameRow> bench_frame(Backend b, const BenchFrameOptions& opt, 
       const uint64_t steps_before = solver->steps();
       const double sim_ms =
           opt.realtime ? advance_to(*solver, playback_target(t_before, prev_wall_s, opt.max_sim_per_frame, 1e30),
-                                    kind == FieldKind::Presence)
+                                    kind == FieldKind::Presence, opt.max_sim_per_frame)
                              .ms
                        : advance_frame(*solver, opt.substeps, kind == FieldKind::Presence, 1e30);
       const ParticleView pv = solver->view();

@@ -23,7 +23,8 @@ struct BenchFrameOptions {
   int interfaces = 4;
   int substeps = 5;           // SPH steps per frame (unless realtime)
   // Real-time playback (as the viewer's default): each frame advances the
-  // simulation by the previous frame's wall time, at most max_sim_per_frame.
+  // simulation by the previous frame's wall time, at most max_sim_per_frame,
+  // in steps taking at most that much wall time.
   bool realtime = false;
   double max_sim_per_frame = 1.0 / 30.0;
   std::string builder = "presence";

@@ -139,15 +139,24 @@ double playback_target(double sim_time, double last_frame_wall_s, double max_sim
   return std::min(end, sim_time + std::clamp(last_frame_wall_s, 0.0, max_sim_per_frame));
 }
 
-FrameAdvance advance_to(Solver& solver, double until, bool presence) {
+FrameAdvance advance_to(Solver& solver, double until, bool presence, double budget_s) {
+  using clock = std::chrono::steady_clock;
   FrameAdvance a;
-  // AtUntil: the solver computes presence on the step that may reach `until`.
-  solver.set_presence(presence ? PresenceMode::AtUntil : PresenceMode::Off);
+  const auto t0 = clock::now();
+  double elapsed = 0;
   while (solver.time() < until - 1e-12) {
-    solver.step(until);
+    // The last step: the one that may reach `until` (PresenceMode::AtUntil
+    // knows it), or the one after which the budget is spent (on the mean
+    // step so far), which then computes presence itself.
+    const bool budget_ends = a.steps > 0 && elapsed + elapsed / a.steps > budget_s;
+    solver.set_presence(!presence ? PresenceMode::Off : budget_ends ? PresenceMode::EveryStep : PresenceMode::AtUntil);
+    solver.step(until);  // returns once the step's work is done
     a.ms += solver.last_stage_times().total();
     ++a.steps;
+    elapsed = std::chrono::duration<double>(clock::now() - t0).count();
+    if (budget_ends) break;
   }
+  a.reached = solver.time() >= until - 1e-12;
   return a;
 }
 

@@ -5,6 +5,7 @@
 
 #include <functional>
 #include <iosfwd>
+#include <limits>
 #include <memory>
 #include <string>
 #include <utility>
@@ -113,19 +114,22 @@ struct RunSummary {
 double advance_frame(Solver& solver, int substeps, bool presence, double until);
 
 // Real-time playback: a displayed frame advances the simulation by the wall
-// time of the previous frame, at most `max_sim_per_frame` seconds (so that a
-// machine too slow for real time plays slower instead of taking ever more
-// steps per frame), and never past `end`.
+// time of the previous frame, at most `max_sim_per_frame` seconds, and never
+// past `end`.
 double playback_target(double sim_time, double last_frame_wall_s, double max_sim_per_frame, double end);
 
 // What advance_to did.
 struct FrameAdvance {
   double ms = 0;  // the steps' device milliseconds
   int steps = 0;
+  bool reached = true;  // false: the wall-time budget ended the frame first
 };
-// As many steps as reach `until` exactly (step() never passes it), presence
-// on the last one when asked for.
-FrameAdvance advance_to(Solver& solver, double until, bool presence);
+// Steps toward `until` (step() never passes it) until it is reached or the
+// steps have taken `budget_s` of wall time: a machine too slow for real time
+// then plays slower at a steady frame rate instead of taking ever more steps
+// per frame. Presence, when asked for, on the last step.
+FrameAdvance advance_to(Solver& solver, double until, bool presence,
+                        double budget_s = std::numeric_limits<double>::infinity());
 
 RunSummary run_scene(const Scene& s, Solver& solver, const RunOptions& opt, std::ostream& log);
 void print_summary(const RunSummary& r, std::ostream& log);

@@ -385,13 +385,13 @@ TEST_CASE("bench frame --realtime advances each frame by the previous frame's wa
   const auto& row = j["rows"][0];
   CHECK(row["realtime"] == true);
   CHECK(double(row["steps_per_frame"]) >= 1);
-  // The simulated time a frame adds is the previous frame's wall time, capped
-  // at 1/30 s; a CPU frame here takes longer than that, so every frame is
-  // capped and the run plays slower than real time.
-  const double x = row["realtime_factor"];
+  // A frame's steps stop once they have taken about 1/30 s of wall time (the
+  // budget, plus the step that spends it): on the CPU that is short of the
+  // frame's target, so the run plays slower than real time at a steady rate.
+  const double x = row["realtime_factor"], sim_ms = row["sim_ms"], steps = row["steps_per_frame"];
   CHECK(x > 0);
   CHECK(x < 1.0);
-  CHECK(x == Approx(1.0 / 30.0 / (1e-3 * double(row["wall_ms"]))).epsilon(0.5));
+  CHECK(sim_ms <= 1000.0 / 30.0 + 2.0 * sim_ms / steps + 5.0);
 }
 
 TEST_CASE("sphray view opens a real window under Xvfb and shows the liquid", "[viewer]") {

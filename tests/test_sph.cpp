@@ -346,6 +346,16 @@ TEST_CASE("real-time playback advances by the last frame's wall time, capped, to
   CHECK(a.steps > 1);
   CHECK(a.ms > 0);
   CHECK(solver->has_presence());  // computed on the step that reached the target
+  CHECK(a.reached);
   const FrameAdvance none = advance_to(*solver, solver->time(), true);
   CHECK(none.steps == 0);
+  // A wall-time budget spent after the first step ends the frame one step
+  // later, short of its target, with presence computed on that last step.
+  const double t1 = solver->time();
+  const FrameAdvance short_frame = advance_to(*solver, t1 + 0.02, true, 1e-9);
+  CHECK(short_frame.steps == 2);
+  CHECK_FALSE(short_frame.reached);
+  CHECK(solver->time() > t1);
+  CHECK(solver->time() < t1 + 0.02);
+  CHECK(solver->has_presence());
 }

@@ -314,7 +314,8 @@ void simulate(Solver& solver, PanelState& s, Controls& ctl, double end_time, dou
   const double t0 = solver.time();
   try {
     if (s.realtime && !ctl.step_once) {
-      const FrameAdvance a = advance_to(solver, playback_target(t0, s.frame_wall_s, max_sim, end_time), presence);
+      const FrameAdvance a =
+          advance_to(solver, playback_target(t0, s.frame_wall_s, max_sim, end_time), presence, max_sim);
       s.sim_ms = a.ms;
       s.steps = a.steps;
     } else {

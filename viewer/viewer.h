@@ -20,7 +20,8 @@ struct ViewOptions {
   std::string screenshot;  // with frames: the window's last frame as PNG
   // > 0: this many SPH steps per frame; 0: real-time playback, each frame
   // advancing the simulation by the wall time of the one before, at most
-  // max_sim_per_frame seconds (switchable in the panel).
+  // max_sim_per_frame seconds, in steps taking at most that much wall time
+  // (switchable in the panel).
   int substeps = 0;
   double max_sim_per_frame = 1.0 / 30.0;
   int resize_w = 0, resize_h = 0;  // > 0: resize the window to this after the first frame (tests)
