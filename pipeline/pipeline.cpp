@@ -30,11 +30,7 @@ Backend choose_backend(const std::string& name, std::ostream& log) {
 
 StageNeeds needs_of(const Scene& s, const std::vector<OutputSink*>& sinks) {
   FrameNeeds ever;
-  for (const OutputSink* k : sinks) {
-    const FrameNeeds n = k->needs_ever();
-    ever.field = ever.field || n.field;
-    ever.presence = ever.presence || n.presence;
-  }
+  for (const OutputSink* k : sinks) ever |= k->needs_ever();
   StageNeeds n;
   n.field = s.field.given || ever.field;
   // The presence builder reads presence once per frame: only the step that
@@ -115,11 +111,7 @@ void finish_summary(RunSummary& r, const Solver& solver, const StepTally& tally,
 // What the sinks need at a frame, together.
 FrameNeeds sinks_need(const std::vector<OutputSink*>& sinks, int frame) {
   FrameNeeds all;
-  for (const OutputSink* k : sinks) {
-    const FrameNeeds n = k->needs(frame);
-    all.field = all.field || n.field;
-    all.presence = all.presence || n.presence;
-  }
+  for (const OutputSink* k : sinks) all |= k->needs(frame);
   return all;
 }
 
@@ -170,17 +162,19 @@ RunSummary run_scene(const Scene& s, Solver& solver, const RunOptions& opt, std:
   auto last_print = t0;
   int frame = 0;
   double field_ms = 0;
-  // The field at frame k: every frame for a scene with a "field" section,
-  // else where a sink needs it. Presence toward frame k (when the solver
-  // computes it only where needed): where the field is built by the
-  // presence builder, or a sink needs it.
-  auto field_at = [&](int k) { return opt.field && (s.field.given || sinks_need(opt.sinks, k).field); };
-  auto presence_at = [&](int k) {
-    return (field_at(k) && opt.field->kind() == FieldKind::Presence) || sinks_need(opt.sinks, k).presence;
+  // What frame k needs: the field at every frame for a scene with a "field"
+  // section, else where a sink needs it; presence toward it (when the solver
+  // computes it only where needed) where the presence builder builds the
+  // field, or a sink needs it.
+  auto needs_at = [&](int k) {
+    FrameNeeds n = sinks_need(opt.sinks, k);
+    n.field = opt.field && (s.field.given || n.field);
+    n.presence = n.presence || (n.field && opt.field->kind() == FieldKind::Presence);
+    return n;
   };
   const bool presence_by_frame = solver.presence_mode() == PresenceMode::AtUntil;
   auto output = [&] {
-    if (field_at(frame)) {
+    if (needs_at(frame).field) {
       const ParticleView v = solver.view();
       if (opt.field->kind() == FieldKind::Presence && !v.presence) ++r.field_without_presence;
       opt.field->build(v);
@@ -211,7 +205,8 @@ RunSummary run_scene(const Scene& s, Solver& solver, const RunOptions& opt, std:
 
   while (solver.time() < end - 1e-12) {
     const double next_output = std::min(end, (frame + 1) * every);
-    if (presence_by_frame) solver.set_presence(presence_at(frame + 1) ? PresenceMode::AtUntil : PresenceMode::Off);
+    if (presence_by_frame)
+      solver.set_presence(needs_at(frame + 1).presence ? PresenceMode::AtUntil : PresenceMode::Off);
     while (solver.time() < next_output - 1e-12) {
       solver.step(next_output);
       const bool free = solver.time() < next_output - 1e-12;  // not the step shortened to land on the output time

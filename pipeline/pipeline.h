@@ -31,6 +31,11 @@ struct StageNeeds {
 struct FrameNeeds {
   bool field = false;     // the density field, built from the frame's particles
   bool presence = false;  // presence, computed by the step that reaches the frame
+  FrameNeeds& operator|=(const FrameNeeds& o) {
+    field = field || o.field;
+    presence = presence || o.presence;
+    return *this;
+  }
 };
 
 // An output of a run (PNG frames, the HDF5 export, the metrics CSV, a test's
