@@ -9,7 +9,6 @@
 #include <stdexcept>
 
 #include "core/background.h"
-#include "pipeline/sinks.h"
 
 namespace sphray::cli {
 
@@ -53,15 +52,6 @@ void add_frame_overrides(const FrameArgs& fa, std::vector<std::string>& sets) {
     sets.push_back("render.height=" + std::to_string(h));
   }
   if (fa.every > 0) sets.push_back("render.frames_every=" + std::to_string(fa.every));
-}
-
-// Opens an output file before the work that fills it, so that a bad path
-// fails at once (bad input, exit 2).
-std::ofstream open_output(const std::string& flag, const std::string& path) {
-  errno = 0;
-  std::ofstream f(path);
-  if (!f) throw std::runtime_error(write_failure(flag, path));
-  return f;
 }
 
 // Writes j and closes the file, checking both: an ofstream's write error

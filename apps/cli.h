@@ -12,6 +12,8 @@
 #include <CLI/CLI.hpp>
 #include <nlohmann/json.hpp>
 
+#include "pipeline/sinks.h"  // open_output, write_failure
+
 namespace sphray::cli {
 
 // "125k,1M,4000" -> particle counts.
@@ -28,9 +30,6 @@ std::pair<int, int> parse_wxh(const std::string& text, const char* option);
 // --size WxH and --frames-every as scene overrides (so the run's scene records them).
 void add_frame_overrides(const FrameArgs& fa, std::vector<std::string>& sets);
 
-// Opens an output file before the work that fills it, so that a bad path
-// fails at once (bad input, exit 2).
-std::ofstream open_output(const std::string& flag, const std::string& path);
 // Writes j and closes the file, checking both: an ofstream's write error
 // shows only when its buffer reaches the disk, here at close.
 void write_json(std::ofstream& f, const nlohmann::json& j, const std::string& flag, const std::string& path);

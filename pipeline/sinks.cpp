@@ -14,6 +14,13 @@ std::string write_failure(const std::string& flag, const std::string& path) {
   return flag + ": cannot write '" + path + "'" + (errno ? std::string(": ") + std::strerror(errno) : "");
 }
 
+std::ofstream open_output(const std::string& flag, const std::string& path) {
+  errno = 0;
+  std::ofstream f(path);
+  if (!f) throw std::runtime_error(write_failure(flag, path));
+  return f;
+}
+
 void PngSink::open(const Scene& scene, Backend b, const FieldSetup& fs) {
   frames_ = std::make_unique<FrameRenderer>(scene.render, scene.tank, b, fs, dir_, flag_);
 }
@@ -33,9 +40,7 @@ void ExportSink::write(const Solver& s, const FieldBuilder* field, int frame) {
 MetricsSink::MetricsSink(const std::string& path, const Scene& scene, const SphParams& prm, std::string flag)
     : path_(path), flag_(std::move(flag)), back_wall_x_(scene.tank.min.x), spacing_(scene.sph.spacing),
       mass_(prm.particle_mass) {
-  errno = 0;
-  csv_.open(path);
-  if (!csv_) throw std::runtime_error(write_failure(flag_, path));
+  csv_ = open_output(flag_, path);
   csv_ << "time_s,steps,fluid_particles,front_m,kinetic_energy_J,max_speed_m_s\n" << std::setprecision(9);
 }
 

@@ -74,5 +74,8 @@ class MetricsSink final : public OutputSink {
 
 // "FLAG: cannot write 'PATH': reason", the reason from errno when a write set it.
 std::string write_failure(const std::string& flag, const std::string& path);
+// Opens an output file before the work that fills it, so that a bad path
+// fails at once (std::runtime_error: bad input, exit 2).
+std::ofstream open_output(const std::string& flag, const std::string& path);
 
 }  // namespace sphray
