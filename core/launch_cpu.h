@@ -30,6 +30,7 @@
 #include "device.h"
 #include "hd.h"
 #include "kernel_times.h"
+#include "stage_marks.h"
 
 namespace sphray::cpu_backend {
 
@@ -116,31 +117,20 @@ T read_one(const Vector<T>& v, size_t i) { return v[i]; }
 class StageClock {
  public:
   void start() {
-    n_ = 0;
+    marks_.clear();
     record("");
   }
   void end_of(const char* stage) { record(stage); }
   void finish() {}
   double ms(const char* stage) const {
-    const int k = index_of(stage);
+    const int k = marks_.end_of(stage);
     return std::chrono::duration<double, std::milli>(t_[k] - t_[k - 1]).count();
   }
 
  private:
-  static constexpr int kMax = 8;
-  void record(const char* stage) {
-    if (n_ == kMax) throw std::logic_error("StageClock: more than 7 stages");
-    names_[n_] = stage;
-    t_[n_++] = std::chrono::steady_clock::now();
-  }
-  int index_of(const char* stage) const {
-    for (int k = 1; k < n_; ++k)
-      if (std::strcmp(names_[k], stage) == 0) return k;
-    throw std::logic_error(std::string("StageClock: no stage '") + stage + "'");
-  }
-  std::chrono::steady_clock::time_point t_[kMax];
-  const char* names_[kMax] = {};
-  int n_ = 0;
+  void record(const char* stage) { t_[marks_.add(stage)] = std::chrono::steady_clock::now(); }
+  StageMarks marks_;
+  std::chrono::steady_clock::time_point t_[StageMarks::kMax];
 };
 
 }  // namespace sphray::cpu_backend

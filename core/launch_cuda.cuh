@@ -33,6 +33,7 @@
 #include "device.h"
 #include "hd.h"
 #include "kernel_times.h"
+#include "stage_marks.h"
 
 #define SPHRAY_CUDA_CHECK(expr)                                                                         \
   do {                                                                                                  \
@@ -304,32 +305,22 @@ class StageClock {
   StageClock(const StageClock&) = delete;
   StageClock& operator=(const StageClock&) = delete;
   void start() {
-    n_ = 0;
+    marks_.clear();
     record("");
   }
   void end_of(const char* stage) { record(stage); }
-  void finish() { SPHRAY_CUDA_CHECK(cudaEventSynchronize(ev_[n_ - 1])); }
+  void finish() { SPHRAY_CUDA_CHECK(cudaEventSynchronize(ev_[marks_.last()])); }
   double ms(const char* stage) const {
+    const int k = marks_.end_of(stage);
     float out = 0;
-    SPHRAY_CUDA_CHECK(cudaEventElapsedTime(&out, ev_[index_of(stage) - 1], ev_[index_of(stage)]));
+    SPHRAY_CUDA_CHECK(cudaEventElapsedTime(&out, ev_[k - 1], ev_[k]));
     return out;
   }
 
  private:
-  static constexpr int kMax = 8;
-  void record(const char* stage) {
-    if (n_ == kMax) throw std::logic_error("StageClock: more than 7 stages");
-    names_[n_] = stage;
-    SPHRAY_CUDA_CHECK(cudaEventRecord(ev_[n_++]));
-  }
-  int index_of(const char* stage) const {
-    for (int k = 1; k < n_; ++k)
-      if (std::strcmp(names_[k], stage) == 0) return k;
-    throw std::logic_error(std::string("StageClock: no stage '") + stage + "'");
-  }
-  cudaEvent_t ev_[kMax];
-  const char* names_[kMax] = {};
-  int n_ = 0;
+  void record(const char* stage) { SPHRAY_CUDA_CHECK(cudaEventRecord(ev_[marks_.add(stage)])); }
+  StageMarks marks_;
+  cudaEvent_t ev_[StageMarks::kMax];
 };
 
 }  // namespace sphray::cuda_backend
