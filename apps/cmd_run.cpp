@@ -46,9 +46,14 @@ void print_start(const ResolvedScene& rs, const std::string& scene_path, const S
   const Scene& scene = rs.scene;
   const SceneSize& size = rs.size;
   const SphParams& prm = rs.params;
-  std::cout << "scene " << scene.name << " (" << scene_path << "): " << solver.num_fluid() << " fluid particles, "
-            << size.boundary << " wall particles, grid " << size.grid.nx << "x" << size.grid.ny << "x" << size.grid.nz
-            << ", c0 = " << prm.speed_of_sound << " m/s, to t = " << scene.run.end_time << " s\n";
+  std::cout << "scene " << scene.name << " (" << scene_path << "): " << solver_name(solver.kind()) << ", "
+            << solver.num_fluid() << " fluid particles, " << size.boundary << " wall particles, grid " << size.grid.nx
+            << "x" << size.grid.ny << "x" << size.grid.nz;
+  if (solver.kind() == SolverKind::Pbf)
+    std::cout << ", " << scene.sph.pbf.iterations << " iterations, walls: the tank's planes";
+  else
+    std::cout << ", c0 = " << prm.speed_of_sound << " m/s";
+  std::cout << ", to t = " << scene.run.end_time << " s\n";
   if (const double c_auto = auto_speed_of_sound(scene), v = expected_flow_speed(scene);
       scene.sph.speed_of_sound > 0 && scene.sph.speed_of_sound < c_auto)
     std::cout << std::setprecision(3) << "  note: sph.speed_of_sound is below the automatic " << c_auto
@@ -69,7 +74,11 @@ nlohmann::json completed_json(const RunSummary& r, const RunArgs& a, const Scene
                       {"removed", r.removed},            {"clamped", r.clamped},
                       {"particle_steps", r.particle_steps}, {"spacing_m", scene.sph.spacing},
                       {"mean_dt_s", r.mean_dt},          {"max_speed_m_s", r.max_speed},
-                      {"realtime_factor", r.realtime_factor()}};
+                      {"realtime_factor", r.realtime_factor()}, {"solver", r.solver}};
+  if (r.iterations_max > 0)
+    j["constraint"] = {{"iterations_mean", r.iterations_mean}, {"iterations_max", r.iterations_max},
+                       {"density_error_mean", r.density_error_mean}, {"density_error_max", r.density_error_max},
+                       {"unconverged_steps", r.unconverged_steps}};
   if (r.field_builds)
     j["field"] = {{"builder", r.field_builder}, {"volume", r.field_dims}, {"builds", r.field_builds},
                   {"ms_per_build", r.field_ms_mean}, {"builds_without_presence", r.field_without_presence}};

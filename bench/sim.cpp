@@ -60,10 +60,12 @@ std::vector<BenchSimRow> bench_sim(const std::string& scene_json, const std::str
       BenchSimRow row;
       row.particles = solver->num_fluid();
       row.boundary = s.size.boundary;
+      row.solver = solver_name(solver->kind());
       row.presence = presence;
-      log << "  " << row.particles << " particles, presence " << (presence ? "on " : "off") << ": " << opt.warmup
-          << " warm-up + " << opt.steps << " steps\n";
+      log << "  " << row.solver << ", " << row.particles << " particles, presence " << (presence ? "on " : "off")
+          << ": to t = " << opt.from << " s, " << opt.warmup << " warm-up + " << opt.steps << " steps\n";
       log.flush();
+      advance_to(*solver, opt.from, false);
       for (int k = 0; k < opt.warmup; ++k) solver->step(1e30);
       std::vector<double> g, p, in, tot, wall, dt;
       for (int k = 0; k < opt.steps; ++k) {
@@ -75,6 +77,7 @@ std::vector<BenchSimRow> bench_sim(const std::string& scene_json, const std::str
         tot.push_back(t.total());
         dt.push_back(solver->last_limits().dt);
       }
+      row.solve = solver->last_solve();
       row.median_ms = {median(g), median(p), median(in)};
       row.median_total_ms = median(tot);
       row.median_wall_ms = median(wall);
@@ -101,8 +104,11 @@ nlohmann::json to_json(const std::vector<BenchSimRow>& rows, Backend b, const Be
   nlohmann::json j = bench_json("sim", b, "median ms per step", opt.overrides);
   j["warmup_steps"] = opt.warmup;
   j["measured_steps"] = opt.steps;
+  j["from_s"] = opt.from;
   for (const auto& r : rows)
-    j["rows"].push_back({{"particles", r.particles}, {"boundary_particles", r.boundary}, {"presence", r.presence},
+    j["rows"].push_back({{"solver", r.solver}, {"particles", r.particles}, {"boundary_particles", r.boundary},
+                         {"presence", r.presence}, {"iterations", r.solve.iterations},
+                         {"density_error_mean", r.solve.density_error_mean},
                          {"grid_ms", r.median_ms.grid}, {"pairs_ms", r.median_ms.pairs},
                          {"integrate_ms", r.median_ms.integrate},
                          {"total_ms", r.median_total_ms}, {"wall_ms", r.median_wall_ms}, {"dt_s", r.median_dt_s},
@@ -115,12 +121,13 @@ nlohmann::json to_json(const std::vector<BenchSimRow>& rows, Backend b, const Be
 }
 
 void print_table(const std::vector<BenchSimRow>& rows, std::ostream& out) {
-  out << std::setw(10) << "particles" << std::setw(10) << "presence" << std::setw(10) << "grid" << std::setw(10)
+  out << std::setw(7) << "solver" << std::setw(10) << "particles" << std::setw(10) << "presence" << std::setw(10) << "grid" << std::setw(10)
       << "pairs" << std::setw(11) << "integrate" << std::setw(10) << "total" << std::setw(9) << "wall"
       << std::setw(10) << "dt [ms]" << std::setw(9) << "x real" << "   (median ms per step)\n";
   out << std::fixed << std::setprecision(3);
   for (const auto& r : rows)
-    out << std::setw(10) << r.particles << std::setw(10) << (r.presence ? "on" : "off") << std::setw(10)
+    out << std::setw(7) << r.solver << std::setw(10) << r.particles << std::setw(10) << (r.presence ? "on" : "off")
+        << std::setw(10)
         << r.median_ms.grid << std::setw(10) << r.median_ms.pairs << std::setw(11) << r.median_ms.integrate
         << std::setw(10) << r.median_total_ms << std::setw(9) << r.median_wall_ms << std::setw(10)
         << 1e3 * r.median_dt_s << std::setw(9) << r.realtime_factor() << "\n";
@@ -136,8 +143,14 @@ void print_table(const std::vector<BenchSimRow>& rows, std::ostream& out) {
     for (const KernelTime& kt : r.kernels) out << " " << kt.name << " " << std::setprecision(3) << kt.ms;
     out << "\n";
   }
+  for (const auto& r : rows)
+    if (r.solve.iterations > 0)
+      out << "  " << r.solver << " at " << r.particles << " particles: " << r.solve.iterations
+          << " iterations, density error left " << std::setprecision(3) << 100 * r.solve.density_error_mean
+          << "% mean, " << 100 * r.solve.density_error_max << "% max (last step)\n";
   out << "  grid: the sort, the cell tables and the pair masks; pairs: the wall pressure and the one neighbour\n"
-      << "  loop of forces, density rate and presence; integrate: the step size and the kick, density and drift;\n"
+      << "  loop of forces, density rate and presence (pbf: the constraint iterations); integrate: the step\n"
+      << "  size and the kick, density and drift (pbf: the velocity, XSPH and density pass);\n"
       << "  total: their sum; wall: the whole step on the host's clock (with the launches and waits between stages);\n"
       << "  dt: the step the solver chose; x real: simulated seconds per wall second at that step (dt / wall)\n";
   out << std::defaultfloat;

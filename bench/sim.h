@@ -23,11 +23,17 @@ struct BenchSimOptions {
   int steps = 100;
   std::vector<std::string> overrides;  // --set key.path=value, applied to every size
   bool kernels = false;  // also time each named launch (a further `steps` steps, kernel_times.h)
+  // Simulated seconds advanced (untimed) before the warm-up: the flow's step
+  // sizes, not those of the liquid at rest (a flow-CFL solver steps at
+  // run.max_dt until the liquid moves).
+  double from = 0;
 };
 
 struct BenchSimRow {
   size_t particles = 0, boundary = 0;
+  std::string solver;  // sph.solver
   bool presence = false;
+  SolveStats solve;    // the last measured step's (iterations, density error)
   StageTimes median_ms;
   double median_total_ms = 0;  // the stages' device time
   // The host's clock around each step() call: the stages plus what the

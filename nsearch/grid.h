@@ -61,14 +61,17 @@ struct GridGeom {
 // beyond the support; otherwise sets [begin, end) (possibly empty). The culling
 // radius is padded by 1e-3 of a cell so that float rounding of p and of the
 // cell bounds never drops a neighbour whose distance the caller computes as
-// just inside the support. Pure function of (g, fine_offsets, p, row), so a
+// just inside the support. `reach` (at most the cell size; 0: the cell
+// size) culls to a smaller sphere, for a search radius below the cell size
+// (the PBF solver's). Pure function of (g, fine_offsets, p, row, reach), so a
 // query that walks the rows again (the pair masks, pair_masks.h) sees the same ranges.
 constexpr int kCandidateRows = 9;
 
 SPHRAY_HD SPHRAY_FORCEINLINE bool candidate_row(const GridGeom& g, const uint32_t* fine_offsets, Vec3f p, int row,
-                                                uint32_t& begin, uint32_t& end) {
+                                                uint32_t& begin, uint32_t& end, float reach = 0.0f) {
   const float s = g.cell_size;
-  const float reach2 = (1.001f * s) * (1.001f * s);
+  const float pad = reach > 0.0f ? reach + 0.001f * s : 1.001f * s;
+  const float reach2 = pad * pad;
   const int dz = row / 3 - 1, dy = row % 3 - 1;
   const int cz = g.coord(p.z, g.origin.z), z = cz + dz;
   const int cy = g.coord(p.y, g.origin.y), y = cy + dy;

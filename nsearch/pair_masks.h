@@ -135,6 +135,9 @@ struct BuildPairMask {
   // The tile test on the tensor cores where the GPU has them (tile_mma.h);
   // false: the FMA test everywhere.
   bool tensor_tiles = true;
+  // The candidate search radius (grid.h, candidate_row): 0 for the cell
+  // size; the support where the support is smaller than the cells.
+  float search_radius = 0.0f;
 
   // Appends one word (if it has a neighbour) to query i's mask; w counts the
   // query's words, capacity + 1 at most (the overflow mark).
@@ -238,7 +241,7 @@ struct BuildPairMask {
 #endif
     for (int row = 0; row < kCandidateRows; ++row) {
       uint32_t begin = 0, end = 0;
-      if (!candidate_row(grid, offsets, x, row, begin, end) || begin >= end) begin = 0xffffffffu, end = 0;
+      if (!candidate_row(grid, offsets, x, row, begin, end, search_radius) || begin >= end) begin = 0xffffffffu, end = 0;
       const uint32_t lo = __reduce_min_sync(lanes, begin), hi = __reduce_max_sync(lanes, end);
       const uint32_t longest = __reduce_max_sync(lanes, end > begin ? end - begin : 0u);
       if (hi <= lo) continue;  // no lane has candidates in this row
@@ -272,7 +275,7 @@ struct BuildPairMask {
     }
     for (int row = 0; row < kCandidateRows && w <= mask.capacity; ++row) {
       uint32_t begin = 0, end = 0;
-      if (candidate_row(grid, offsets, x, row, begin, end)) put_row(i, w, x, skip, begin, end);
+      if (candidate_row(grid, offsets, x, row, begin, end, search_radius)) put_row(i, w, x, skip, begin, end);
     }
 #endif
     mask.count[i] = w;

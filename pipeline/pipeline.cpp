@@ -65,6 +65,7 @@ std::string format_seconds(double s) {
 struct StepTally {
   StageTimes sum;
   double dt_sum = 0;
+  double iterations_sum = 0, density_error_sum = 0;
   uint64_t free_steps = 0;
   double last_free_dt = 0;  // the progress line's dt
 
@@ -80,6 +81,12 @@ struct StepTally {
     }
     r.max_speed = std::max(r.max_speed, l.max_speed);
     r.particle_steps += solver.num_fluid();
+    const SolveStats solve = solver.last_solve();
+    iterations_sum += solve.iterations;
+    density_error_sum += solve.density_error_mean;
+    r.iterations_max = std::max(r.iterations_max, solve.iterations);
+    r.density_error_max = std::max(r.density_error_max, solve.density_error_max);
+    r.unconverged_steps += solve.converged ? 0 : 1;
   }
 };
 
@@ -87,6 +94,7 @@ struct StepTally {
 void finish_summary(RunSummary& r, const Solver& solver, const StepTally& tally, const FieldBuilder* field,
                     double field_ms) {
   r.steps = solver.steps();
+  r.solver = solver_name(solver.kind());
   r.sim_time = solver.time();
   r.fluid_end = solver.num_fluid();
   r.removed = solver.num_removed();
@@ -94,6 +102,8 @@ void finish_summary(RunSummary& r, const Solver& solver, const StepTally& tally,
   if (r.steps) {
     const double k = 1.0 / double(r.steps);
     r.mean_stage_ms = {tally.sum.grid * k, tally.sum.pairs * k, tally.sum.integrate * k};
+    r.iterations_mean = tally.iterations_sum * k;
+    r.density_error_mean = tally.density_error_sum * k;
   }
   // No free step (every step shortened, an output interval below dt): the
   // mean and min of all steps.
@@ -224,7 +234,7 @@ RunSummary run_scene(const Scene& s, Solver& solver, const RunOptions& opt, std:
 
 void print_summary(const RunSummary& r, std::ostream& log) {
   log << std::defaultfloat << std::setprecision(4);
-  log << "summary (" << backend_name(r.backend) << "):\n"
+  log << "summary (" << backend_name(r.backend) << ", " << r.solver << "):\n"
       << "  simulated      " << r.sim_time << " s in " << r.steps << " steps (dt mean " << r.mean_dt << " s, min "
       << r.min_dt << " s, of the steps not shortened to meet an output time)\n"
       << "  wall time      " << r.wall_seconds << " s ("
@@ -240,6 +250,13 @@ void print_summary(const RunSummary& r, std::ostream& log) {
     log << "  warning        the wall guard, not the walls' pressure, held the liquid on more than "
         << 100 * kWallClampShareBound << "% of particle-steps: wall layers thinner than the kernel support "
         << "(sph.boundary_layers below \"auto\"), or steps too large for the flow (lower sph.cfl)\n";
+  if (r.iterations_max > 0)
+    log << "  constraint     " << r.iterations_mean << " iterations per step (max " << r.iterations_max
+        << "), density error left " << 100 * r.density_error_mean << "% mean, " << 100 * r.density_error_max
+        << "% largest" << (r.unconverged_steps ? ", " + std::to_string(r.unconverged_steps) +
+                                                      " steps above pbf.tolerance"
+                                                : std::string())
+        << "\n";
   log << "  max speed      " << r.max_speed << " m/s\n"
       << "  ms per step    grid (with the pair masks) " << r.mean_stage_ms.grid
       << ", pairs (forces, density rate, presence where needed) " << r.mean_stage_ms.pairs << ", integrate "

@@ -98,6 +98,7 @@ constexpr double kWallClampShareBound = 0.005;
 
 struct RunSummary {
   Backend backend{};
+  std::string solver;  // sph.solver
   size_t fluid_start = 0, fluid_end = 0, removed = 0, boundary = 0;
   uint64_t clamped = 0, steps = 0;
   uint64_t particle_steps = 0;  // fluid particles summed over the steps
@@ -107,6 +108,12 @@ struct RunSummary {
   double mean_dt = 0, min_dt = 1e300;
   StageTimes mean_stage_ms;
   double max_speed = 0;
+  // The constraint solve of each step (Solver::last_solve; PBF): iterations
+  // mean and max, the density error left (mean over the steps of each step's
+  // mean, and the largest of any particle), steps that missed the tolerance.
+  double iterations_mean = 0, density_error_mean = 0, density_error_max = 0;
+  int iterations_max = 0;
+  uint64_t unconverged_steps = 0;
   uint64_t field_builds = 0, field_without_presence = 0;  // presence builds that fell back to full extents
   double field_ms_mean = 0;
   std::string field_builder;

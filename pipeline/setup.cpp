@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <cmath>
 #include <fstream>
+#include <limits>
 #include <sstream>
 #include <string>
 
@@ -78,6 +79,40 @@ AxisCoords axis_coords(double lo, double hi, double dx, int layers, bool upper_w
 
 bool is_wall(const AxisCoords& a, size_t k) { return k < a.wall_lo || k >= a.wall_lo + a.inner; }
 
+// Calls f(x, y, z, r) for every other node (x, y, z) dx of a cubic lattice
+// of spacing dx within `support` of a node, r its distance.
+template <class F>
+void for_lattice_neighbours(double support, double dx, F&& f) {
+  const int m = int(std::ceil(support / dx));
+  for (int z = -m; z <= m; ++z)
+    for (int y = -m; y <= m; ++y)
+      for (int x = -m; x <= m; ++x) {
+        const double r = dx * std::sqrt(double(x * x + y * y + z * z));
+        if ((x || y || z) && r < support) f(x, y, z, r);
+      }
+}
+
+// One presence lobe (sph/interaction.h) of a node inside a full lattice,
+// with particle volume V: sum over the half space x < 0 of V (-dW/dr / r) |x|.
+template <class K>
+double presence_lobe_on_lattice(const K& k, double dx, double volume) {
+  double sum = 0;
+  for_lattice_neighbours(k.support(), dx, [&](int x, int, int, double r) {
+    if (x < 0) sum += volume * -k.dW_over_r(r) * (-x * dx);
+  });
+  return sum;
+}
+
+// The height of the scene's liquid above the tank floor along gravity
+// (at least one spacing), as expected_flow_speed measures it.
+double depth_of(const Scene& s) {
+  const Vec3d up = up_of(s);
+  const double floor = -box_top(s.tank, up * -1.0);
+  double top = floor;
+  for (const auto& b : s.fluid) top = std::max(top, box_top(b.box, up));
+  return std::max(top - floor, s.sph.spacing);
+}
+
 }  // namespace
 
 SphParams make_params(const Scene& s) {
@@ -102,22 +137,55 @@ SphParams make_params(const Scene& s) {
 }
 
 double presence_lobe_on_lattice(const SmoothingKernel<double>& k, double dx) {
-  // sum over the half space i < 0 of a cubic lattice of dx^3 (-dW/dr / r) |i dx|
-  const int m = int(std::ceil(k.support() / dx));
-  double sum = 0;
-  for (int z = -m; z <= m; ++z)
-    for (int y = -m; y <= m; ++y)
-      for (int x = -m; x < 0; ++x) {
-        const double r = dx * std::sqrt(double(x * x + y * y + z * z));
-        if (r < k.support()) sum += dx * dx * dx * -k.dW_over_r(r) * (-x * dx);
-      }
-  return sum;
+  return presence_lobe_on_lattice(k, dx, dx * dx * dx);
+}
+
+PbfParams make_pbf_params(const Scene& s) {
+  const PbfConfig& c = s.sph.pbf;
+  const double dx = s.sph.spacing;
+  const PbfKernel<double> k = PbfKernel<double>::make(c.support * dx);
+  // The particle volume m / rho0 that gives a full lattice exactly the rest
+  // density with this kernel (poly6 sums to about, not exactly, 1 / dx^3),
+  // and G0 = sum_j |grad_j C_i|^2 there: the scale of the constraint's
+  // denominator, which the relaxation and s_corr are given as shares of.
+  double w_sum = 0, g2_sum = 0;
+  for_lattice_neighbours(k.support(), dx, [&](int, int, int, double r) {
+    w_sum += k.W(r * r);
+    g2_sum += r * r * k.dW_over_r(r) * k.dW_over_r(r);
+  });
+  const double volume = 1.0 / (k.W(0) + w_sum);
+  const double g0 = volume * volume * g2_sum;
+  const double dq = c.scorr_dq * k.support();
+  PbfParams p{};
+  p.kernel = PbfKernel<float>::make(float(k.support()));
+  p.volume = float(volume);
+  p.epsilon = float(c.relaxation * g0);
+  p.scorr_coef = float(c.scorr_k / g0);
+  p.inv_w_dq = float(1.0 / k.W(dq * dq));
+  p.scorr_n = c.scorr_n;
+  p.xsph = float(c.xsph);
+  p.presence_scale = float(0.5 / presence_lobe_on_lattice(k, dx, volume));
+  // The flow speed the scene can reach, sqrt(g H) (or its fastest initial
+  // velocity), and from the same H the depth limit of ChoosePbfStep: the
+  // step at which g H dt^2 / (K s^2), the compression a column of depth H
+  // keeps when K Jacobi iterations carry the constraint through it, is
+  // pbf.depth_error.
+  // Without gravity nothing compresses a column: no depth limit; nor where
+  // the scene turns it off (pbf.depth_error = 0).
+  const double v = expected_flow_speed(s), g = length(s.gravity);
+  p.speed_floor = float(v);
+  p.max_dt_depth = g > 0 && c.depth_error > 0
+                       ? float(k.support() * std::sqrt(c.iterations * c.depth_error / (g * depth_of(s))))
+                       : std::numeric_limits<float>::max();
+  p.iterations = c.iterations;
+  p.tolerance = float(c.tolerance);
+  return p;
 }
 
 SceneSize measure_scene(const Scene& s) {
   SceneSize z;
   const double dx = s.sph.spacing;
-  const double support = s.sph.support_radius();
+  const double support = s.sph.grid_cell();
   z.boundary_layers = s.sph.wall_layers();
   for (const auto& b : s.fluid) {
     const Vec3d e = b.box.max - b.box.min;
@@ -128,7 +196,7 @@ SceneSize measure_scene(const Scene& s) {
   const double in_x = std::max(1.0, double(std::lround(e.x / dx))), in_y = std::max(1.0, double(std::lround(e.y / dx))),
                in_z = std::max(1.0, double(std::lround(e.z / dx)));
   const double all = (in_x + 2 * L) * (in_y + 2 * L) * (in_z + (s.open_top ? 1 : 2) * L);
-  z.boundary = size_t(all - in_x * in_y * in_z);
+  z.boundary = L > 0 ? size_t(all - in_x * in_y * in_z) : 0;
 
   GridGeom& g = z.grid;
   g.cell_size = float(support);
@@ -155,7 +223,9 @@ SceneSize measure_scene(const Scene& s) {
   return z;
 }
 
-ResolvedScene resolve_scene(const Scene& s) { return {s, make_params(s), measure_scene(s)}; }
+ResolvedScene resolve_scene(const Scene& s) {
+  return {s, make_params(s), s.sph.solver == SolverKind::Pbf ? make_pbf_params(s) : PbfParams{}, measure_scene(s)};
+}
 
 void check_fits(const ResolvedScene& r, Backend backend, bool field) {
   const Scene& s = r.scene;
@@ -202,7 +272,9 @@ SolverInput make_solver_input(const ResolvedScene& r, PresenceMode presence) {
   const Scene& s = r.scene;
   const SceneSize& z = r.size;
   SolverInput in;
+  in.kind = s.sph.solver;
   in.params = r.params;
+  in.pbf = r.pbf;
   in.grid = z.grid;
   in.cfl = float(s.sph.cfl);
   in.min_dt = float(s.run.min_dt);
@@ -225,15 +297,17 @@ SolverInput make_solver_input(const ResolvedScene& r, PresenceMode presence) {
         for (int i = 0; i < n[0]; ++i) {
           const Vec3d p = start + Vec3d{i * dx, j * dx, k * dx};
           if (covered_before(s.fluid, b, p, dx)) continue;
-          // Hydrostatic start (inverse Tait): no pressure wave from a fluid released at uniform density.
+          // Hydrostatic start (inverse Tait): no pressure wave from a fluid released at
+          // uniform density. PBF computes its density from the positions.
           const double depth = std::max(0.0, surface_above(s.fluid, b, p, up, dx) - dot(p, up));
-          const double rho = tait_density(b_tait, rho0, rho0 * g * depth);
+          const double rho = in.kind == SolverKind::Pbf ? rho0 : tait_density(b_tait, rho0, rho0 * g * depth);
           in.fluid_pos_rho.push_back({float(p.x), float(p.y), float(p.z), float(rho)});
           in.fluid_vel.push_back({float(blk.velocity.x), float(blk.velocity.y), float(blk.velocity.z), 0.0f});
         }
   }
 
   const int L = z.boundary_layers;
+  if (L == 0) return in;  // PBF: the walls are the tank's planes
   const AxisCoords ax = axis_coords(s.tank.min.x, s.tank.max.x, dx, L, true);
   const AxisCoords ay = axis_coords(s.tank.min.y, s.tank.max.y, dx, L, true);
   const AxisCoords az = axis_coords(s.tank.min.z, s.tank.max.z, dx, L, !s.open_top);

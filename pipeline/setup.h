@@ -23,6 +23,7 @@ struct SceneSize {
 struct ResolvedScene {
   Scene scene;
   SphParams params;  // make_params
+  PbfParams pbf;     // make_pbf_params, when the scene runs PBF
   SceneSize size;    // measure_scene
 };
 ResolvedScene resolve_scene(const Scene& s);
@@ -31,6 +32,9 @@ SphParams make_params(const Scene& s);
 // One presence lobe (sph/interaction.h) of a particle inside a full cubic
 // lattice of spacing dx: the value that presence is normalised by.
 double presence_lobe_on_lattice(const SmoothingKernel<double>& k, double dx);
+// The PBF solver's constants from the scene's "pbf" section, with the
+// particle volume and the constraint's scale computed on a full lattice.
+PbfParams make_pbf_params(const Scene& s);
 SceneSize measure_scene(const Scene& s);  // counts only; generates nothing
 SolverInput make_solver_input(const ResolvedScene& r, PresenceMode presence);
 

@@ -6,12 +6,13 @@ namespace sphray {
 
 int SphConfig::auto_boundary_layers() const { return int(std::ceil(support_radius() / spacing - 1e-9)); }
 
-SphConfig read_sph_config(const ConfigReader& r) {
-  r.only({"spacing", "rest_density", "speed_of_sound", "smoothing_ratio", "kernel", "viscosity_alpha",
-          "wall_viscosity_alpha", "density_diffusion", "cfl", "boundary_layers", "presence"});
-  SphConfig c;
-  c.spacing = r.number("spacing", c.spacing, 0, 1e3, true, true);
-  c.rest_density = r.number("rest_density", c.rest_density, 0, 1e5, false, true);
+namespace {
+
+// The sph keys that only the weakly compressible solver reads.
+constexpr const char* kWcsphKeys[] = {"speed_of_sound", "smoothing_ratio", "kernel", "viscosity_alpha",
+                                      "wall_viscosity_alpha", "density_diffusion", "boundary_layers"};
+
+void read_wcsph_options(const ConfigReader& r, SphConfig& c) {
   if (r.has("speed_of_sound") && r.at("speed_of_sound").is_string()) {
     if (r.at("speed_of_sound") != "auto")
       r.fail("speed_of_sound", r.at("speed_of_sound"), "must be \"auto\" or a positive number [m/s]");
@@ -25,11 +26,48 @@ SphConfig read_sph_config(const ConfigReader& r) {
   c.viscosity_alpha = r.number("viscosity_alpha", c.viscosity_alpha, 0, 1);
   c.wall_viscosity_alpha = r.number("wall_viscosity_alpha", c.wall_viscosity_alpha, 0, 1);
   c.density_diffusion = r.number("density_diffusion", c.density_diffusion, 0, 1);
-  c.cfl = r.number("cfl", c.cfl, 0, 1, false, true);
   if (r.has("boundary_layers") && !(r.at("boundary_layers").is_string() && r.at("boundary_layers") == "auto")) {
     const double l = r.number("boundary_layers", 0, 1, 8);
     if (l != std::floor(l)) r.fail("boundary_layers", r.at("boundary_layers"), "must be \"auto\" or an integer 1..8");
     c.boundary_layers = int(l);
+  }
+}
+
+PbfConfig read_pbf_config(const ConfigReader& r) {
+  r.only({"iterations", "tolerance", "support", "relaxation", "scorr_k", "scorr_dq", "scorr_n", "depth_error", "xsph"});
+  PbfConfig c;
+  c.iterations = r.integer("iterations", c.iterations, 1, 100);
+  c.tolerance = r.number("tolerance", c.tolerance, 0, 1);
+  c.support = r.number("support", c.support, 1.5, 4.0);
+  c.relaxation = r.number("relaxation", c.relaxation, 0, 100, false, true);
+  c.scorr_k = r.number("scorr_k", c.scorr_k, 0, 1);
+  c.scorr_dq = r.number("scorr_dq", c.scorr_dq, 0, 1, false, true);
+  c.scorr_n = r.integer("scorr_n", c.scorr_n, 1, 8);
+  c.depth_error = r.number("depth_error", c.depth_error, 0, 1);
+  c.xsph = r.number("xsph", c.xsph, 0, 1);
+  return c;
+}
+
+}  // namespace
+
+SphConfig read_sph_config(const ConfigReader& r, const ConfigReader& pbf) {
+  r.only({"solver", "spacing", "rest_density", "speed_of_sound", "smoothing_ratio", "kernel", "viscosity_alpha",
+          "wall_viscosity_alpha", "density_diffusion", "cfl", "boundary_layers", "presence"});
+  SphConfig c;
+  c.solver = r.string("solver", "wcsph", {"wcsph", "pbf"}) == "pbf" ? SolverKind::Pbf : SolverKind::Wcsph;
+  c.spacing = r.number("spacing", c.spacing, 0, 1e3, true, true);
+  c.rest_density = r.number("rest_density", c.rest_density, 0, 1e5, false, true);
+  if (c.solver == SolverKind::Pbf) {
+    for (const char* key : kWcsphKeys)
+      if (r.has(key))
+        r.fail(key, r.at(key), "is an option of the wcsph solver, but sph.solver is \"pbf\" (remove it; the pbf "
+                               "solver's options are in the \"pbf\" section, docs/scenes.md)");
+    // A CFL above 1 is allowed for studies of the step size (docs/validation.md).
+    c.cfl = r.number("cfl", SphConfig::kPbfCfl, 0, 10, false, true);
+    c.pbf = read_pbf_config(pbf);
+  } else {
+    read_wcsph_options(r, c);
+    c.cfl = r.number("cfl", SphConfig::kWcsphCfl, 0, 1, false, true);
   }
   c.presence = r.boolean("presence", c.presence);
   return c;

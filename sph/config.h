@@ -5,10 +5,26 @@
 
 #include "core/config_reader.h"
 #include "kernel.h"
+#include "solver_kind.h"
 
 namespace sphray {
 
+// The scene's "pbf" section: the position-based fluids solver (pbf.h,
+// docs/method.md). Read only when sph.solver is "pbf".
+struct PbfConfig {
+  int iterations = 3;         // constraint iterations per step
+  double tolerance = 0;       // mean density error that ends the iterations early; 0: off
+  double support = 2.1;       // kernel support [spacings]
+  double relaxation = 0.1;    // eps of the constraint, as a share of sum |grad C|^2 in a full lattice
+  double scorr_k = 0;         // s_corr strength, as a share of the lambda of a 100% compression (off: docs/method.md)
+  double scorr_dq = 0.2;      // s_corr reference distance [supports]
+  int scorr_n = 4;            // s_corr exponent
+  double depth_error = 0.01;  // compression a column may keep between steps (the depth limit of dt); 0: no limit
+  double xsph = 0.1;          // XSPH viscosity c (the share of the neighbours' mean velocity difference per step)
+};
+
 struct SphConfig {
+  SolverKind solver = SolverKind::Wcsph;
   double spacing = 0;            // dx [m], required
   double rest_density = 1000;    // [kg/m^3]
   double speed_of_sound = 0;     // [m/s], 0 = auto (10x the flow speed the scene can reach)
@@ -17,11 +33,15 @@ struct SphConfig {
   double viscosity_alpha = 0.02;
   double wall_viscosity_alpha = -1;  // against viscous walls; < 0: viscosity_alpha
   double density_diffusion = 0.1;
-  double cfl = 0.25;
+  // WCSPH: dt = cfl h / (c0 + v_max) (and the force and viscous limits);
+  // PBF: dt = cfl dx / v_max. The default depends on the solver.
+  static constexpr double kWcsphCfl = 0.25, kPbfCfl = 0.9;
+  double cfl = kWcsphCfl;
   int boundary_layers = 0;  // 0 = auto: enough to cover the support radius
   bool presence = false;    // presence on every step (studies); otherwise only where a stage needs it
+  PbfConfig pbf;            // sph.solver "pbf"
 
-  // The smoothing kernel of this section, and its support radius [m].
+  // The smoothing kernel of this section (WCSPH), and its support radius [m].
   SmoothingKernel<double> smoothing_kernel() const {
     return SmoothingKernel<double>::make(kernel, smoothing_ratio * spacing);
   }
@@ -30,12 +50,23 @@ struct SphConfig {
   // kernel's support (rounded up), so that a particle at a wall face finds
   // its kernel full. Fewer (boundary_layers) leave part of it empty near walls.
   int auto_boundary_layers() const;
-  // boundary_layers, or the automatic number.
-  int wall_layers() const { return boundary_layers > 0 ? boundary_layers : auto_boundary_layers(); }
+  // boundary_layers, or the automatic number; none for PBF, whose walls are
+  // the tank's planes.
+  int wall_layers() const {
+    if (solver == SolverKind::Pbf) return 0;
+    return boundary_layers > 0 ? boundary_layers : auto_boundary_layers();
+  }
+  // The neighbour grid's cell edge [m] (and with it the field's voxels): the
+  // WCSPH support, or twice the PBF support, so that both solvers' grids have
+  // cells of about 4 spacings at their defaults and the field keeps its voxel
+  // size whichever solver runs (PBF searches only its support within them).
+  double grid_cell() const { return solver == SolverKind::Pbf ? 2.0 * pbf.support * spacing : support_radius(); }
 };
 
-// The "sph" section; the speed of sound against the scene's flow is checked
-// by the scene (io/scene.cpp), which knows the tank and the liquid.
-SphConfig read_sph_config(const ConfigReader& r);
+// The "sph" section, and the "pbf" section when sph.solver is "pbf"; options
+// of the solver the scene does not run are refused by name. The speed of
+// sound against the scene's flow is checked by the scene (io/scene.cpp),
+// which knows the tank and the liquid.
+SphConfig read_sph_config(const ConfigReader& r, const ConfigReader& pbf);
 
 }  // namespace sphray

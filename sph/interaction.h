@@ -54,6 +54,7 @@
 
 #include "boundary.h"
 #include "nsearch/pair_masks.h"
+#include "presence.h"
 
 namespace sphray {
 
@@ -125,12 +126,7 @@ struct Interaction {
   // to it, U), s = 1 / (2 K rho_i).
   SPHRAY_HD SPHRAY_FORCEINLINE void write_presence(uint32_t i, float s, Vec3f grad, float ux, float uy,
                                                    float uz) const {
-    out.presence[0 * n + i] = std::fmin(1.0f, std::fmax(0.0f, s * (grad.x - ux)));
-    out.presence[1 * n + i] = std::fmin(1.0f, std::fmax(0.0f, -s * (grad.x + ux)));
-    out.presence[2 * n + i] = std::fmin(1.0f, std::fmax(0.0f, s * (grad.y - uy)));
-    out.presence[3 * n + i] = std::fmin(1.0f, std::fmax(0.0f, -s * (grad.y + uy)));
-    out.presence[4 * n + i] = std::fmin(1.0f, std::fmax(0.0f, s * (grad.z - uz)));
-    out.presence[5 * n + i] = std::fmin(1.0f, std::fmax(0.0f, -s * (grad.z + uz)));
+    write_presence_lobes(out.presence, n, i, s, grad, ux, uy, uz);
   }
 
   SPHRAY_HD void operator()(uint32_t i) const {

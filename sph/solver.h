@@ -16,6 +16,8 @@
 #include "nsearch/grid.h"
 #include "integrate.h"  // StepLimits
 #include "params.h"
+#include "pbf_params.h"
+#include "solver_kind.h"
 
 namespace sphray {
 
@@ -30,14 +32,17 @@ struct SimulationError : std::runtime_error {
 };
 
 struct SolverInput {
+  SolverKind kind = SolverKind::Wcsph;
   SphParams params;
+  PbfParams pbf{};  // kind == Pbf
   GridGeom grid;
   std::vector<Float4> fluid_pos_rho;  // x, y, z, initial density
   std::vector<Float4> fluid_vel;      // vx, vy, vz, - (the solver keeps p / rho^2 in w)
-  std::vector<Float4> boundary;       // x, y, z, volume
+  std::vector<Float4> boundary;       // x, y, z, volume (WCSPH; PBF's walls are the tank's planes)
   std::vector<float> boundary_alpha;  // wall viscosity per boundary particle (0 = free slip)
   // Step control, from the scene (sph.cfl, run.min_dt, run.max_dt; their
-  // defaults are the scene's).
+  // defaults are the scene's): WCSPH's CFL on h and the sound speed, PBF's on
+  // the spacing and the largest particle speed.
   float cfl = 0;
   float min_dt = 0;  // a step below this is an error
   float max_dt = 0;
@@ -85,6 +90,16 @@ struct RawParticles {
 // neighbour loop of forces, density rate and presence (interaction.h);
 // integrate: the step-size reduction and the kick/density/drift; grid: the
 // sort, the cell tables and the next step's pair masks.
+// The last step's constraint or pressure solve (PBF; WCSPH has none and
+// reports zeros): iterations run and the density error left, as compression
+// max(rho / rho0 - 1, 0) averaged over the particles and at its largest;
+// converged: the tolerance was met (always true without one).
+struct SolveStats {
+  int iterations = 0;
+  double density_error_mean = 0, density_error_max = 0;
+  bool converged = true;
+};
+
 struct StageTimes {
   double grid = 0, pairs = 0, integrate = 0;
   double total() const { return grid + pairs + integrate; }
@@ -94,6 +109,7 @@ class Solver {
  public:
   virtual ~Solver() = default;
   virtual Backend backend() const = 0;
+  virtual SolverKind kind() const = 0;
   // Advances one adaptive step, never past `until` [s]. Throws SimulationError.
   virtual void step(double until) = 0;
   virtual double time() const = 0;
@@ -103,6 +119,7 @@ class Solver {
   virtual uint64_t num_clamped() const = 0;   // particle-steps put back on a wall face
   virtual const StepLimits& last_limits() const = 0;
   virtual const StageTimes& last_stage_times() const = 0;
+  virtual SolveStats last_solve() const { return {}; }
   // Presence is computed by the steps that follow as the mode says (its
   // buffers are allocated on the first mode other than Off); has_presence()
   // says whether the last step computed it.

@@ -1,14 +1,18 @@
-// CPU build of the SPH solver: the shared implementation on the OpenMP backend.
+// CPU build of the SPH solvers (WCSPH and PBF): the shared implementations on the OpenMP backend.
 #include "core/launch_cpu.h"
 #include "stages.h"
 
 #define SPHRAY_BK cpu_backend
 namespace sphray::cpu_backend {
 #include "solver_impl.inl"
+#include "pbf_solver.inl"
 }  // namespace sphray::cpu_backend
 
 namespace sphray {
 
-std::unique_ptr<Solver> make_cpu_solver(const SolverInput& in) { return std::make_unique<cpu_backend::SolverImpl>(in); }
+std::unique_ptr<Solver> make_cpu_solver(const SolverInput& in) {
+  if (in.kind == SolverKind::Pbf) return std::make_unique<cpu_backend::PbfSolverImpl>(in);
+  return std::make_unique<cpu_backend::SolverImpl>(in);
+}
 
 }  // namespace sphray

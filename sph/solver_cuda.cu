@@ -1,10 +1,11 @@
-// CUDA build of the SPH solver: the shared implementation on the CUDA backend.
+// CUDA build of the SPH solvers (WCSPH and PBF): the shared implementations on the CUDA backend.
 #include "core/launch_cuda.cuh"
 #include "stages.h"
 
 #define SPHRAY_BK cuda_backend
 namespace sphray::cuda_backend {
 #include "solver_impl.inl"
+#include "pbf_solver.inl"
 }  // namespace sphray::cuda_backend
 
 namespace sphray {
@@ -24,6 +25,7 @@ std::unique_ptr<Solver> make_cuda_solver(const SolverInput& in) {
     return true;
   }();
   (void)pinned;
+  if (in.kind == SolverKind::Pbf) return std::make_unique<cuda_backend::PbfSolverImpl>(in);
   return std::make_unique<cuda_backend::SolverImpl>(in);
 }
 

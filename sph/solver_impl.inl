@@ -11,6 +11,7 @@
 // Its dependencies come from stages.h, included first outside the namespace.
 
 #include "nsearch/sort.inl"
+#include "particle_copies.inl"
 
 // The particle data into the new sorted order, one kernel for all of it
 // (one read of the order): out[i] = in[order[i]] for the first n_new sorted
@@ -80,6 +81,7 @@ class SolverImpl final : public Solver {
   }
 
   Backend backend() const override { return kBackend; }
+  SolverKind kind() const override { return SolverKind::Wcsph; }
   double time() const override { return t_; }
   uint64_t steps() const override { return steps_; }
   size_t num_fluid() const override { return n_; }
@@ -108,8 +110,7 @@ class SolverImpl final : public Solver {
     return b(pos_) + b(vel_) + b(flow_) + b(pos_tmp_) + b(vel_tmp_) + b(flow_tmp_) + b(accel_) + b(rate_grad_) + b(presence_) + b(presence_tmp_) + b(id_) +
            b(id_tmp_) + b(status_) + b(status_tmp_) + b(keys_) + b(order_) + b(offsets_) + b(fine_offsets_) + b(boundary_) +
            b(boundary_alpha_) + b(wall_) + b(boundary_offsets_) + b(fluid_pairs_) + b(boundary_pairs_) +
-           b(fluid_pair_count_) + b(boundary_pair_count_) + b(fluid_near_) + b(boundary_near_) + b(snap_pos_) +
-           b(snap_vel_) + b(snap_id_) + b(snap_presence_);
+           b(fluid_pair_count_) + b(boundary_pair_count_) + b(fluid_near_) + b(boundary_near_) + raw_copies_.bytes();
   }
 
   // Stage order: pairs (wall pressure, then one neighbour loop for the
@@ -152,47 +153,16 @@ class SolverImpl final : public Solver {
   }
 
   HostParticles download() const override {
-    HostParticles h;
-    h.id = sphray::SPHRAY_BK::download(id_, n_);
-    const auto p = sphray::SPHRAY_BK::download(pos_, n_), v = sphray::SPHRAY_BK::download(vel_, n_);
-    h.pos.resize(n_); h.vel.resize(n_); h.density.resize(n_);
-    for (size_t i = 0; i < n_; ++i) {
-      h.pos[i] = xyz(p[i]);
-      h.vel[i] = xyz(v[i]);
-      h.density[i] = p[i].w;
-    }
-    if (presence_valid_) {
-      const auto pr = sphray::SPHRAY_BK::download(presence_, 6 * size_t(n_));
-      h.presence.resize(n_);
-      for (size_t i = 0; i < n_; ++i)
-        for (size_t k = 0; k < 6; ++k) h.presence[i][k] = pr[k * n_ + i];
-    }
-    return h;
+    return download_particles(id_, pos_, vel_, presence_valid_ ? &presence_ : nullptr, n_);
   }
 
-  // On CUDA the copies run behind the next steps (AsyncDownload): out.ready
+  // On CUDA the copies run behind the next steps (RawCopies): out.ready
   // waits for them.
   void download_raw(RawParticles& out, bool velocity, bool presence) const override {
-    snapshot_.begin();
-    auto copy = [&](const auto& src, auto& staging, auto& dst, size_t n) {
-      dst.resize(n);  // pinned memory on CUDA (host_memory.h)
-      if (n) snapshot_.copy(src, n, staging, dst.data());
-    };
-    copy(pos_, snap_pos_, out.pos, n_);
-    copy(id_, snap_id_, out.id, n_);
-    if (velocity) copy(vel_, snap_vel_, out.vel, n_);
-    else out.vel.clear();
-    if (presence && presence_valid_) copy(presence_, snap_presence_, out.presence, 6 * size_t(n_));
-    else out.presence.clear();
-    out.ready = snapshot_.done();
+    raw_copies_.take(out, pos_, vel_, id_, presence && presence_valid_ ? &presence_ : nullptr, n_, velocity);
   }
 
-  std::vector<Vec3f> boundary_positions() const override {
-    const auto b = sphray::SPHRAY_BK::download(boundary_, boundary_.size());
-    std::vector<Vec3f> out(b.size());
-    for (size_t k = 0; k < b.size(); ++k) out[k] = xyz(b[k]);
-    return out;
-  }
+  std::vector<Vec3f> boundary_positions() const override { return download_positions(boundary_); }
 
  private:
   template <bool P, bool Direct, KernelType K>
@@ -332,11 +302,7 @@ class SolverImpl final : public Solver {
   // The step's decision on the device (ChooseStep) and its copy for the host.
   Vector<StepControl> control_ = Vector<StepControl>(1);
   ReadBack<StepControl> control_read_;
-  // download_raw's staging buffers and copies (allocated by the first export).
-  mutable AsyncDownload snapshot_;
-  mutable Vector<Float4> snap_pos_, snap_vel_;
-  mutable Vector<uint32_t> snap_id_;
-  mutable Vector<float> snap_presence_;
+  mutable RawCopies raw_copies_;  // download_raw's staging buffers and copies
 
   // vel_: the exact velocity; flow_: what the pair loop reads of a neighbour,
   // u (the predicted kicked velocity) and p / rho^2 (integrate.h).

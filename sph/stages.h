@@ -12,4 +12,5 @@
 #include "integrate.h"
 #include "interaction.h"
 #include "nsearch/grid.h"
+#include "pbf.h"
 #include "solver.h"

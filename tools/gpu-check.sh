@@ -3,7 +3,8 @@
 # the cpu and gpu tests, the benchmarks and the CUDA validation runs, leaving
 # JSON and the test log under $OUT (at most 8 files come back from the device
 # tool; build logs stay in $B). Steps can be chosen:
-#   tools/gpu-check.sh [build] [test] [sanitize] [main] [bench] [kernels] [field] [ncu-field] [export] [frame]
+#   tools/gpu-check.sh [build] [test] [sanitize] [main] [bench] [pbf] [pbf-study] [kernels] [field] [ncu-field]
+#                      [export] [frame]
 #                      [render] [validate] [viewer] [compare]
 #   (default: build test main bench validate; FIELD_SIZES picks the sizes of `field`; `compare` builds the
 #   source tree in REF_TAR (git archive REV -o .ref/ref.tar, carried) and runs bench sim, field and frame
@@ -49,6 +50,18 @@ if has bench; then
   echo "== bench sim, h = 1.3 dx"
   $B/sphray bench sim --backend cuda --set sph.smoothing_ratio=1.3 --json "$OUT/bench_sim_h13.json" 2>&1 \
     | grep -v warm-up
+fi
+if has pbf; then
+  echo "== bench sim, pbf, from t = 0.3 s of the dam break (the flow's steps)"
+  $B/sphray bench sim --backend cuda --set sph.solver=pbf --from 0.3 --json "$OUT/bench_sim_pbf.json" 2>&1 | grep -v warm-up
+  $B/sphray bench sim --backend cuda --from 0.3 --json "$OUT/bench_sim_wcsph_from.json" 2>&1 | grep -v warm-up
+  $B/sphray bench sim --backend cuda --set sph.solver=pbf --from 0.3 --sizes 1M --kernels 2>&1 | grep -E "launches"
+  echo "== bench frame --realtime, pbf"
+  $B/sphray bench frame --backend cuda --sizes 125k,1M,4M --realtime --set sph.solver=pbf --json "$OUT/bench_frame_pbf.json" \
+    2>&1 | grep -vE "simulating|sim .* ms"
+fi
+if has pbf-study; then
+  OUT=$OUT B=$B tools/pbf-study.sh
 fi
 if has kernels; then
   echo "== bench sim --kernels (ms per step by launch name)"

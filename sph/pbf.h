@@ -1,0 +1,322 @@
+// Position-based fluids (Macklin & Mueller, "Position Based Fluids", 2013):
+// the per-particle stages of one step, written once for both backends.
+//   predict   v* = v + dt g, x* = x + dt v*            (Predict)
+//   grid      sort by x*, pair masks at x*, reused by every pass below
+//   iterate   density constraint C_i = max(rho_i / rho0 - 1, 0):
+//             lambda_i = -C_i / (sum_k |grad_k C_i|^2 + eps)        (Lambda)
+//             dx_i = (m / rho0) sum_j (lambda_i + lambda_j + s_corr) grad W_ij
+//                    + lambda_i grad_i C_i(walls)                     (Correct)
+//   finish    v = (x* - x) / dt, XSPH viscosity, x = x*; the density left
+//             and presence at the new positions                      (Finish)
+// The constraint is one-sided (only compression is corrected, as in
+// SPlisHSPlasH's PBF): a free surface has no neighbours above it and would
+// otherwise be pulled together. Walls are the tank's planes, as mirrors: a
+// particle within the support of a wall sees the mirror images of itself
+// and of its neighbours across it (across two or three walls at an edge or
+// a corner) as static wall particles: they add to its density and to
+// grad_i C_i, and its correction pushes it away from them with its own
+// lambda only, as a constraint against a static body does in PBD (giving
+// the images their originals' lambda as well made the walls twice as stiff
+// and a dam break unstable at the default relaxation). Images follow the
+// liquid: a wall beside a free surface mirrors the surface (a half-space of
+// liquid beyond each wall instead over-counts there and at corners, and
+// pushed the liquid up the walls of a pool at rest). The walls are free-slip.
+// Each correction ends with the position projected into the tank, so no
+// particle leaves it.
+#pragma once
+
+#include <cmath>
+#include <cstdint>
+
+#include "integrate.h"  // StepLimits, kNoBadParticle
+#include "nsearch/pair_masks.h"
+#include "params.h"
+#include "pbf_params.h"
+#include "presence.h"
+
+namespace sphray {
+
+// Projects x into the tank (the top stays open where the tank has none).
+SPHRAY_HD SPHRAY_FORCEINLINE Vec3f inside_tank(const SphParams& prm, Vec3f x) {
+  x.x = std::fmin(std::fmax(x.x, prm.tank.min.x), prm.tank.max.x);
+  x.y = std::fmin(std::fmax(x.y, prm.tank.min.y), prm.tank.max.y);
+  x.z = std::fmax(x.z, prm.tank.min.z);
+  if (!prm.open_top) x.z = std::fmin(x.z, prm.tank.max.z);
+  return x;
+}
+
+// The tank's planes within the support of a point, the nearer one per axis:
+// the mirrors that make its wall images (Mirrors::images).
+struct Mirrors {
+  float plane[3];
+  uint32_t axes = 0;  // bit a: a wall across axis a is within reach
+
+  // Calls f(image) for each image of p: reflected across every non-empty
+  // subset of the walls in reach (one wall: 1 image; an edge: 3; a corner: 7).
+  template <class F>
+  SPHRAY_HD SPHRAY_FORCEINLINE void images(Vec3f p, F&& f) const {
+    for (uint32_t set = 1; set < 8u; ++set) {
+      if ((set & ~axes) != 0u) continue;
+      Vec3f m = p;
+      if (set & 1u) m.x = 2.0f * plane[0] - p.x;
+      if (set & 2u) m.y = 2.0f * plane[1] - p.y;
+      if (set & 4u) m.z = 2.0f * plane[2] - p.z;
+      f(m);
+    }
+  }
+};
+
+SPHRAY_HD SPHRAY_FORCEINLINE Mirrors mirrors_of(const SphParams& prm, float support, Vec3f x) {
+  Mirrors m;
+  const float p[3] = {x.x, x.y, x.z};
+  const float lo[3] = {prm.tank.min.x, prm.tank.min.y, prm.tank.min.z};
+  const float hi[3] = {prm.tank.max.x, prm.tank.max.y, prm.tank.max.z};
+  for (int a = 0; a < 3; ++a) {
+    const float d_lo = p[a] - lo[a];
+    const float d_hi = (a == 2 && prm.open_top) ? support : hi[a] - p[a];
+    // An image lies at least as far as the wall: walls beyond the support have none in reach.
+    const bool near_lo = d_lo < support, near_hi = d_hi < support;
+    if (near_lo && (!near_hi || d_lo <= d_hi)) { m.plane[a] = lo[a]; m.axes |= 1u << a; }
+    else if (near_hi) { m.plane[a] = hi[a]; m.axes |= 1u << a; }
+    else m.plane[a] = 0.0f;
+  }
+  return m;
+}
+
+// What the step size and the run's guards read of the state: the largest
+// speed, the density error, the first non-finite particle. Reduced on the device.
+struct PbfStats {
+  float max_speed2;
+  float error_max;   // largest compression rho / rho0 - 1 (>= 0)
+  double error_sum;  // summed over the particles
+  uint32_t first_bad;
+};
+constexpr PbfStats kEmptyPbfStats{0.0f, 0.0f, 0.0, kNoBadParticle};
+
+struct CombinePbfStats {
+  SPHRAY_HD PbfStats operator()(const PbfStats& a, const PbfStats& b) const {
+    return {a.max_speed2 > b.max_speed2 ? a.max_speed2 : b.max_speed2, a.error_max > b.error_max ? a.error_max : b.error_max,
+            a.error_sum + b.error_sum, a.first_bad < b.first_bad ? a.first_bad : b.first_bad};
+  }
+};
+
+// Per particle: speed, density error (from error[]), finiteness.
+struct PbfStatsOf {
+  const Float4* pos;  // x, density
+  const Float4* vel;
+  const float* error;
+  SPHRAY_HD PbfStats operator()(uint32_t i) const {
+    const Float4 p = pos[i], v = vel[i];
+    const bool finite = all_finite(xyz(p)) && std::isfinite(p.w) && all_finite(xyz(v));
+    const float e = error[i];
+    return {length2(xyz(v)), e, double(e), finite && std::isfinite(e) ? kNoBadParticle : i};
+  }
+};
+
+struct PbfControl {
+  PbfStats stats;      // of the state the step starts from
+  StepLimits limits;   // limits.dt: the step taken when outcome is kStepOk
+  uint32_t outcome;    // StepOutcome (integrate.h)
+};
+
+// dt = cfl dx / max(v_max, v_floor), capped at max_dt, at the depth limit and
+// at the time left. The floor is the flow speed the scene can reach
+// (sqrt(g H), io/scene.h), so that a liquid at rest or just released does
+// not take steps sized by its small speed alone. The depth limit: each
+// Jacobi iteration carries a correction about one support, so a column of
+// depth H under gravity stays compressed by about g H dt^2 / (K s^2) with K
+// iterations (the bottom of a column that the iterations cannot hold up
+// within a step); max_dt_depth keeps that at pbf.depth_error, 1% by default
+// (make_pbf_params). Above
+// it, deep columns compressed by several percent and their corrections came
+// back as spurious speeds of metres per second. Made on the device, like
+// ChooseStep (integrate.h).
+struct ChoosePbfStep {
+  double cfl_dx, speed_floor, max_dt, max_dt_depth, min_dt, remaining;
+  PbfControl* control;
+  SPHRAY_HD void operator()(uint32_t) const {
+    PbfControl& c = *control;
+    StepLimits& l = c.limits;
+    l.max_speed = std::sqrt(double(c.stats.max_speed2));
+    const double v = l.max_speed > speed_floor ? l.max_speed : speed_floor;
+    l.dt_cfl = v > 0 ? cfl_dx / v : HUGE_VAL;
+    l.dt_force = max_dt_depth;
+    l.dt_viscous = HUGE_VAL;
+    const double limit = max_dt < max_dt_depth ? max_dt : max_dt_depth;
+    const double dt = l.dt_cfl < limit ? l.dt_cfl : limit;
+    l.dt = dt;
+    if (dt < min_dt) { c.outcome = kStepBelowFloor; return; }
+    c.outcome = kStepOk;
+    // Velocities are position changes over dt, so a sliver of a step (the
+    // rest before an output time) would turn the corrections' size into a
+    // huge speed: land on `until` a little beyond the limit, or in two halves.
+    l.dt = remaining <= kLandStretch * dt ? remaining : remaining < 2.0 * dt ? 0.5 * remaining : dt;
+  }
+  static constexpr double kLandStretch = 1.01;
+};
+
+// v* = v + dt g and x* = x + dt v* in the tank, into pred (w: 0).
+struct Predict {
+  SphParams prm;
+  const PbfControl* control;
+  const Float4* pos;
+  const Float4* vel;
+  Float4* pred;
+  SPHRAY_HD void operator()(uint32_t i) const {
+    const float dt = float(control->limits.dt);
+    const Vec3f v = xyz(vel[i]) + dt * prm.gravity;
+    const Vec3f x = inside_tank(prm, xyz(pos[i]) + dt * v);
+    pred[i] = {x.x, x.y, x.z, 0.0f};
+  }
+};
+
+// Registers per thread of the neighbour passes on the GPU
+// (core/launch_cuda.cuh): the wall images' loop spills under the file-wide 40.
+constexpr int kPbfPassRegisters = 64;
+
+// Whether query i's pair mask holds all its neighbours (else the Direct launch serves it).
+SPHRAY_HD SPHRAY_FORCEINLINE bool mask_complete(const PairMask& m, uint32_t i) { return m.count[i] <= m.capacity; }
+
+// Density at x* and lambda_i: out[i] = {x*_i, lambda_i}; error[i] = C_i.
+// The wall images (Mirrors) add to the density and to grad_i C_i; they do not
+// move, so they add nothing to the sum over the neighbours' gradients.
+template <bool Direct>
+struct Lambda {
+  static constexpr int kMaxRegisters = kPbfPassRegisters;
+  SphParams prm;
+  PbfParams pbf;
+  GridGeom grid;
+  const uint32_t* offsets;  // slab table of the x* sort
+  PairMask pairs;
+  const Float4* pred;
+  Float4* out;
+  float* error;
+  SPHRAY_HD void operator()(uint32_t i) const {
+    if (mask_complete(pairs, i) == Direct) return;
+    const PbfKernel<float>& k = pbf.kernel;
+    const float s2 = k.s * k.s;
+    const Vec3f xi = xyz(pred[i]);
+    const Mirrors mirrors = mirrors_of(prm, k.s, xi);
+    float w_sum = k.W(0.0f), g2 = 0.0f;
+    Vec3f grad = {0.0f, 0.0f, 0.0f};
+    auto image = [&](Vec3f m) {
+      const Vec3f r = xi - m;
+      const float r2 = length2(r);
+      if (r2 >= s2) return;
+      w_sum += k.W(r2);
+      grad += (pbf.volume * k.dW_over_r(std::sqrt(r2))) * r;
+    };
+    mirrors.images(xi, image);
+    for_each_pair<Direct>(grid, offsets, pred, xi, s2, i, pairs, i, [&](uint32_t, Float4 pj, Vec3f r, float r2) {
+      w_sum += k.W(r2);
+      const Vec3f g = (pbf.volume * k.dW_over_r(std::sqrt(r2))) * r;  // grad_j C_i = -g
+      grad += g;
+      g2 += length2(g);
+      if (mirrors.axes) mirrors.images(xyz(pj), image);
+    });
+    const float c = fmaxf(pbf.volume * w_sum - 1.0f, 0.0f);  // rho / rho0 - 1
+    const float lambda = -c / (length2(grad) + g2 + pbf.epsilon);
+    out[i] = {xi.x, xi.y, xi.z, lambda};
+    error[i] = c;
+  }
+};
+
+// The position correction, projected into the tank: out[i] = {x*_i + dx_i, 0}.
+template <bool Direct>
+struct Correct {
+  static constexpr int kMaxRegisters = kPbfPassRegisters;
+  SphParams prm;
+  PbfParams pbf;
+  GridGeom grid;
+  const uint32_t* offsets;
+  PairMask pairs;
+  const Float4* pred;  // x*, lambda
+  Float4* out;
+  SPHRAY_HD void operator()(uint32_t i) const {
+    if (mask_complete(pairs, i) == Direct) return;
+    const PbfKernel<float>& k = pbf.kernel;
+    const float s2 = k.s * k.s;
+    const Float4 pi = pred[i];
+    const Vec3f xi = xyz(pi);
+    const Mirrors mirrors = mirrors_of(prm, k.s, xi);
+    Vec3f dx = {0.0f, 0.0f, 0.0f};
+    auto image = [&](Vec3f m) {  // a static wall particle: lambda_i only
+      const Vec3f r = xi - m;
+      const float r2 = length2(r);
+      if (r2 >= s2) return;
+      dx += (pi.w * pbf.volume * k.dW_over_r(std::sqrt(r2))) * r;
+    };
+    mirrors.images(xi, image);
+    for_each_pair<Direct>(grid, offsets, pred, xi, s2, i, pairs, i, [&](uint32_t, Float4 pj, Vec3f r, float r2) {
+      float q = k.W(r2) * pbf.inv_w_dq;
+      float qn = 1.0f;
+      for (int e = 0; e < pbf.scorr_n; ++e) qn *= q;
+      const float scale = pi.w + pj.w - pbf.scorr_coef * qn;
+      dx += (scale * pbf.volume * k.dW_over_r(std::sqrt(r2))) * r;
+      if (mirrors.axes) mirrors.images(xyz(pj), image);
+    });
+    const Vec3f x = inside_tank(prm, xi + dx);
+    out[i] = {x.x, x.y, x.z, 0.0f};
+  }
+};
+
+// The end of the step: v = (x* - x) / dt with XSPH viscosity
+// (v_i += c sum_j (m / rho0) (v_j - v_i) W_ij), x = x*, and at x* the density
+// with the wall images (error[i] = its compression) and, when asked for,
+// presence (fluid only).
+template <bool WithPresence, bool Direct>
+struct Finish {
+  static constexpr int kMaxRegisters = kPbfPassRegisters;
+  SphParams prm;
+  PbfParams pbf;
+  GridGeom grid;
+  const uint32_t* offsets;
+  PairMask pairs;
+  const PbfControl* control;
+  const Float4* pred;  // x*
+  const Float4* pos;   // x at the step's start
+  Float4* pos_out;     // x*, density
+  Float4* vel_out;
+  float* error;
+  float* presence;     // [6][n]; null without presence
+  uint32_t n;
+  SPHRAY_HD void operator()(uint32_t i) const {
+    if (mask_complete(pairs, i) == Direct) return;
+    const PbfKernel<float>& k = pbf.kernel;
+    const float inv_dt = float(1.0 / control->limits.dt);
+    const Vec3f xi = xyz(pred[i]);
+    const Vec3f vi = inv_dt * (xi - xyz(pos[i]));
+    const Mirrors mirrors = mirrors_of(prm, k.s, xi);
+    float w_sum = k.W(0.0f);
+    auto image = [&](Vec3f m) { w_sum += k.W(length2(xi - m)); };
+    mirrors.images(xi, image);
+    Vec3f smooth = {0.0f, 0.0f, 0.0f}, grad = {0.0f, 0.0f, 0.0f};
+    float ux = 0.0f, uy = 0.0f, uz = 0.0f;
+    for_each_pair<Direct>(grid, offsets, pred, xi, k.s * k.s, i, pairs, i,
+                          [&](uint32_t j) { return load(pos + j); }, [&](uint32_t j, Float4 xj_old) {
+      const Vec3f xj = xyz(load(pred + j));
+      const Vec3f r = xi - xj;
+      const float r2 = length2(r);
+      const float w = k.W(r2);
+      w_sum += w;
+      smooth += w * (inv_dt * (xj - xyz(xj_old)) - vi);
+      if (mirrors.axes) mirrors.images(xj, image);
+      if (WithPresence) {
+        const float m_dwr = prm.particle_mass * k.dW_over_r(std::sqrt(r2));
+        grad += m_dwr * r;
+        ux += m_dwr * std::fabs(r.x);
+        uy += m_dwr * std::fabs(r.y);
+        uz += m_dwr * std::fabs(r.z);
+      }
+    });
+    const float rho_rel = pbf.volume * w_sum;
+    const float rho = prm.rest_density * rho_rel;
+    if (WithPresence) write_presence_lobes(presence, n, i, pbf.presence_scale / rho, grad, ux, uy, uz);
+    const Vec3f v = vi + (pbf.xsph * pbf.volume) * smooth;
+    pos_out[i] = {xi.x, xi.y, xi.z, rho};
+    vel_out[i] = {v.x, v.y, v.z, 0.0f};
+    error[i] = fmaxf(rho_rel - 1.0f, 0.0f);
+  }
+};
+
+}  // namespace sphray

@@ -1,0 +1,41 @@
+// The kernels of position-based fluids (Macklin & Mueller 2013, after Mueller
+// et al. 2003): poly6 for density, the spiky gradient for the constraint
+// gradients, both with support s. Templated on the scalar so the tests check
+// them in double.
+#pragma once
+
+#include <cmath>
+
+#include "core/hd.h"
+
+namespace sphray {
+
+template <class T>
+struct PbfKernel {
+  T s;        // support radius [m]
+  T poly6;    // 315 / (64 pi s^9)
+  T spiky;    // -45 / (pi s^6): dW/dr = spiky (s - r)^2
+
+  static PbfKernel make(T support) {
+    const T pi = T(3.14159265358979323846);
+    const T s3 = support * support * support;
+    return {support, T(315) / (T(64) * pi * s3 * s3 * s3), T(-45) / (pi * s3 * s3)};
+  }
+
+  // Poly6 at squared distance r2.
+  SPHRAY_HD SPHRAY_FORCEINLINE T W(T r2) const {
+    const T a = s * s - r2;
+    return a > T(0) ? poly6 * a * a * a : T(0);
+  }
+  // The spiky kernel's dW/dr divided by r, so that grad W = r_vec * dW_over_r.
+  // Zero at r = 0, where the direction is undefined (coincident particles
+  // exert nothing on each other rather than a NaN).
+  SPHRAY_HD SPHRAY_FORCEINLINE T dW_over_r(T r) const {
+    if (r >= s || r <= T(0)) return T(0);
+    const T a = s - r;
+    return spiky * a * a / r;
+  }
+  SPHRAY_HD SPHRAY_FORCEINLINE T support() const { return s; }
+};
+
+}  // namespace sphray

@@ -1,0 +1,26 @@
+// The constants of the position-based fluids solver (pbf.h), as its kernels
+// take them: plain data, filled once from the scene's "pbf" section.
+#pragma once
+
+#include "pbf_kernel.h"
+
+namespace sphray {
+
+// The PBF solver's constants, filled once from the scene (pipeline/setup.cpp,
+// make_pbf_params) and passed by value to its kernels.
+struct PbfParams {
+  PbfKernel<float> kernel;
+  float volume;          // m / rho0 [m^3]: the particle mass over rest density
+  float epsilon;         // constraint relaxation [m^2]
+  float scorr_coef;      // k / G0 [m^2]: s_corr = -scorr_coef (W / W(dq))^n
+  float inv_w_dq;        // 1 / W(dq)
+  int scorr_n;           // exponent n of s_corr
+  float xsph;            // XSPH viscosity c
+  float presence_scale;  // 1 / (2 K) with this kernel (interaction.h)
+  float speed_floor;     // [m/s] the CFL's speed is at least this (ChoosePbfStep)
+  float max_dt_depth;    // [s] the step at which the liquid's depth compresses by pbf.depth_error (ChoosePbfStep)
+  int iterations;        // constraint iterations per step
+  float tolerance;       // mean density error that ends the iterations early; 0: off
+};
+
+}  // namespace sphray

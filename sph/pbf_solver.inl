@@ -1,0 +1,249 @@
+// The position-based fluids solver (pbf.h), written once for both backends.
+// Included by solver_cpu.cpp and solver_cuda.cu after solver_impl.inl, inside
+// the backend namespace (GatherParticles, sort_and_offsets, the copies).
+// One step: the step size from the largest speed (ChoosePbfStep); predict;
+// the grid sort and the pair masks at the predicted positions, found once
+// and reused by every pass of the step; the constraint iterations; the
+// finishing pass. The sort follows the predicted positions, so after a step
+// the cell table is off by the step's corrections: view() sorts again by the
+// final positions before a later stage reads the grid (once per output frame,
+// not per step).
+
+class PbfSolverImpl final : public Solver {
+ public:
+  explicit PbfSolverImpl(const SolverInput& in)
+      : prm_(in.params), pbf_(in.pbf), grid_(in.grid), cfl_(in.cfl), min_dt_(in.min_dt), max_dt_(in.max_dt),
+        n_(uint32_t(in.fluid_pos_rho.size())) {
+    const size_t n = n_;
+    upload(pos_, in.fluid_pos_rho);
+    upload(vel_, in.fluid_vel);
+    std::vector<uint32_t> ids(n);
+    for (size_t i = 0; i < n; ++i) ids[i] = uint32_t(i);
+    upload(id_, ids);
+    pred_.assign(n, Float4{0, 0, 0, 0});
+    pos_tmp_.resize(n); vel_tmp_.resize(n); pred_tmp_.resize(n); id_tmp_.resize(n);
+    status_.assign(n, uint8_t(kStatusOk)); status_tmp_.resize(n);
+    error_.assign(n, 0.0f);
+    keys_.resize(n); order_.resize(n);
+    offsets_.resize(size_t(grid_.num_cells()) + 1);
+    fine_offsets_.resize(size_t(grid_.num_fine_cells()) + 1);
+    mask_words_ = in.pair_mask_words >= 0 ? uint32_t(in.pair_mask_words)
+                                          : pair_mask_capacity(double(grid_.cell_size) / double(prm_.spacing));
+    pairs_.resize(size_t(mask_words_) * n);
+    pair_count_.resize(n);
+    set_presence(in.presence);
+    sort_by(pos_);  // the grid of the initial positions, for a view before the first step
+    reduce_stats();
+  }
+
+  Backend backend() const override { return kBackend; }
+  SolverKind kind() const override { return SolverKind::Pbf; }
+  double time() const override { return t_; }
+  uint64_t steps() const override { return steps_; }
+  size_t num_fluid() const override { return n_; }
+  size_t num_removed() const override { return removed_; }
+  uint64_t num_clamped() const override { return 0; }  // the walls are projections, not a guard
+  const StepLimits& last_limits() const override { return limits_; }
+  const StageTimes& last_stage_times() const override { return times_; }
+  SolveStats last_solve() const override { return solve_; }
+  bool has_presence() const override { return presence_valid_; }
+  PresenceMode presence_mode() const override { return presence_mode_; }
+  void set_presence(PresenceMode mode) override {
+    presence_mode_ = mode;
+    if (mode != PresenceMode::Off && presence_.size() < 6 * size_t(n_)) {
+      presence_.resize(6 * size_t(n_));
+      presence_tmp_.resize(6 * size_t(n_));
+    }
+  }
+
+  // The grid must match the positions for the stages that read it: sorting
+  // again is logically const (the same particles, in cell order).
+  ParticleView view() const override {
+    if (!grid_current_) const_cast<PbfSolverImpl*>(this)->sort_by(pos_);
+    return {kBackend, n_, raw(pos_), raw(offsets_), presence_valid_ ? raw(presence_) : nullptr, grid_};
+  }
+
+  size_t device_bytes() const override {
+    auto b = [](const auto& v) { return v.size() * sizeof(typename std::decay_t<decltype(v)>::value_type); };
+    return b(pos_) + b(vel_) + b(pred_) + b(pos_tmp_) + b(vel_tmp_) + b(pred_tmp_) + b(presence_) + b(presence_tmp_) +
+           b(id_) + b(id_tmp_) + b(status_) + b(status_tmp_) + b(error_) + b(keys_) + b(order_) + b(offsets_) +
+           b(fine_offsets_) + b(pairs_) + b(pair_count_) + raw_copies_.bytes();
+  }
+
+  void step(double until) override {
+    const bool presence_now = presence_mode_ == PresenceMode::EveryStep ||
+                              (presence_mode_ == PresenceMode::AtUntil && t_ + max_dt_ >= until - 1e-12);
+    clock_.start();
+    PbfControl* control = raw(control_);
+    parallel_for("pbf_choose_step", 1,
+                 ChoosePbfStep{cfl_ * prm_.spacing, double(pbf_.speed_floor), max_dt_, double(pbf_.max_dt_depth), min_dt_,
+                               std::max(until - t_, 0.0), control});
+    parallel_for("pbf_predict", n_, Predict{prm_, control, raw(pos_), raw(vel_), raw(pred_)});
+    sort_by(pred_);
+    grid_current_ = false;
+    build_masks();
+    clock_.end_of("grid");
+    const int iterations = solve();
+    clock_.end_of("pairs");
+    finish(presence_now);
+    reduce_stats();
+    control_read_.start(control);
+    clock_.end_of("integrate");
+    clock_.finish();
+    const PbfControl& c = control_read_.value();
+    if (c.outcome == kStepBelowFloor) throw SimulationError(describe_dt_floor(c.limits));
+    // A refused step still ran its kernels; what they found is reported, not kept.
+    check_state(c.stats);
+    limits_ = c.limits;
+    times_ = {clock_.ms("grid"), clock_.ms("pairs"), clock_.ms("integrate")};
+    solve_.iterations = iterations;
+    solve_.density_error_mean = n_ ? c.stats.error_sum / n_ : 0.0;
+    solve_.density_error_max = c.stats.error_max;
+    solve_.converged = pbf_.tolerance <= 0 || solve_.density_error_mean <= pbf_.tolerance;
+    t_ += limits_.dt;
+    ++steps_;
+  }
+
+  HostParticles download() const override {
+    return download_particles(id_, pos_, vel_, presence_valid_ ? &presence_ : nullptr, n_);
+  }
+  void download_raw(RawParticles& out, bool velocity, bool presence) const override {
+    raw_copies_.take(out, pos_, vel_, id_, presence && presence_valid_ ? &presence_ : nullptr, n_, velocity);
+  }
+  std::vector<Vec3f> boundary_positions() const override { return {}; }
+
+ private:
+  PairMask pairs() { return {raw(pairs_), raw(pair_count_), n_, mask_words_}; }
+
+  // Sorts every particle array by the cell of `by` (pos_ or pred_) and drops
+  // the particles outside the grid (an open top only).
+  void sort_by(const Vector<Float4>& by) {
+    parallel_for("pbf_keys", n_, KeyOf<Float4>{grid_, raw(by), raw(keys_)});
+    sort_and_offsets(grid_, n_, keys_, order_, fine_offsets_, &offsets_);
+    const uint32_t active = prm_.open_top ? read_one(offsets_, grid_.num_cells()) : n_;
+    const bool carry = presence_valid_;
+    const ConstParticleArrays in{raw(pos_), raw(vel_), raw(pred_), raw(id_), raw(status_), carry ? raw(presence_) : nullptr};
+    const ParticleArrays out{raw(pos_tmp_), raw(vel_tmp_), raw(pred_tmp_), raw(id_tmp_), raw(status_tmp_),
+                             raw(presence_tmp_)};
+    parallel_for("pbf_gather", active, GatherParticles{raw(order_), in, n_, out, active});
+    pos_.swap(pos_tmp_); vel_.swap(vel_tmp_); pred_.swap(pred_tmp_); id_.swap(id_tmp_); status_.swap(status_tmp_);
+    if (carry) presence_.swap(presence_tmp_);
+    removed_ += n_ - active;
+    n_ = active;
+    grid_current_ = true;
+  }
+
+  // The pair masks at the predicted positions, searched within the support
+  // only (the grid's cells are wider: pbf_support_cells in setup.cpp).
+  void build_masks() {
+    BuildPairMask b{grid_, raw(fine_offsets_), raw(pred_), raw(pred_), pbf_.kernel.s * pbf_.kernel.s, true, pairs()};
+    b.search_radius = pbf_.kernel.s;
+    parallel_for("pbf_pair_masks", n_, b);
+  }
+
+  template <template <bool> class Pass, class... Args>
+  void both_launches(const char* name, const char* direct_name, Args... args) {
+    parallel_for(name, n_, Pass<false>{args...});
+    parallel_for(direct_name, n_, Pass<true>{args...});
+  }
+
+  // The constraint iterations; returns how many corrections were applied.
+  int solve() {
+    for (int k = 0; k < pbf_.iterations; ++k) {
+      both_launches<Lambda>("pbf_lambda", "pbf_lambda_direct", prm_, pbf_, grid_, raw(fine_offsets_), pairs(),
+                            raw(pred_), raw(pred_tmp_), raw(error_));
+      pred_.swap(pred_tmp_);
+      if (pbf_.tolerance > 0) {
+        // Ending early needs the error on the host: one read per iteration.
+        const double sum = thrust::reduce(policy(), error_.begin(), error_.begin() + n_, 0.0);
+        if (n_ == 0 || sum / n_ <= pbf_.tolerance) return k;
+      }
+      both_launches<Correct>("pbf_correct", "pbf_correct_direct", prm_, pbf_, grid_, raw(fine_offsets_), pairs(),
+                             raw(pred_), raw(pred_tmp_));
+      pred_.swap(pred_tmp_);
+    }
+    return pbf_.iterations;
+  }
+
+  void finish(bool presence) {
+    presence_valid_ = presence;
+    if (presence) finish_launches<true>();
+    else finish_launches<false>();
+    pos_.swap(pos_tmp_);
+    vel_.swap(vel_tmp_);
+  }
+  template <bool P>
+  void finish_launches() {
+    const PbfControl* control = raw(control_);
+    float* presence = P ? raw(presence_) : nullptr;
+    parallel_for("pbf_finish", n_,
+                 Finish<P, false>{prm_, pbf_, grid_, raw(fine_offsets_), pairs(), control, raw(pred_), raw(pos_),
+                                  raw(pos_tmp_), raw(vel_tmp_), raw(error_), presence, n_});
+    parallel_for("pbf_finish_direct", n_,
+                 Finish<P, true>{prm_, pbf_, grid_, raw(fine_offsets_), pairs(), control, raw(pred_), raw(pos_),
+                                 raw(pos_tmp_), raw(vel_tmp_), raw(error_), presence, n_});
+  }
+
+  // Speed, density error and finiteness of the current state, into the
+  // control that the next step's size is chosen from.
+  void reduce_stats() {
+    transform_reduce_into(n_, PbfStatsOf{raw(pos_), raw(vel_), raw(error_)}, CombinePbfStats(), kEmptyPbfStats,
+                          &raw(control_)->stats);
+  }
+
+  // A non-finite value, or a density error that no longer means anything
+  // (the liquid compressed to twice its rest density on average), ends the run.
+  void check_state(const PbfStats& s) const {
+    const double mean = n_ ? s.error_sum / n_ : 0.0;
+    if (s.first_bad == kNoBadParticle && mean <= kDivergedError) return;
+    std::ostringstream os;
+    if (s.first_bad != kNoBadParticle) {
+      const uint32_t i = s.first_bad;
+      const Float4 p = read_one(pos_, i), v = read_one(vel_, i);
+      os << "non-finite position, density or velocity at step " << steps_ << " (t = " << t_ << " s) in particle "
+         << read_one(id_, i) << " (initial index): position (" << p.x << ", " << p.y << ", " << p.z << "), density "
+         << p.w << ", velocity (" << v.x << ", " << v.y << ", " << v.z << ").";
+    } else {
+      os << "the PBF density error diverged at step " << steps_ << " (t = " << t_ << " s): mean compression "
+         << 100 * mean << "% (largest " << 100 * s.error_max << "%), above " << 100 * kDivergedError << "%.";
+    }
+    os << " The run is stopped rather than continued with garbage; lower sph.cfl or raise pbf.iterations.";
+    throw SimulationError(os.str());
+  }
+  static constexpr double kDivergedError = 1.0;
+
+  std::string describe_dt_floor(const StepLimits& l) const {
+    std::ostringstream os;
+    os << "time step " << l.dt << " s fell below the floor run.min_dt = " << min_dt_ << " s at t = " << t_
+       << " s (step " << steps_ << "): max speed " << l.max_speed << " m/s at sph.cfl = " << cfl_
+       << ". The flow is too fast for this resolution; raise sph.spacing or check the initial state.";
+    return os.str();
+  }
+
+  SphParams prm_;
+  PbfParams pbf_;
+  GridGeom grid_;
+  double cfl_, min_dt_, max_dt_;
+  uint32_t n_;
+  PresenceMode presence_mode_ = PresenceMode::Off;
+  bool presence_valid_ = false;
+  bool grid_current_ = false;  // offsets_ match pos_ (else pred_, as sorted at the step's start)
+  double t_ = 0;
+  uint64_t steps_ = 0;
+  size_t removed_ = 0;
+  StepLimits limits_;
+  StageTimes times_;
+  SolveStats solve_;
+  StageClock clock_;
+  Vector<PbfControl> control_ = Vector<PbfControl>(1);
+  ReadBack<PbfControl> control_read_;
+  mutable RawCopies raw_copies_;
+  // pos_: x, density; vel_: v; pred_: x*, lambda during the iterations.
+  Vector<Float4> pos_, vel_, pred_, pos_tmp_, vel_tmp_, pred_tmp_;
+  Vector<float> presence_, presence_tmp_, error_;
+  Vector<uint32_t> id_, id_tmp_, keys_, order_, offsets_, fine_offsets_;
+  Vector<uint8_t> status_, status_tmp_;
+  uint32_t mask_words_ = 0;
+  Vector<PairWord> pairs_;
+  Vector<uint32_t> pair_count_;
+};
