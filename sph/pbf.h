@@ -174,13 +174,23 @@ struct Predict {
 // (core/launch_cuda.cuh): the wall images' loop spills under the file-wide 40.
 constexpr int kPbfPassRegisters = 64;
 
-// Whether query i's pair mask holds all its neighbours (else the Direct launch serves it).
-SPHRAY_HD SPHRAY_FORCEINLINE bool mask_complete(const PairMask& m, uint32_t i) { return m.count[i] <= m.capacity; }
+// Each neighbour pass is three launches, each particle served by one: the
+// pair masks of the particles away from the walls (no image code in the
+// loop, which cost the interior particles twice the time when they carried
+// it), the pair masks of those within a support of a wall, and the direct
+// loop of those whose masks overflowed (nsearch/pair_masks.h).
+enum PbfPass { kInterior = 0, kNearWalls = 1, kDirect = 2 };
+
+// Whether launch P serves particle i.
+SPHRAY_HD SPHRAY_FORCEINLINE bool serves(int P, const PairMask& m, uint32_t i, const Mirrors& mirrors) {
+  if (m.count[i] > m.capacity) return P == kDirect;
+  return P == (mirrors.axes ? kNearWalls : kInterior);
+}
 
 // Density at x* and lambda_i: out[i] = {x*_i, lambda_i}; error[i] = C_i.
 // The wall images (Mirrors) add to the density and to grad_i C_i; they do not
 // move, so they add nothing to the sum over the neighbours' gradients.
-template <bool Direct>
+template <int P>
 struct Lambda {
   static constexpr int kMaxRegisters = kPbfPassRegisters;
   SphParams prm;
@@ -192,11 +202,11 @@ struct Lambda {
   Float4* out;
   float* error;
   SPHRAY_HD void operator()(uint32_t i) const {
-    if (mask_complete(pairs, i) == Direct) return;
     const PbfKernel<float>& k = pbf.kernel;
     const float s2 = k.s * k.s;
     const Vec3f xi = xyz(pred[i]);
     const Mirrors mirrors = mirrors_of(prm, k.s, xi);
+    if (!serves(P, pairs, i, mirrors)) return;
     float w_sum = k.W(0.0f), g2 = 0.0f;
     Vec3f grad = {0.0f, 0.0f, 0.0f};
     auto image = [&](Vec3f m) {
@@ -206,13 +216,13 @@ struct Lambda {
       w_sum += k.W(r2);
       grad += (pbf.volume * k.dW_over_r(std::sqrt(r2))) * r;
     };
-    mirrors.images(xi, image);
-    for_each_pair<Direct>(grid, offsets, pred, xi, s2, i, pairs, i, [&](uint32_t, Float4 pj, Vec3f r, float r2) {
+    if (P != kInterior) mirrors.images(xi, image);
+    for_each_pair<P == kDirect>(grid, offsets, pred, xi, s2, i, pairs, i, [&](uint32_t, Float4 pj, Vec3f r, float r2) {
       w_sum += k.W(r2);
       const Vec3f g = (pbf.volume * k.dW_over_r(std::sqrt(r2))) * r;  // grad_j C_i = -g
       grad += g;
       g2 += length2(g);
-      if (mirrors.axes) mirrors.images(xyz(pj), image);
+      if (P != kInterior && mirrors.axes) mirrors.images(xyz(pj), image);
     });
     const float c = fmaxf(pbf.volume * w_sum - 1.0f, 0.0f);  // rho / rho0 - 1
     const float lambda = -c / (length2(grad) + g2 + pbf.epsilon);
@@ -222,7 +232,7 @@ struct Lambda {
 };
 
 // The position correction, projected into the tank: out[i] = {x*_i + dx_i, 0}.
-template <bool Direct>
+template <int P>
 struct Correct {
   static constexpr int kMaxRegisters = kPbfPassRegisters;
   SphParams prm;
@@ -233,12 +243,12 @@ struct Correct {
   const Float4* pred;  // x*, lambda
   Float4* out;
   SPHRAY_HD void operator()(uint32_t i) const {
-    if (mask_complete(pairs, i) == Direct) return;
     const PbfKernel<float>& k = pbf.kernel;
     const float s2 = k.s * k.s;
     const Float4 pi = pred[i];
     const Vec3f xi = xyz(pi);
     const Mirrors mirrors = mirrors_of(prm, k.s, xi);
+    if (!serves(P, pairs, i, mirrors)) return;
     Vec3f dx = {0.0f, 0.0f, 0.0f};
     auto image = [&](Vec3f m) {  // a static wall particle: lambda_i only
       const Vec3f r = xi - m;
@@ -246,14 +256,14 @@ struct Correct {
       if (r2 >= s2) return;
       dx += (pi.w * pbf.volume * k.dW_over_r(std::sqrt(r2))) * r;
     };
-    mirrors.images(xi, image);
-    for_each_pair<Direct>(grid, offsets, pred, xi, s2, i, pairs, i, [&](uint32_t, Float4 pj, Vec3f r, float r2) {
+    if (P != kInterior) mirrors.images(xi, image);
+    for_each_pair<P == kDirect>(grid, offsets, pred, xi, s2, i, pairs, i, [&](uint32_t, Float4 pj, Vec3f r, float r2) {
       float q = k.W(r2) * pbf.inv_w_dq;
       float qn = 1.0f;
       for (int e = 0; e < pbf.scorr_n; ++e) qn *= q;
       const float scale = pi.w + pj.w - pbf.scorr_coef * qn;
       dx += (scale * pbf.volume * k.dW_over_r(std::sqrt(r2))) * r;
-      if (mirrors.axes) mirrors.images(xyz(pj), image);
+      if (P != kInterior && mirrors.axes) mirrors.images(xyz(pj), image);
     });
     const Vec3f x = inside_tank(prm, xi + dx);
     out[i] = {x.x, x.y, x.z, 0.0f};
@@ -264,7 +274,7 @@ struct Correct {
 // (v_i += c sum_j (m / rho0) (v_j - v_i) W_ij), x = x*, and at x* the density
 // with the wall images (error[i] = its compression) and, when asked for,
 // presence (fluid only).
-template <bool WithPresence, bool Direct>
+template <bool WithPresence, int P>
 struct Finish {
   static constexpr int kMaxRegisters = kPbfPassRegisters;
   SphParams prm;
@@ -281,18 +291,18 @@ struct Finish {
   float* presence;     // [6][n]; null without presence
   uint32_t n;
   SPHRAY_HD void operator()(uint32_t i) const {
-    if (mask_complete(pairs, i) == Direct) return;
     const PbfKernel<float>& k = pbf.kernel;
-    const float inv_dt = float(1.0 / control->limits.dt);
     const Vec3f xi = xyz(pred[i]);
-    const Vec3f vi = inv_dt * (xi - xyz(pos[i]));
     const Mirrors mirrors = mirrors_of(prm, k.s, xi);
+    if (!serves(P, pairs, i, mirrors)) return;
+    const float inv_dt = float(1.0 / control->limits.dt);
+    const Vec3f vi = inv_dt * (xi - xyz(pos[i]));
     float w_sum = k.W(0.0f);
     auto image = [&](Vec3f m) { w_sum += k.W(length2(xi - m)); };
-    mirrors.images(xi, image);
+    if (P != kInterior) mirrors.images(xi, image);
     Vec3f smooth = {0.0f, 0.0f, 0.0f}, grad = {0.0f, 0.0f, 0.0f};
     float ux = 0.0f, uy = 0.0f, uz = 0.0f;
-    for_each_pair<Direct>(grid, offsets, pred, xi, k.s * k.s, i, pairs, i,
+    for_each_pair<P == kDirect>(grid, offsets, pred, xi, k.s * k.s, i, pairs, i,
                           [&](uint32_t j) { return load(pos + j); }, [&](uint32_t j, Float4 xj_old) {
       const Vec3f xj = xyz(load(pred + j));
       const Vec3f r = xi - xj;
@@ -300,7 +310,7 @@ struct Finish {
       const float w = k.W(r2);
       w_sum += w;
       smooth += w * (inv_dt * (xj - xyz(xj_old)) - vi);
-      if (mirrors.axes) mirrors.images(xj, image);
+      if (P != kInterior && mirrors.axes) mirrors.images(xj, image);
       if (WithPresence) {
         const float m_dwr = prm.particle_mass * k.dW_over_r(std::sqrt(r2));
         grad += m_dwr * r;

@@ -141,25 +141,28 @@ class PbfSolverImpl final : public Solver {
     parallel_for("pbf_pair_masks", n_, b);
   }
 
-  template <template <bool> class Pass, class... Args>
-  void both_launches(const char* name, const char* direct_name, Args... args) {
-    parallel_for(name, n_, Pass<false>{args...});
-    parallel_for(direct_name, n_, Pass<true>{args...});
+  // The three launches of a neighbour pass (pbf.h, PbfPass).
+  template <template <int> class Pass, class... Args>
+  void pass_launches(const char* const (&names)[3], Args... args) {
+    parallel_for(names[kInterior], n_, Pass<kInterior>{args...});
+    parallel_for(names[kNearWalls], n_, Pass<kNearWalls>{args...});
+    parallel_for(names[kDirect], n_, Pass<kDirect>{args...});
   }
+  static constexpr const char* kLambdaNames[3] = {"pbf_lambda", "pbf_lambda_walls", "pbf_lambda_direct"};
+  static constexpr const char* kCorrectNames[3] = {"pbf_correct", "pbf_correct_walls", "pbf_correct_direct"};
 
   // The constraint iterations; returns how many corrections were applied.
   int solve() {
     for (int k = 0; k < pbf_.iterations; ++k) {
-      both_launches<Lambda>("pbf_lambda", "pbf_lambda_direct", prm_, pbf_, grid_, raw(fine_offsets_), pairs(),
-                            raw(pred_), raw(pred_tmp_), raw(error_));
+      pass_launches<Lambda>(kLambdaNames, prm_, pbf_, grid_, raw(fine_offsets_), pairs(), raw(pred_), raw(pred_tmp_),
+                            raw(error_));
       pred_.swap(pred_tmp_);
       if (pbf_.tolerance > 0) {
         // Ending early needs the error on the host: one read per iteration.
         const double sum = thrust::reduce(policy(), error_.begin(), error_.begin() + n_, 0.0);
         if (n_ == 0 || sum / n_ <= pbf_.tolerance) return k;
       }
-      both_launches<Correct>("pbf_correct", "pbf_correct_direct", prm_, pbf_, grid_, raw(fine_offsets_), pairs(),
-                             raw(pred_), raw(pred_tmp_));
+      pass_launches<Correct>(kCorrectNames, prm_, pbf_, grid_, raw(fine_offsets_), pairs(), raw(pred_), raw(pred_tmp_));
       pred_.swap(pred_tmp_);
     }
     return pbf_.iterations;
@@ -172,16 +175,18 @@ class PbfSolverImpl final : public Solver {
     pos_.swap(pos_tmp_);
     vel_.swap(vel_tmp_);
   }
-  template <bool P>
+  template <bool Presence>
   void finish_launches() {
     const PbfControl* control = raw(control_);
-    float* presence = P ? raw(presence_) : nullptr;
-    parallel_for("pbf_finish", n_,
-                 Finish<P, false>{prm_, pbf_, grid_, raw(fine_offsets_), pairs(), control, raw(pred_), raw(pos_),
-                                  raw(pos_tmp_), raw(vel_tmp_), raw(error_), presence, n_});
-    parallel_for("pbf_finish_direct", n_,
-                 Finish<P, true>{prm_, pbf_, grid_, raw(fine_offsets_), pairs(), control, raw(pred_), raw(pos_),
-                                 raw(pos_tmp_), raw(vel_tmp_), raw(error_), presence, n_});
+    float* presence = Presence ? raw(presence_) : nullptr;
+    auto launch = [&](const char* name, auto pass) {
+      using F = Finish<Presence, decltype(pass)::value>;
+      parallel_for(name, n_, F{prm_, pbf_, grid_, raw(fine_offsets_), pairs(), control, raw(pred_), raw(pos_),
+                               raw(pos_tmp_), raw(vel_tmp_), raw(error_), presence, n_});
+    };
+    launch("pbf_finish", std::integral_constant<int, kInterior>());
+    launch("pbf_finish_walls", std::integral_constant<int, kNearWalls>());
+    launch("pbf_finish_direct", std::integral_constant<int, kDirect>());
   }
 
   // Speed, density error and finiteness of the current state, into the
