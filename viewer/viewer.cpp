@@ -286,7 +286,7 @@ void draw_panel(PanelState& s, RenderSettings& rs, const Solver& solver, Backend
   ImGui::SetNextWindowCollapsed(w < 900, ImGuiCond_Once);  // a small window starts with the panel folded
   ImGui::Begin("sphray", nullptr, ImGuiWindowFlags_AlwaysAutoResize);
   ImGui::Text("%s backend, %zu particles, t = %.3f s", backend_name(b), solver.num_fluid(), solver.time());
-  ImGui::Text("solver WCSPH, %d steps this frame, x%.3f real time", s.steps, s.realtime_factor);
+  ImGui::Text("solver %s, %d steps this frame, x%.3f real time", solver_name(solver.kind()), s.steps, s.realtime_factor);
   ImGui::Checkbox("real-time playback", &s.realtime);
   if (!s.realtime) ImGui::SliderInt("substeps / frame", &s.substeps, 1, 20);
   const char* builders[] = {"naive", "presence", "gather"};
