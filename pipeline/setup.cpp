@@ -164,6 +164,7 @@ PbfParams make_pbf_params(const Scene& s) {
   p.inv_w_dq = float(1.0 / k.W(dq * dq));
   p.scorr_n = c.scorr_n;
   p.xsph = float(c.xsph);
+  p.vorticity = float(c.vorticity);
   p.presence_scale = float(0.5 / presence_lobe_on_lattice(k, dx, volume));
   // The flow speed the scene can reach, sqrt(g H) (or its fastest initial
   // velocity), and from the same H the depth limit of ChoosePbfStep: the

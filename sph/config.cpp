@@ -34,7 +34,8 @@ void read_wcsph_options(const ConfigReader& r, SphConfig& c) {
 }
 
 PbfConfig read_pbf_config(const ConfigReader& r) {
-  r.only({"iterations", "tolerance", "support", "relaxation", "scorr_k", "scorr_dq", "scorr_n", "depth_error", "xsph"});
+  r.only({"iterations", "tolerance", "support", "relaxation", "scorr_k", "scorr_dq", "scorr_n", "depth_error", "xsph",
+          "vorticity"});
   PbfConfig c;
   c.iterations = r.integer("iterations", c.iterations, 1, 100);
   c.tolerance = r.number("tolerance", c.tolerance, 0, 1);
@@ -45,6 +46,7 @@ PbfConfig read_pbf_config(const ConfigReader& r) {
   c.scorr_n = r.integer("scorr_n", c.scorr_n, 1, 8);
   c.depth_error = r.number("depth_error", c.depth_error, 0, 1);
   c.xsph = r.number("xsph", c.xsph, 0, 1);
+  c.vorticity = r.number("vorticity", c.vorticity, 0, 100);
   return c;
 }
 

@@ -20,7 +20,8 @@ struct PbfConfig {
   double scorr_dq = 0.2;      // s_corr reference distance [supports]
   int scorr_n = 4;            // s_corr exponent
   double depth_error = 0.01;  // compression a column may keep between steps (the depth limit of dt); 0: no limit
-  double xsph = 0.1;          // XSPH viscosity c (the share of the neighbours' mean velocity difference per step)
+  double xsph = 0.3;          // XSPH viscosity c (the share of the neighbours' mean velocity difference per step)
+  double vorticity = 0;       // vorticity confinement epsilon [m/s]; 0: off (docs/method.md)
 };
 
 struct SphConfig {

@@ -329,4 +329,66 @@ struct Finish {
   }
 };
 
+// Vorticity confinement (Macklin & Mueller 2013, after Fedkiw et al. 2001),
+// off unless pbf.vorticity > 0: after the finishing pass,
+//   omega_i = sum_j (m / rho0) grad_i W_ij x (v_j - v_i)        (Vorticity)
+//   eta = sum_j (m / rho0) (|omega_j| - |omega_i|) grad_i W_ij, N = eta / |eta|,
+//   v_i += dt eps (N x omega_i)                                  (Confine)
+// Fluid neighbours only; the pair masks of the step (positions moved by
+// the corrections since, which the kernels weigh as they are).
+template <bool Direct>
+struct Vorticity {
+  static constexpr int kMaxRegisters = kPbfPassRegisters;
+  PbfParams pbf;
+  GridGeom grid;
+  const uint32_t* offsets;
+  PairMask pairs;
+  const Float4* pos;
+  const Float4* vel;
+  Float4* omega;  // omega, |omega|
+  SPHRAY_HD void operator()(uint32_t i) const {
+    if ((pairs.count[i] > pairs.capacity) != Direct) return;
+    const PbfKernel<float>& k = pbf.kernel;
+    const Vec3f xi = xyz(pos[i]), vi = xyz(vel[i]);
+    Vec3f w = {0.0f, 0.0f, 0.0f};
+    for_each_pair<Direct>(grid, offsets, pos, xi, k.s * k.s, i, pairs, i, [&](uint32_t j) { return load(vel + j); },
+                          [&](uint32_t j, Float4 vj) {
+      const Vec3f r = xi - xyz(load(pos + j));
+      w += cross((pbf.volume * k.dW_over_r(std::sqrt(length2(r)))) * r, xyz(vj) - vi);
+    });
+    omega[i] = {w.x, w.y, w.z, std::sqrt(length2(w))};
+  }
+};
+
+template <bool Direct>
+struct Confine {
+  static constexpr int kMaxRegisters = kPbfPassRegisters;
+  PbfParams pbf;
+  GridGeom grid;
+  const uint32_t* offsets;
+  PairMask pairs;
+  const PbfControl* control;
+  const Float4* pos;
+  const Float4* omega;
+  Float4* vel;
+  SPHRAY_HD void operator()(uint32_t i) const {
+    if ((pairs.count[i] > pairs.capacity) != Direct) return;
+    const PbfKernel<float>& k = pbf.kernel;
+    const Vec3f xi = xyz(pos[i]);
+    const Float4 wi = omega[i];
+    Vec3f eta = {0.0f, 0.0f, 0.0f};
+    for_each_pair<Direct>(grid, offsets, pos, xi, k.s * k.s, i, pairs, i, [&](uint32_t j) { return load(omega + j); },
+                          [&](uint32_t j, Float4 wj) {
+      const Vec3f r = xi - xyz(load(pos + j));
+      eta += ((wj.w - wi.w) * pbf.volume * k.dW_over_r(std::sqrt(length2(r)))) * r;
+    });
+    const float len = std::sqrt(length2(eta));
+    if (!(len > 0.0f)) return;
+    const Vec3f f = pbf.vorticity * cross((1.0f / len) * eta, xyz(wi));
+    const Float4 v = vel[i];
+    const float dt = float(control->limits.dt);
+    vel[i] = {v.x + dt * f.x, v.y + dt * f.y, v.z + dt * f.z, v.w};
+  }
+};
+
 }  // namespace sphray

@@ -16,6 +16,7 @@ struct PbfParams {
   float inv_w_dq;        // 1 / W(dq)
   int scorr_n;           // exponent n of s_corr
   float xsph;            // XSPH viscosity c
+  float vorticity;       // [m/s] vorticity confinement epsilon; 0: off
   float presence_scale;  // 1 / (2 K) with this kernel (interaction.h)
   float speed_floor;     // [m/s] the CFL's speed is at least this (ChoosePbfStep)
   float max_dt_depth;    // [s] the step at which the liquid's depth compresses by pbf.depth_error (ChoosePbfStep)

@@ -174,6 +174,25 @@ class PbfSolverImpl final : public Solver {
     else finish_launches<false>();
     pos_.swap(pos_tmp_);
     vel_.swap(vel_tmp_);
+    if (pbf_.vorticity > 0) confine_vorticity();
+  }
+
+  // Vorticity confinement (pbf.h): omega into vel_tmp_ (free after the swap),
+  // then the velocities.
+  void confine_vorticity() {
+    const PbfControl* control = raw(control_);
+    for (bool direct : {false, true}) {
+      if (direct)
+        parallel_for("pbf_vorticity_direct", n_,
+                     Vorticity<true>{pbf_, grid_, raw(fine_offsets_), pairs(), raw(pos_), raw(vel_), raw(vel_tmp_)});
+      else
+        parallel_for("pbf_vorticity", n_,
+                     Vorticity<false>{pbf_, grid_, raw(fine_offsets_), pairs(), raw(pos_), raw(vel_), raw(vel_tmp_)});
+    }
+    parallel_for("pbf_confine", n_,
+                 Confine<false>{pbf_, grid_, raw(fine_offsets_), pairs(), control, raw(pos_), raw(vel_tmp_), raw(vel_)});
+    parallel_for("pbf_confine_direct", n_,
+                 Confine<true>{pbf_, grid_, raw(fine_offsets_), pairs(), control, raw(pos_), raw(vel_tmp_), raw(vel_)});
   }
   template <bool Presence>
   void finish_launches() {
