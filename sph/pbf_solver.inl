@@ -71,8 +71,11 @@ class PbfSolverImpl final : public Solver {
   }
 
   void step(double until) override {
-    const bool presence_now = presence_mode_ == PresenceMode::EveryStep ||
-                              (presence_mode_ == PresenceMode::AtUntil && t_ + max_dt_ >= until - 1e-12);
+    // Presence on every step that may reach `until`: a step is at most
+    // max_dt, stretched by up to kLandStretch to land on it (ChoosePbfStep).
+    const bool presence_now =
+        presence_mode_ == PresenceMode::EveryStep ||
+        (presence_mode_ == PresenceMode::AtUntil && t_ + ChoosePbfStep::kLandStretch * max_dt_ >= until - 1e-12);
     clock_.start();
     PbfControl* control = raw(control_);
     parallel_for("pbf_choose_step", 1,
@@ -91,8 +94,9 @@ class PbfSolverImpl final : public Solver {
     clock_.end_of("integrate");
     clock_.finish();
     const PbfControl& c = control_read_.value();
+    // The state is checked once the step's kernels have run: a bad step is
+    // reported, not continued from.
     if (c.outcome == kStepBelowFloor) throw SimulationError(describe_dt_floor(c.limits));
-    // A refused step still ran its kernels; what they found is reported, not kept.
     check_state(c.stats);
     limits_ = c.limits;
     times_ = {clock_.ms("grid"), clock_.ms("pairs"), clock_.ms("integrate")};
