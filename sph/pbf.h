@@ -258,10 +258,13 @@ struct Correct {
     };
     if (P != kInterior) mirrors.images(xi, image);
     for_each_pair<P == kDirect>(grid, offsets, pred, xi, s2, i, pairs, i, [&](uint32_t, Float4 pj, Vec3f r, float r2) {
-      float q = k.W(r2) * pbf.inv_w_dq;
-      float qn = 1.0f;
-      for (int e = 0; e < pbf.scorr_n; ++e) qn *= q;
-      const float scale = pi.w + pj.w - pbf.scorr_coef * qn;
+      float scale = pi.w + pj.w;
+      if (pbf.scorr_coef != 0.0f) {  // off by default: the same for every thread, no divergence
+        const float q = k.W(r2) * pbf.inv_w_dq;
+        float qn = 1.0f;
+        for (int e = 0; e < pbf.scorr_n; ++e) qn *= q;
+        scale -= pbf.scorr_coef * qn;
+      }
       dx += (scale * pbf.volume * k.dW_over_r(std::sqrt(r2))) * r;
       if (P != kInterior && mirrors.axes) mirrors.images(xyz(pj), image);
     });
