@@ -24,7 +24,6 @@ dam() {  # label, then --set arguments
   rm -f /tmp/s.json /tmp/m.csv
   $B/sphray run scenes/dam_break.json --backend cuda --quiet --set sph.solver=pbf --set run.end_time=0.3 \
     --set run.output_interval=0.3 "${sets[@]}" --metrics-csv /tmp/m.csv --summary-json /tmp/s.json > /dev/null 2>&1
-  true
   [ -s /tmp/s.json ] && grep -q '"completed"' /tmp/s.json || { echo "$label,stopped (diverged)"; return; }
   python3 - "$label" <<'PY'
 import csv, json, sys
