@@ -268,6 +268,10 @@ struct Correct {
       dx += (scale * pbf.volume * k.dW_over_r(std::sqrt(r2))) * r;
       if (P != kInterior && mirrors.axes) mirrors.images(xyz(pj), image);
     });
+    // At most pbf.max_correction per iteration (pbf_params.h).
+    const float len2 = length2(dx);
+    if (pbf.max_correction > 0.0f && len2 > pbf.max_correction * pbf.max_correction)
+      dx = (pbf.max_correction / std::sqrt(len2)) * dx;
     const Vec3f x = inside_tank(prm, xi + dx);
     out[i] = {x.x, x.y, x.z, 0.0f};
   }

@@ -15,6 +15,13 @@ struct PbfParams {
   float scorr_coef;      // k / G0 [m^2]: s_corr = -scorr_coef (W / W(dq))^n
   float inv_w_dq;        // 1 / W(dq)
   int scorr_n;           // exponent n of s_corr
+  // [m] the largest correction of one particle in one iteration; 0: none.
+  // A constraint that asks for more is an impact spike (a particle driven
+  // into a compressed crowd), and a correction of a spacing in one step comes
+  // back as a speed of dx / dt: the dam break's wave threw single particles
+  // at 20-50 m/s where it hits the far wall. Jacobi carries a correction
+  // about one support per iteration anyway; the rest waits for the next.
+  float max_correction;
   float xsph;            // XSPH viscosity c
   float vorticity;       // [m/s] vorticity confinement epsilon; 0: off
   float presence_scale;  // 1 / (2 K) with this kernel (interaction.h)
