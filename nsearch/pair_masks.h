@@ -335,9 +335,12 @@ SPHRAY_HD SPHRAY_FORCEINLINE void for_each_masked_neighbour(const Float4* pts, V
   });
 }
 
-// Whether both masks of query i hold all its words (its loops take the masks).
+// Whether query i's mask holds all its words (its loops take the mask).
+SPHRAY_HD SPHRAY_FORCEINLINE bool mask_complete(const PairMask& m, uint32_t i) { return m.count[i] <= m.capacity; }
+
+// Whether both masks of query i hold all their words.
 SPHRAY_HD SPHRAY_FORCEINLINE bool masks_complete(const PairMask& a, const PairMask& b, uint32_t i) {
-  return a.count[i] <= a.capacity && b.count[i] <= b.capacity;
+  return mask_complete(a, i) && mask_complete(b, i);
 }
 
 // The neighbour loop of a launch: the mask walk (Direct = false), or the direct

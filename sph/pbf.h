@@ -181,9 +181,15 @@ constexpr int kPbfPassRegisters = 64;
 // loop of those whose masks overflowed (nsearch/pair_masks.h).
 enum PbfPass { kInterior = 0, kNearWalls = 1, kDirect = 2 };
 
+// (m / rho0) grad W of the spiky kernel at r, |r|^2 = r2: a neighbour's
+// term in grad C and in the curl.
+SPHRAY_HD SPHRAY_FORCEINLINE Vec3f volume_grad(const PbfParams& pbf, Vec3f r, float r2) {
+  return (pbf.volume * pbf.kernel.dW_over_r(std::sqrt(r2))) * r;
+}
+
 // Whether launch P serves particle i.
 SPHRAY_HD SPHRAY_FORCEINLINE bool serves(int P, const PairMask& m, uint32_t i, const Mirrors& mirrors) {
-  if (m.count[i] > m.capacity) return P == kDirect;
+  if (!mask_complete(m, i)) return P == kDirect;
   return P == (mirrors.axes ? kNearWalls : kInterior);
 }
 
@@ -214,12 +220,12 @@ struct Lambda {
       const float r2 = length2(r);
       if (r2 >= s2) return;
       w_sum += k.W(r2);
-      grad += (pbf.volume * k.dW_over_r(std::sqrt(r2))) * r;
+      grad += volume_grad(pbf, r, r2);
     };
     if (P != kInterior) mirrors.images(xi, image);
     for_each_pair<P == kDirect>(grid, offsets, pred, xi, s2, i, pairs, i, [&](uint32_t, Float4 pj, Vec3f r, float r2) {
       w_sum += k.W(r2);
-      const Vec3f g = (pbf.volume * k.dW_over_r(std::sqrt(r2))) * r;  // grad_j C_i = -g
+      const Vec3f g = volume_grad(pbf, r, r2);  // grad_j C_i = -g
       grad += g;
       g2 += length2(g);
       if (P != kInterior && mirrors.axes) mirrors.images(xyz(pj), image);
@@ -336,6 +342,14 @@ struct Finish {
   }
 };
 
+// Finish with presence fixed, as a template of the pass alone (the solver
+// launches every neighbour pass the same way).
+template <bool WithPresence>
+struct FinishOf {
+  template <int P>
+  using pass = Finish<WithPresence, P>;
+};
+
 // Vorticity confinement (Macklin & Mueller 2013, after Fedkiw et al. 2001),
 // off unless pbf.vorticity > 0: after the finishing pass,
 //   omega_i = sum_j (m / rho0) grad_i W_ij x (v_j - v_i)        (Vorticity)
@@ -354,14 +368,14 @@ struct Vorticity {
   const Float4* vel;
   Float4* omega;  // omega, |omega|
   SPHRAY_HD void operator()(uint32_t i) const {
-    if ((pairs.count[i] > pairs.capacity) != Direct) return;
+    if (mask_complete(pairs, i) == Direct) return;
     const PbfKernel<float>& k = pbf.kernel;
     const Vec3f xi = xyz(pos[i]), vi = xyz(vel[i]);
     Vec3f w = {0.0f, 0.0f, 0.0f};
     for_each_pair<Direct>(grid, offsets, pos, xi, k.s * k.s, i, pairs, i, [&](uint32_t j) { return load(vel + j); },
                           [&](uint32_t j, Float4 vj) {
       const Vec3f r = xi - xyz(load(pos + j));
-      w += cross((pbf.volume * k.dW_over_r(std::sqrt(length2(r)))) * r, xyz(vj) - vi);
+      w += cross(volume_grad(pbf, r, length2(r)), xyz(vj) - vi);
     });
     omega[i] = {w.x, w.y, w.z, std::sqrt(length2(w))};
   }
@@ -379,7 +393,7 @@ struct Confine {
   const Float4* omega;
   Float4* vel;
   SPHRAY_HD void operator()(uint32_t i) const {
-    if ((pairs.count[i] > pairs.capacity) != Direct) return;
+    if (mask_complete(pairs, i) == Direct) return;
     const PbfKernel<float>& k = pbf.kernel;
     const Vec3f xi = xyz(pos[i]);
     const Float4 wi = omega[i];

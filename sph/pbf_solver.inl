@@ -185,31 +185,25 @@ class PbfSolverImpl final : public Solver {
   // then the velocities.
   void confine_vorticity() {
     const PbfControl* control = raw(control_);
-    for (bool direct : {false, true}) {
-      if (direct)
-        parallel_for("pbf_vorticity_direct", n_,
-                     Vorticity<true>{pbf_, grid_, raw(fine_offsets_), pairs(), raw(pos_), raw(vel_), raw(vel_tmp_)});
-      else
-        parallel_for("pbf_vorticity", n_,
-                     Vorticity<false>{pbf_, grid_, raw(fine_offsets_), pairs(), raw(pos_), raw(vel_), raw(vel_tmp_)});
-    }
+    parallel_for("pbf_vorticity", n_,
+                 Vorticity<false>{pbf_, grid_, raw(fine_offsets_), pairs(), raw(pos_), raw(vel_), raw(vel_tmp_)});
+    parallel_for("pbf_vorticity_direct", n_,
+                 Vorticity<true>{pbf_, grid_, raw(fine_offsets_), pairs(), raw(pos_), raw(vel_), raw(vel_tmp_)});
     parallel_for("pbf_confine", n_,
                  Confine<false>{pbf_, grid_, raw(fine_offsets_), pairs(), control, raw(pos_), raw(vel_tmp_), raw(vel_)});
     parallel_for("pbf_confine_direct", n_,
                  Confine<true>{pbf_, grid_, raw(fine_offsets_), pairs(), control, raw(pos_), raw(vel_tmp_), raw(vel_)});
   }
+
+  // The finishing pass's three launches (pbf.h, PbfPass), with or without presence.
+  static constexpr const char* kFinishNames[3] = {"pbf_finish", "pbf_finish_walls", "pbf_finish_direct"};
   template <bool Presence>
   void finish_launches() {
     const PbfControl* control = raw(control_);
     float* presence = Presence ? raw(presence_) : nullptr;
-    auto launch = [&](const char* name, auto pass) {
-      using F = Finish<Presence, decltype(pass)::value>;
-      parallel_for(name, n_, F{prm_, pbf_, grid_, raw(fine_offsets_), pairs(), control, raw(pred_), raw(pos_),
-                               raw(pos_tmp_), raw(vel_tmp_), raw(error_), presence, n_});
-    };
-    launch("pbf_finish", std::integral_constant<int, kInterior>());
-    launch("pbf_finish_walls", std::integral_constant<int, kNearWalls>());
-    launch("pbf_finish_direct", std::integral_constant<int, kDirect>());
+    pass_launches<FinishOf<Presence>::template pass>(kFinishNames, prm_, pbf_, grid_, raw(fine_offsets_), pairs(),
+                                                     control, raw(pred_), raw(pos_), raw(pos_tmp_), raw(vel_tmp_),
+                                                     raw(error_), presence, n_);
   }
 
   // Speed, density error and finiteness of the current state, into the

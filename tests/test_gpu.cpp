@@ -197,6 +197,24 @@ TEST_CASE("cuda guards and open-top removal behave as on the cpu", "[gpu]") {
   }
 }
 
+// The largest differences between two backends' particles, matched by id.
+struct Worst {
+  double pos = 0, rho = 0, presence = 0;
+};
+Worst worst_by_id(const HostParticles& a, const HostParticles& b) {
+  REQUIRE(a.pos.size() == b.pos.size());
+  std::vector<size_t> where(a.id.size());
+  for (size_t k = 0; k < b.id.size(); ++k) where[b.id[k]] = k;
+  Worst w;
+  for (size_t k = 0; k < a.id.size(); ++k) {
+    const size_t m = where[a.id[k]];
+    w.pos = std::max(w.pos, double(length(a.pos[k] - b.pos[m])));
+    w.rho = std::max(w.rho, double(std::abs(a.density[k] - b.density[m])));
+    for (int d = 0; d < 6; ++d) w.presence = std::max(w.presence, double(std::abs(a.presence[k][d] - b.presence[m][d])));
+  }
+  return w;
+}
+
 TEST_CASE("cuda and cpu dam breaks agree to float tolerance", "[gpu]") {
   const Scene s = load_scene(test::source_path("scenes/dam_break.json"), {"sph.spacing=0.02", "sph.presence=true"});
   const SolverInput in = make_solver_input(resolve_scene(s), PresenceMode::EveryStep);
@@ -206,21 +224,11 @@ TEST_CASE("cuda and cpu dam breaks agree to float tolerance", "[gpu]") {
     gpu->step(1.0);
     REQUIRE(std::abs(cpu->last_limits().dt - gpu->last_limits().dt) <= 1e-3 * cpu->last_limits().dt);
   }
-  const HostParticles a = cpu->download(), b = gpu->download();
-  REQUIRE(a.pos.size() == b.pos.size());
-  std::vector<size_t> where(a.id.size());
-  for (size_t k = 0; k < b.id.size(); ++k) where[b.id[k]] = k;
-  double worst_pos = 0, worst_rho = 0, worst_presence = 0;
-  for (size_t k = 0; k < a.id.size(); ++k) {
-    const size_t m = where[a.id[k]];
-    worst_pos = std::max(worst_pos, double(length(a.pos[k] - b.pos[m])));
-    worst_rho = std::max(worst_rho, double(std::abs(a.density[k] - b.density[m])));
-    for (int d = 0; d < 6; ++d) worst_presence = std::max(worst_presence, double(std::abs(a.presence[k][d] - b.presence[m][d])));
-  }
-  INFO("worst position difference " << worst_pos << " m, density " << worst_rho << ", presence " << worst_presence);
-  CHECK(worst_pos < 1e-3 * s.sph.spacing);
-  CHECK(worst_rho < 1e-3 * s.sph.rest_density);
-  CHECK(worst_presence < 1e-3);
+  const Worst w = worst_by_id(cpu->download(), gpu->download());
+  INFO("worst position difference " << w.pos << " m, density " << w.rho << ", presence " << w.presence);
+  CHECK(w.pos < 1e-3 * s.sph.spacing);
+  CHECK(w.rho < 1e-3 * s.sph.rest_density);
+  CHECK(w.presence < 1e-3);
 }
 
 // PBF's one-sided constraint makes the two backends' rounding grow faster
@@ -237,21 +245,11 @@ TEST_CASE("cuda and cpu pbf dam breaks agree to float tolerance", "[gpu]") {
     REQUIRE(std::abs(cpu->last_limits().dt - gpu->last_limits().dt) <= 1e-3 * cpu->last_limits().dt);
     REQUIRE(cpu->last_solve().iterations == gpu->last_solve().iterations);
   }
-  const HostParticles a = cpu->download(), b = gpu->download();
-  REQUIRE(a.pos.size() == b.pos.size());
-  std::vector<size_t> where(a.id.size());
-  for (size_t k = 0; k < b.id.size(); ++k) where[b.id[k]] = k;
-  double worst_pos = 0, worst_rho = 0, worst_presence = 0;
-  for (size_t k = 0; k < a.id.size(); ++k) {
-    const size_t m = where[a.id[k]];
-    worst_pos = std::max(worst_pos, double(length(a.pos[k] - b.pos[m])));
-    worst_rho = std::max(worst_rho, double(std::abs(a.density[k] - b.density[m])));
-    for (int d = 0; d < 6; ++d) worst_presence = std::max(worst_presence, double(std::abs(a.presence[k][d] - b.presence[m][d])));
-  }
-  INFO("worst position difference " << worst_pos << " m, density " << worst_rho << ", presence " << worst_presence);
-  CHECK(worst_pos < 1e-3 * s.sph.spacing);
-  CHECK(worst_rho < 1e-3 * s.sph.rest_density);
-  CHECK(worst_presence < 1e-3);
+  const Worst w = worst_by_id(cpu->download(), gpu->download());
+  INFO("worst position difference " << w.pos << " m, density " << w.rho << ", presence " << w.presence);
+  CHECK(w.pos < 1e-3 * s.sph.spacing);
+  CHECK(w.rho < 1e-3 * s.sph.rest_density);
+  CHECK(w.presence < 1e-3);
   for (int k = 0; k < 20; ++k) {
     cpu->step(1.0);
     gpu->step(1.0);
