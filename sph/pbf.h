@@ -22,143 +22,31 @@
 // liquid beyond each wall instead over-counts there and at corners, and
 // pushed the liquid up the walls of a pool at rest). The walls are free-slip.
 // Each correction ends with the position projected into the tank, so no
-// particle leaves it.
+// particle leaves it (mirror_walls.h).
+// The step (ChooseFlowStep, flow_step.h) has a depth limit besides the CFL:
+// each Jacobi iteration carries a correction about one support, so a column
+// of depth H under gravity stays compressed by about g H dt^2 / (K s^2) with
+// K iterations (the bottom of a column that the iterations cannot hold up
+// within a step); max_dt_depth keeps that at pbf.depth_error, 1% by default
+// (make_pbf_params). Above it, deep columns compressed by several percent
+// and their corrections came back as spurious speeds of metres per second.
 #pragma once
 
 #include <cmath>
 #include <cstdint>
 
-#include "integrate.h"  // StepLimits, kNoBadParticle
-#include "nsearch/pair_masks.h"
+#include "flow_step.h"
+#include "mirror_walls.h"
 #include "params.h"
 #include "pbf_params.h"
 #include "presence.h"
 
 namespace sphray {
 
-// Projects x into the tank (the top stays open where the tank has none).
-SPHRAY_HD SPHRAY_FORCEINLINE Vec3f inside_tank(const SphParams& prm, Vec3f x) {
-  x.x = std::fmin(std::fmax(x.x, prm.tank.min.x), prm.tank.max.x);
-  x.y = std::fmin(std::fmax(x.y, prm.tank.min.y), prm.tank.max.y);
-  x.z = std::fmax(x.z, prm.tank.min.z);
-  if (!prm.open_top) x.z = std::fmin(x.z, prm.tank.max.z);
-  return x;
-}
-
-// The tank's planes within the support of a point, the nearer one per axis:
-// the mirrors that make its wall images (Mirrors::images).
-struct Mirrors {
-  float plane[3];
-  uint32_t axes = 0;  // bit a: a wall across axis a is within reach
-
-  // Calls f(image) for each image of p: reflected across every non-empty
-  // subset of the walls in reach (one wall: 1 image; an edge: 3; a corner: 7).
-  template <class F>
-  SPHRAY_HD SPHRAY_FORCEINLINE void images(Vec3f p, F&& f) const {
-    for (uint32_t set = 1; set < 8u; ++set) {
-      if ((set & ~axes) != 0u) continue;
-      Vec3f m = p;
-      if (set & 1u) m.x = 2.0f * plane[0] - p.x;
-      if (set & 2u) m.y = 2.0f * plane[1] - p.y;
-      if (set & 4u) m.z = 2.0f * plane[2] - p.z;
-      f(m);
-    }
-  }
-};
-
-SPHRAY_HD SPHRAY_FORCEINLINE Mirrors mirrors_of(const SphParams& prm, float support, Vec3f x) {
-  Mirrors m;
-  const float p[3] = {x.x, x.y, x.z};
-  const float lo[3] = {prm.tank.min.x, prm.tank.min.y, prm.tank.min.z};
-  const float hi[3] = {prm.tank.max.x, prm.tank.max.y, prm.tank.max.z};
-  for (int a = 0; a < 3; ++a) {
-    const float d_lo = p[a] - lo[a];
-    const float d_hi = (a == 2 && prm.open_top) ? support : hi[a] - p[a];
-    // An image lies at least as far as the wall: walls beyond the support have none in reach.
-    const bool near_lo = d_lo < support, near_hi = d_hi < support;
-    if (near_lo && (!near_hi || d_lo <= d_hi)) { m.plane[a] = lo[a]; m.axes |= 1u << a; }
-    else if (near_hi) { m.plane[a] = hi[a]; m.axes |= 1u << a; }
-    else m.plane[a] = 0.0f;
-  }
-  return m;
-}
-
-// What the step size and the run's guards read of the state: the largest
-// speed, the density error, the first non-finite particle. Reduced on the device.
-struct PbfStats {
-  float max_speed2;
-  float error_max;   // largest compression rho / rho0 - 1 (>= 0)
-  double error_sum;  // summed over the particles
-  uint32_t first_bad;
-};
-constexpr PbfStats kEmptyPbfStats{0.0f, 0.0f, 0.0, kNoBadParticle};
-
-struct CombinePbfStats {
-  SPHRAY_HD PbfStats operator()(const PbfStats& a, const PbfStats& b) const {
-    return {a.max_speed2 > b.max_speed2 ? a.max_speed2 : b.max_speed2, a.error_max > b.error_max ? a.error_max : b.error_max,
-            a.error_sum + b.error_sum, a.first_bad < b.first_bad ? a.first_bad : b.first_bad};
-  }
-};
-
-// Per particle: speed, density error (from error[]), finiteness.
-struct PbfStatsOf {
-  const Float4* pos;  // x, density
-  const Float4* vel;
-  const float* error;
-  SPHRAY_HD PbfStats operator()(uint32_t i) const {
-    const Float4 p = pos[i], v = vel[i];
-    const bool finite = all_finite(xyz(p)) && std::isfinite(p.w) && all_finite(xyz(v));
-    const float e = error[i];
-    return {length2(xyz(v)), e, double(e), finite && std::isfinite(e) ? kNoBadParticle : i};
-  }
-};
-
-struct PbfControl {
-  PbfStats stats;      // of the state the step starts from
-  StepLimits limits;   // limits.dt: the step taken when outcome is kStepOk
-  uint32_t outcome;    // StepOutcome (integrate.h)
-};
-
-// dt = cfl dx / max(v_max, v_floor), capped at max_dt, at the depth limit and
-// at the time left. The floor is the flow speed the scene can reach
-// (sqrt(g H), io/scene.h), so that a liquid at rest or just released does
-// not take steps sized by its small speed alone. The depth limit: each
-// Jacobi iteration carries a correction about one support, so a column of
-// depth H under gravity stays compressed by about g H dt^2 / (K s^2) with K
-// iterations (the bottom of a column that the iterations cannot hold up
-// within a step); max_dt_depth keeps that at pbf.depth_error, 1% by default
-// (make_pbf_params). Above
-// it, deep columns compressed by several percent and their corrections came
-// back as spurious speeds of metres per second. Made on the device, like
-// ChooseStep (integrate.h).
-struct ChoosePbfStep {
-  double cfl_dx, speed_floor, max_dt, max_dt_depth, min_dt, remaining;
-  PbfControl* control;
-  SPHRAY_HD void operator()(uint32_t) const {
-    PbfControl& c = *control;
-    StepLimits& l = c.limits;
-    l.max_speed = std::sqrt(double(c.stats.max_speed2));
-    const double v = l.max_speed > speed_floor ? l.max_speed : speed_floor;
-    l.dt_cfl = v > 0 ? cfl_dx / v : HUGE_VAL;
-    l.dt_force = max_dt_depth;
-    l.dt_viscous = HUGE_VAL;
-    const double limit = max_dt < max_dt_depth ? max_dt : max_dt_depth;
-    const double dt = l.dt_cfl < limit ? l.dt_cfl : limit;
-    l.dt = dt;
-    if (dt < min_dt) { c.outcome = kStepBelowFloor; return; }
-    c.outcome = kStepOk;
-    // Velocities are position changes over dt, so a sliver of a step (the
-    // rest before an output time) would turn the corrections' size into a
-    // huge speed: land on `until` a little beyond the limit, or in two halves.
-    l.dt = remaining <= kLandStretch * dt ? remaining : remaining < 2.0 * dt ? 0.5 * remaining : dt;
-  }
-  static constexpr double kLandStretch = 1.01;
-};
-
 // v* = v + dt g and x* = x + dt v* in the tank, into pred (w: 0).
 struct Predict {
   SphParams prm;
-  const PbfControl* control;
+  const FlowControl* control;
   const Float4* pos;
   const Float4* vel;
   Float4* pred;
@@ -170,27 +58,10 @@ struct Predict {
   }
 };
 
-// Registers per thread of the neighbour passes on the GPU
-// (core/launch_cuda.cuh): the wall images' loop spills under the file-wide 40.
-constexpr int kPbfPassRegisters = 64;
-
-// Each neighbour pass is three launches, each particle served by one: the
-// pair masks of the particles away from the walls (no image code in the
-// loop, which cost the interior particles twice the time when they carried
-// it), the pair masks of those within a support of a wall, and the direct
-// loop of those whose masks overflowed (nsearch/pair_masks.h).
-enum PbfPass { kInterior = 0, kNearWalls = 1, kDirect = 2 };
-
 // (m / rho0) grad W of the spiky kernel at r, |r|^2 = r2: a neighbour's
 // term in grad C and in the curl.
 SPHRAY_HD SPHRAY_FORCEINLINE Vec3f volume_grad(const PbfParams& pbf, Vec3f r, float r2) {
   return (pbf.volume * pbf.kernel.dW_over_r(std::sqrt(r2))) * r;
-}
-
-// Whether launch P serves particle i.
-SPHRAY_HD SPHRAY_FORCEINLINE bool serves(int P, const PairMask& m, uint32_t i, const Mirrors& mirrors) {
-  if (!mask_complete(m, i)) return P == kDirect;
-  return P == (mirrors.axes ? kNearWalls : kInterior);
 }
 
 // Density at x* and lambda_i: out[i] = {x*_i, lambda_i}; error[i] = C_i.
@@ -198,7 +69,7 @@ SPHRAY_HD SPHRAY_FORCEINLINE bool serves(int P, const PairMask& m, uint32_t i, c
 // move, so they add nothing to the sum over the neighbours' gradients.
 template <int P>
 struct Lambda {
-  static constexpr int kMaxRegisters = kPbfPassRegisters;
+  static constexpr int kMaxRegisters = kMirrorPassRegisters;
   SphParams prm;
   PbfParams pbf;
   GridGeom grid;
@@ -240,7 +111,7 @@ struct Lambda {
 // The position correction, projected into the tank: out[i] = {x*_i + dx_i, 0}.
 template <int P>
 struct Correct {
-  static constexpr int kMaxRegisters = kPbfPassRegisters;
+  static constexpr int kMaxRegisters = kMirrorPassRegisters;
   SphParams prm;
   PbfParams pbf;
   GridGeom grid;
@@ -289,13 +160,13 @@ struct Correct {
 // presence (fluid only).
 template <bool WithPresence, int P>
 struct Finish {
-  static constexpr int kMaxRegisters = kPbfPassRegisters;
+  static constexpr int kMaxRegisters = kMirrorPassRegisters;
   SphParams prm;
   PbfParams pbf;
   GridGeom grid;
   const uint32_t* offsets;
   PairMask pairs;
-  const PbfControl* control;
+  const FlowControl* control;
   const Float4* pred;  // x*
   const Float4* pos;   // x at the step's start
   Float4* pos_out;     // x*, density
@@ -359,7 +230,7 @@ struct FinishOf {
 // the corrections since, which the kernels weigh as they are).
 template <bool Direct>
 struct Vorticity {
-  static constexpr int kMaxRegisters = kPbfPassRegisters;
+  static constexpr int kMaxRegisters = kMirrorPassRegisters;
   PbfParams pbf;
   GridGeom grid;
   const uint32_t* offsets;
@@ -383,12 +254,12 @@ struct Vorticity {
 
 template <bool Direct>
 struct Confine {
-  static constexpr int kMaxRegisters = kPbfPassRegisters;
+  static constexpr int kMaxRegisters = kMirrorPassRegisters;
   PbfParams pbf;
   GridGeom grid;
   const uint32_t* offsets;
   PairMask pairs;
-  const PbfControl* control;
+  const FlowControl* control;
   const Float4* pos;
   const Float4* omega;
   Float4* vel;

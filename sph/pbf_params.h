@@ -25,8 +25,8 @@ struct PbfParams {
   float xsph;            // XSPH viscosity c
   float vorticity;       // [m/s] vorticity confinement epsilon; 0: off
   float presence_scale;  // 1 / (2 K) with this kernel (interaction.h)
-  float speed_floor;     // [m/s] the CFL's speed is at least this (ChoosePbfStep)
-  float max_dt_depth;    // [s] the step at which the liquid's depth compresses by pbf.depth_error (ChoosePbfStep)
+  float speed_floor;     // [m/s] the CFL's speed is at least this (ChooseFlowStep)
+  float max_dt_depth;    // [s] the step at which the liquid's depth compresses by pbf.depth_error (ChooseFlowStep)
   int iterations;        // constraint iterations per step
   float tolerance;       // mean density error that ends the iterations early; 0: off
 };

@@ -1,7 +1,7 @@
 // The position-based fluids solver (pbf.h), written once for both backends.
 // Included by solver_cpu.cpp and solver_cuda.cu after solver_impl.inl, inside
 // the backend namespace (GatherParticles, sort_and_offsets, the copies).
-// One step: the step size from the largest speed (ChoosePbfStep); predict;
+// One step: the step size from the largest speed (ChooseFlowStep); predict;
 // the grid sort and the pair masks at the predicted positions, found once
 // and reused by every pass of the step; the constraint iterations; the
 // finishing pass. The sort follows the predicted positions, so after a step
@@ -72,14 +72,14 @@ class PbfSolverImpl final : public Solver {
 
   void step(double until) override {
     // Presence on every step that may reach `until`: a step is at most
-    // max_dt, stretched by up to kLandStretch to land on it (ChoosePbfStep).
+    // max_dt, stretched by up to kLandStretch to land on it (ChooseFlowStep).
     const bool presence_now =
         presence_mode_ == PresenceMode::EveryStep ||
-        (presence_mode_ == PresenceMode::AtUntil && t_ + ChoosePbfStep::kLandStretch * max_dt_ >= until - 1e-12);
+        (presence_mode_ == PresenceMode::AtUntil && t_ + ChooseFlowStep::kLandStretch * max_dt_ >= until - 1e-12);
     clock_.start();
-    PbfControl* control = raw(control_);
+    FlowControl* control = raw(control_);
     parallel_for("pbf_choose_step", 1,
-                 ChoosePbfStep{cfl_ * prm_.spacing, double(pbf_.speed_floor), max_dt_, double(pbf_.max_dt_depth), min_dt_,
+                 ChooseFlowStep{cfl_ * prm_.spacing, double(pbf_.speed_floor), max_dt_, double(pbf_.max_dt_depth), min_dt_,
                                std::max(until - t_, 0.0), control});
     parallel_for("pbf_predict", n_, Predict{prm_, control, raw(pos_), raw(vel_), raw(pred_)});
     sort_by(pred_);
@@ -93,7 +93,7 @@ class PbfSolverImpl final : public Solver {
     control_read_.start(control);
     clock_.end_of("integrate");
     clock_.finish();
-    const PbfControl& c = control_read_.value();
+    const FlowControl& c = control_read_.value();
     // The state is checked once the step's kernels have run: a bad step is
     // reported, not continued from.
     if (c.outcome == kStepBelowFloor) throw SimulationError(describe_dt_floor(c.limits));
@@ -145,7 +145,7 @@ class PbfSolverImpl final : public Solver {
     parallel_for("pbf_pair_masks", n_, b);
   }
 
-  // The three launches of a neighbour pass (pbf.h, PbfPass).
+  // The three launches of a neighbour pass (pbf.h, MirrorPass).
   template <template <int> class Pass, class... Args>
   void pass_launches(const char* const (&names)[3], Args... args) {
     parallel_for(names[kInterior], n_, Pass<kInterior>{args...});
@@ -184,7 +184,7 @@ class PbfSolverImpl final : public Solver {
   // Vorticity confinement (pbf.h): omega into vel_tmp_ (free after the swap),
   // then the velocities.
   void confine_vorticity() {
-    const PbfControl* control = raw(control_);
+    const FlowControl* control = raw(control_);
     parallel_for("pbf_vorticity", n_,
                  Vorticity<false>{pbf_, grid_, raw(fine_offsets_), pairs(), raw(pos_), raw(vel_), raw(vel_tmp_)});
     parallel_for("pbf_vorticity_direct", n_,
@@ -195,11 +195,11 @@ class PbfSolverImpl final : public Solver {
                  Confine<true>{pbf_, grid_, raw(fine_offsets_), pairs(), control, raw(pos_), raw(vel_tmp_), raw(vel_)});
   }
 
-  // The finishing pass's three launches (pbf.h, PbfPass), with or without presence.
+  // The finishing pass's three launches (pbf.h, MirrorPass), with or without presence.
   static constexpr const char* kFinishNames[3] = {"pbf_finish", "pbf_finish_walls", "pbf_finish_direct"};
   template <bool Presence>
   void finish_launches() {
-    const PbfControl* control = raw(control_);
+    const FlowControl* control = raw(control_);
     float* presence = Presence ? raw(presence_) : nullptr;
     pass_launches<FinishOf<Presence>::template pass>(kFinishNames, prm_, pbf_, grid_, raw(fine_offsets_), pairs(),
                                                      control, raw(pred_), raw(pos_), raw(pos_tmp_), raw(vel_tmp_),
@@ -209,13 +209,13 @@ class PbfSolverImpl final : public Solver {
   // Speed, density error and finiteness of the current state, into the
   // control that the next step's size is chosen from.
   void reduce_stats() {
-    transform_reduce_into(n_, PbfStatsOf{raw(pos_), raw(vel_), raw(error_)}, CombinePbfStats(), kEmptyPbfStats,
+    transform_reduce_into(n_, FlowStatsOf{raw(pos_), raw(vel_), raw(error_)}, CombineFlowStats(), kEmptyFlowStats,
                           &raw(control_)->stats);
   }
 
   // A non-finite value, or a density error that no longer means anything
   // (the liquid compressed to twice its rest density on average), ends the run.
-  void check_state(const PbfStats& s) const {
+  void check_state(const FlowStats& s) const {
     const double mean = n_ ? s.error_sum / n_ : 0.0;
     if (s.first_bad == kNoBadParticle && mean <= kDivergedError) return;
     std::ostringstream os;
@@ -257,8 +257,8 @@ class PbfSolverImpl final : public Solver {
   StageTimes times_;
   SolveStats solve_;
   StageClock clock_;
-  Vector<PbfControl> control_ = Vector<PbfControl>(1);
-  ReadBack<PbfControl> control_read_;
+  Vector<FlowControl> control_ = Vector<FlowControl>(1);
+  ReadBack<FlowControl> control_read_;
   mutable RawCopies raw_copies_;
   // pos_: x, density; vel_: v; pred_: x*, lambda during the iterations.
   Vector<Float4> pos_, vel_, pred_, pos_tmp_, vel_tmp_, pred_tmp_;

@@ -199,7 +199,7 @@ TEST_CASE("pbf vorticity: a rigid rotation has omega = 2 Omega inside, and confi
     const float rr = std::sqrt(length2(Vec3f{p.x - centre.x, p.y - centre.y, 0.0f}));
     omega[k] = {0.0f, 0.0f, 1.0f / (1.0f + 10.0f * rr), 1.0f / (1.0f + 10.0f * rr)};
   }
-  PbfControl control{};
+  FlowControl control{};
   control.limits.dt = 1e-3;
   std::vector<Float4> vel2(n, Float4{0, 0, 0, 0});
   for (uint32_t i = 0; i < n; ++i)
@@ -239,7 +239,7 @@ TEST_CASE("pbf scene options: refused by name where they do not apply or are out
   // Defaults that depend on the solver.
   const Scene p = parse_scene(base + R"("sph": {"spacing": 0.1, "solver": "pbf"}})", "s.json");
   CHECK(p.sph.cfl == SphConfig::kPbfCfl);
-  CHECK(p.run.max_dt == Scene::Run::kPbfMaxDt);
+  CHECK(p.run.max_dt == Scene::Run::kFlowMaxDt);
   CHECK(p.sph.wall_layers() == 0);
   const Scene w = parse_scene(base + R"("sph": {"spacing": 0.1}})", "s.json");
   CHECK(w.sph.cfl == SphConfig::kWcsphCfl);

@@ -1,0 +1,82 @@
+// The step size and state statistics of the incompressible solvers (PBF,
+// pbf.h; DFSPH, dfsph.h), whose steps follow the flow rather than the sound
+// speed: the largest speed, the density error and the first non-finite
+// particle, reduced on the device; the step chosen there from them.
+#pragma once
+
+#include <cmath>
+#include <cstdint>
+
+#include "core/vec.h"
+#include "integrate.h"  // StepLimits, kNoBadParticle, StepOutcome
+
+namespace sphray {
+
+// What the step size and the run's guards read of the state: the largest
+// speed, the density error, the first non-finite particle. Reduced on the device.
+struct FlowStats {
+  float max_speed2;
+  float error_max;   // largest compression rho / rho0 - 1 (>= 0)
+  double error_sum;  // summed over the particles
+  uint32_t first_bad;
+};
+constexpr FlowStats kEmptyFlowStats{0.0f, 0.0f, 0.0, kNoBadParticle};
+
+struct CombineFlowStats {
+  SPHRAY_HD FlowStats operator()(const FlowStats& a, const FlowStats& b) const {
+    return {a.max_speed2 > b.max_speed2 ? a.max_speed2 : b.max_speed2, a.error_max > b.error_max ? a.error_max : b.error_max,
+            a.error_sum + b.error_sum, a.first_bad < b.first_bad ? a.first_bad : b.first_bad};
+  }
+};
+
+// Per particle: speed, density error (from error[]), finiteness.
+struct FlowStatsOf {
+  const Float4* pos;  // x, density
+  const Float4* vel;
+  const float* error;
+  SPHRAY_HD FlowStats operator()(uint32_t i) const {
+    const Float4 p = pos[i], v = vel[i];
+    const bool finite = all_finite(xyz(p)) && std::isfinite(p.w) && all_finite(xyz(v));
+    const float e = error[i];
+    return {length2(xyz(v)), e, double(e), finite && std::isfinite(e) ? kNoBadParticle : i};
+  }
+};
+
+struct FlowControl {
+  FlowStats stats;      // of the state the step starts from
+  StepLimits limits;   // limits.dt: the step taken when outcome is kStepOk
+  uint32_t outcome;    // StepOutcome (integrate.h)
+};
+
+// dt = cfl dx / max(v_max, v_floor), capped at max_dt, at max_dt_depth and
+// at the time left. The floor is the flow speed the scene can reach
+// (sqrt(g H), io/scene.h), so that a liquid at rest or just released does
+// not take steps sized by its small speed alone. max_dt_depth is PBF's
+// depth limit (its reason in pbf.h); DFSPH, which iterates
+// to a tolerance, has none. Made on the device, like ChooseStep (integrate.h).
+struct ChooseFlowStep {
+  double cfl_dx, speed_floor, max_dt, max_dt_depth, min_dt, remaining;
+  FlowControl* control;
+  SPHRAY_HD void operator()(uint32_t) const {
+    FlowControl& c = *control;
+    StepLimits& l = c.limits;
+    l.max_speed = std::sqrt(double(c.stats.max_speed2));
+    const double v = l.max_speed > speed_floor ? l.max_speed : speed_floor;
+    l.dt_cfl = v > 0 ? cfl_dx / v : HUGE_VAL;
+    l.dt_force = max_dt_depth;
+    l.dt_viscous = HUGE_VAL;
+    const double limit = max_dt < max_dt_depth ? max_dt : max_dt_depth;
+    const double dt = l.dt_cfl < limit ? l.dt_cfl : limit;
+    l.dt = dt;
+    if (dt < min_dt) { c.outcome = kStepBelowFloor; return; }
+    c.outcome = kStepOk;
+    // No sliver of a step before an output time: PBF's velocities are
+    // position changes over dt and DFSPH's pressures scale with 1 / dt^2, so
+    // a tiny step turns a correction into a huge speed or pressure. Land on
+    // `until` a little beyond the limit, or in two halves.
+    l.dt = remaining <= kLandStretch * dt ? remaining : remaining < 2.0 * dt ? 0.5 * remaining : dt;
+  }
+  static constexpr double kLandStretch = 1.01;
+};
+
+}  // namespace sphray

@@ -1,0 +1,109 @@
+// The walls of a box tank as mirrors, for the incompressible solvers (PBF,
+// pbf.h; DFSPH, dfsph.h): a particle within the support of a wall sees the
+// mirror images of itself and of its neighbours across it (across two or
+// three walls at an edge or a corner) as static wall particles. Images follow
+// the liquid: a wall beside a free surface mirrors the surface (a half-space
+// of liquid beyond each wall instead over-counts there and at corners).
+// The walls are free-slip. After a step's positions change they are
+// projected into the tank, so no particle leaves it.
+#pragma once
+
+#include <cmath>
+#include <cstdint>
+
+#include "nsearch/pair_masks.h"
+#include "params.h"
+
+namespace sphray {
+
+// Projects x into the tank (the top stays open where the tank has none).
+SPHRAY_HD SPHRAY_FORCEINLINE Vec3f inside_tank(const SphParams& prm, Vec3f x) {
+  x.x = std::fmin(std::fmax(x.x, prm.tank.min.x), prm.tank.max.x);
+  x.y = std::fmin(std::fmax(x.y, prm.tank.min.y), prm.tank.max.y);
+  x.z = std::fmax(x.z, prm.tank.min.z);
+  if (!prm.open_top) x.z = std::fmin(x.z, prm.tank.max.z);
+  return x;
+}
+
+// The tank's planes within the support of a point, the nearer one per axis:
+// the mirrors that make its wall images (Mirrors::images).
+struct Mirrors {
+  float plane[3];
+  uint32_t axes = 0;   // bit a: a wall across axis a is within reach
+  uint32_t upper = 0;  // bit a: that wall is the upper one (face 2a + 1, else 2a)
+
+  // Calls f(image) for each image of p: reflected across every non-empty
+  // subset of the walls in reach (one wall: 1 image; an edge: 3; a corner: 7).
+  template <class F>
+  SPHRAY_HD SPHRAY_FORCEINLINE void images(Vec3f p, F&& f) const {
+    images_flipped(p, [&](Vec3f m, uint32_t) { f(m); });
+  }
+  // The same with f(image, set): bit a of set says the image is reflected
+  // across the wall of axis a, so that a vector of the original (a velocity)
+  // is the image's after flip(v, set).
+  template <class F>
+  SPHRAY_HD SPHRAY_FORCEINLINE void images_flipped(Vec3f p, F&& f) const {
+    for (uint32_t set = 1; set < 8u; ++set) {
+      if ((set & ~axes) != 0u) continue;
+      Vec3f m = p;
+      if (set & 1u) m.x = 2.0f * plane[0] - p.x;
+      if (set & 2u) m.y = 2.0f * plane[1] - p.y;
+      if (set & 4u) m.z = 2.0f * plane[2] - p.z;
+      f(m, set);
+    }
+  }
+  SPHRAY_HD SPHRAY_FORCEINLINE static Vec3f flip(Vec3f v, uint32_t set) {
+    if (set & 1u) v.x = -v.x;
+    if (set & 2u) v.y = -v.y;
+    if (set & 4u) v.z = -v.z;
+    return v;
+  }
+  // A velocity of the original as the image's for the viscous term: each
+  // free-slip wall of the set reverses its normal component, each no-slip
+  // wall (bit 2a + side of no_slip_faces) the whole velocity, so that the
+  // mean of a particle and its image vanishes at a no-slip wall.
+  SPHRAY_HD SPHRAY_FORCEINLINE Vec3f viscous_image(Vec3f v, uint32_t set, uint32_t no_slip_faces) const {
+    for (uint32_t a = 0; a < 3; ++a) {
+      if (!(set & (1u << a))) continue;
+      if (no_slip_faces & (1u << (2 * a + ((upper >> a) & 1u)))) v = -1.0f * v;
+      else v = flip(v, 1u << a);
+    }
+    return v;
+  }
+};
+
+SPHRAY_HD SPHRAY_FORCEINLINE Mirrors mirrors_of(const SphParams& prm, float support, Vec3f x) {
+  Mirrors m;
+  const float p[3] = {x.x, x.y, x.z};
+  const float lo[3] = {prm.tank.min.x, prm.tank.min.y, prm.tank.min.z};
+  const float hi[3] = {prm.tank.max.x, prm.tank.max.y, prm.tank.max.z};
+  for (int a = 0; a < 3; ++a) {
+    const float d_lo = p[a] - lo[a];
+    const float d_hi = (a == 2 && prm.open_top) ? support : hi[a] - p[a];
+    // An image lies at least as far as the wall: walls beyond the support have none in reach.
+    const bool near_lo = d_lo < support, near_hi = d_hi < support;
+    if (near_lo && (!near_hi || d_lo <= d_hi)) { m.plane[a] = lo[a]; m.axes |= 1u << a; }
+    else if (near_hi) { m.plane[a] = hi[a]; m.axes |= 1u << a; m.upper |= 1u << a; }
+    else m.plane[a] = 0.0f;
+  }
+  return m;
+}
+
+// Registers per thread of the neighbour passes on the GPU
+// (core/launch_cuda.cuh): the wall images' loop spills under the file-wide 40.
+constexpr int kMirrorPassRegisters = 64;
+
+// Each neighbour pass is three launches, each particle served by one: the
+// pair masks of the particles away from the walls (no image code in the
+// loop, which cost the interior particles twice the time when they carried
+// it), the pair masks of those within a support of a wall, and the direct
+// loop of those whose masks overflowed (nsearch/pair_masks.h).
+enum MirrorPass { kInterior = 0, kNearWalls = 1, kDirect = 2 };
+
+// Whether launch P serves particle i.
+SPHRAY_HD SPHRAY_FORCEINLINE bool serves(int P, const PairMask& m, uint32_t i, const Mirrors& mirrors) {
+  if (!mask_complete(m, i)) return P == kDirect;
+  return P == (mirrors.axes ? kNearWalls : kInterior);
+}
+
+}  // namespace sphray
