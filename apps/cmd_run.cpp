@@ -51,6 +51,10 @@ void print_start(const ResolvedScene& rs, const std::string& scene_path, const S
             << "x" << size.grid.ny << "x" << size.grid.nz;
   if (solver.kind() == SolverKind::Pbf)
     std::cout << ", " << scene.sph.pbf.iterations << " iterations, walls: the tank's planes";
+  else if (solver.kind() == SolverKind::Dfsph)
+    std::cout << ", tolerance " << 100 * scene.sph.dfsph.tolerance << "% (divergence "
+              << 100 * scene.sph.dfsph.divergence_tolerance << "%), viscosity " << rs.dfsph.viscosity / 10
+              << " m^2/s, walls: the tank's planes";
   else
     std::cout << ", c0 = " << prm.speed_of_sound << " m/s";
   std::cout << ", to t = " << scene.run.end_time << " s\n";
@@ -79,6 +83,9 @@ nlohmann::json completed_json(const RunSummary& r, const RunArgs& a, const Scene
     j["constraint"] = {{"iterations_mean", r.iterations_mean}, {"iterations_max", r.iterations_max},
                        {"density_error_mean", r.density_error_mean}, {"density_error_max", r.density_error_max},
                        {"unconverged_steps", r.unconverged_steps}};
+  if (r.divergence_iterations_max > 0)
+    j["constraint"]["divergence_iterations"] = {{"mean", r.divergence_iterations_mean},
+                                                {"max", r.divergence_iterations_max}};
   if (r.field_builds)
     j["field"] = {{"builder", r.field_builder}, {"volume", r.field_dims}, {"builds", r.field_builds},
                   {"ms_per_build", r.field_ms_mean}, {"builds_without_presence", r.field_without_presence}};

@@ -108,6 +108,7 @@ nlohmann::json to_json(const std::vector<BenchSimRow>& rows, Backend b, const Be
   for (const auto& r : rows)
     j["rows"].push_back({{"solver", r.solver}, {"particles", r.particles}, {"boundary_particles", r.boundary},
                          {"presence", r.presence}, {"iterations", r.solve.iterations},
+                         {"divergence_iterations", r.solve.divergence_iterations},
                          {"density_error_mean", r.solve.density_error_mean},
                          {"grid_ms", r.median_ms.grid}, {"pairs_ms", r.median_ms.pairs},
                          {"integrate_ms", r.median_ms.integrate},
@@ -146,11 +147,14 @@ void print_table(const std::vector<BenchSimRow>& rows, std::ostream& out) {
   for (const auto& r : rows)
     if (r.solve.iterations > 0)
       out << "  " << r.solver << " at " << r.particles << " particles: " << r.solve.iterations
-          << " iterations, density error left " << std::setprecision(3) << 100 * r.solve.density_error_mean
+          << " iterations"
+          << (r.solve.divergence_iterations ? " (+ " + std::to_string(r.solve.divergence_iterations) + " divergence)" : "")
+          << ", density error left " << std::setprecision(3) << 100 * r.solve.density_error_mean
           << "% mean, " << 100 * r.solve.density_error_max << "% max (last step)\n";
   out << "  grid: the sort, the cell tables and the pair masks; pairs: the wall pressure and the one neighbour\n"
-      << "  loop of forces, density rate and presence (pbf: the constraint iterations); integrate: the step\n"
-      << "  size and the kick, density and drift (pbf: the velocity, XSPH and density pass);\n"
+      << "  loop of forces, density rate and presence (pbf: the constraint iterations; dfsph: the forces, the\n"
+      << "  pressure solve and the advection); integrate: the step size and the kick, density and drift (pbf: the\n"
+      << "  velocity, XSPH and density pass; dfsph: the density pass and the divergence solve);\n"
       << "  total: their sum; wall: the whole step on the host's clock (with the launches and waits between stages);\n"
       << "  dt: the step the solver chose; x real: simulated seconds per wall second at that step (dt / wall)\n";
   out << std::defaultfloat;

@@ -130,10 +130,11 @@ void read_tank(const ConfigReader& tank, Scene& s) {
 }
 
 // run.max_dt's default depends on the solver: WCSPH's steps are bounded by
-// the sound speed long before, PBF's by the flow, which is at rest at first.
+// the sound speed long before, PBF's and DFSPH's by the flow, which is at
+// rest at first.
 void read_run(const ConfigReader& run, Scene::Run& r, SolverKind solver) {
   run.only({"end_time", "output_interval", "min_dt", "max_dt"});
-  if (solver == SolverKind::Pbf) r.max_dt = Scene::Run::kPbfMaxDt;
+  if (incompressible(solver)) r.max_dt = Scene::Run::kFlowMaxDt;
   r.end_time = run.number("end_time", r.end_time, 0, 1e6);
   r.output_interval = run.number("output_interval", r.output_interval, 0, 1e6, false, true);
   r.min_dt = run.number("min_dt", r.min_dt, 0, 1, false, true);
@@ -224,7 +225,8 @@ Scene parse_scene(const std::string& text, const std::string& file, const std::v
   s.file = file;
   s.json = scene_json(text, file, overrides);
   const ConfigReader root(s.json, file, "");
-  root.only({"name", "description", "tank", "fluid", "gravity", "sph", "pbf", "field", "render", "export", "run"});
+  root.only({"name", "description", "tank", "fluid", "gravity", "sph", "pbf", "dfsph", "field", "render", "export",
+             "run"});
   s.name = root.has("name") && root.at("name").is_string() ? root.at("name").get<std::string>() : "scene";
   if (root.has("name") && !root.at("name").is_string()) root.fail("name", root.at("name"), "must be a string");
   if (root.has("description") && !root.at("description").is_string())
@@ -234,10 +236,14 @@ Scene parse_scene(const std::string& text, const std::string& file, const std::v
   s.gravity = root.vec3("gravity", s.gravity);
   if (length(s.gravity) > 1000.0) root.fail("gravity", root.at("gravity"), "magnitude must be at most 1000 m/s^2");
   // Each stage reads its own section.
-  s.sph = read_sph_config(root.child("sph"), root.child("pbf"));
-  if (root.has("pbf") && s.sph.solver != SolverKind::Pbf)
-    root.fail("pbf", root.at("pbf"), "holds options of the pbf solver, but sph.solver is \"" +
-                                         std::string(solver_name(s.sph.solver)) + "\" (set sph.solver to \"pbf\" or remove the section)");
+  s.sph = read_sph_config(root.child("sph"), root.child("pbf"), root.child("dfsph"));
+  for (const SolverKind k : {SolverKind::Pbf, SolverKind::Dfsph}) {
+    const std::string name = solver_name(k);
+    if (root.has(name) && s.sph.solver != k)
+      root.fail(name, root.at(name), "holds options of the " + name + " solver, but sph.solver is \"" +
+                                         solver_name(s.sph.solver) + "\" (set sph.solver to \"" + name +
+                                         "\" or remove the section)");
+  }
   s.field = read_field_config(root.child("field"));
   s.field.given = root.has("field");
   s.render = read_render_settings(root.child("render"));

@@ -39,7 +39,7 @@ struct Scene {
   std::vector<FluidBlock> fluid;
   Vec3d gravity{0, 0, -kStandardGravity};
 
-  SphConfig sph;        // the "sph" section, and "pbf" when it runs that solver (sph/config.h)
+  SphConfig sph;        // the "sph" section, and "pbf" or "dfsph" when it runs that solver (sph/config.h)
   FieldConfig field;    // the density field (field/config.h); built only when a later stage uses it
   RenderSettings render;  // the raycaster (render/render_settings.h); used only by renders
 
@@ -51,8 +51,8 @@ struct Scene {
     double end_time = 1.0;         // [s]
     double output_interval = 0.01; // [s]
     double min_dt = 1e-8;          // [s] a smaller step is an error
-    double max_dt = 1e-3;          // [s] (PBF: kPbfMaxDt)
-    static constexpr double kPbfMaxDt = 5e-3;
+    double max_dt = 1e-3;          // [s] (PBF, DFSPH: kFlowMaxDt)
+    static constexpr double kFlowMaxDt = 5e-3;
   } run;
 };
 

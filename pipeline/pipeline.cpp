@@ -65,7 +65,7 @@ std::string format_seconds(double s) {
 struct StepTally {
   StageTimes sum;
   double dt_sum = 0;
-  double iterations_sum = 0, density_error_sum = 0;
+  double iterations_sum = 0, divergence_iterations_sum = 0, density_error_sum = 0;
   uint64_t free_steps = 0;
   double last_free_dt = 0;  // the progress line's dt
 
@@ -83,6 +83,8 @@ struct StepTally {
     r.particle_steps += solver.num_fluid();
     const SolveStats solve = solver.last_solve();
     iterations_sum += solve.iterations;
+    divergence_iterations_sum += solve.divergence_iterations;
+    r.divergence_iterations_max = std::max(r.divergence_iterations_max, solve.divergence_iterations);
     density_error_sum += solve.density_error_mean;
     r.iterations_max = std::max(r.iterations_max, solve.iterations);
     r.density_error_max = std::max(r.density_error_max, solve.density_error_max);
@@ -103,6 +105,7 @@ void finish_summary(RunSummary& r, const Solver& solver, const StepTally& tally,
     const double k = 1.0 / double(r.steps);
     r.mean_stage_ms = {tally.sum.grid * k, tally.sum.pairs * k, tally.sum.integrate * k};
     r.iterations_mean = tally.iterations_sum * k;
+    r.divergence_iterations_mean = tally.divergence_iterations_sum * k;
     r.density_error_mean = tally.density_error_sum * k;
   }
   // No free step (every step shortened, an output interval below dt): the
@@ -250,13 +253,19 @@ void print_summary(const RunSummary& r, std::ostream& log) {
     log << "  warning        the wall guard, not the walls' pressure, held the liquid on more than "
         << 100 * kWallClampShareBound << "% of particle-steps: wall layers thinner than the kernel support "
         << "(sph.boundary_layers below \"auto\"), or steps too large for the flow (lower sph.cfl)\n";
-  if (r.iterations_max > 0)
-    log << "  constraint     " << r.iterations_mean << " iterations per step (max " << r.iterations_max
-        << "), density error left " << 100 * r.density_error_mean << "% mean, " << 100 * r.density_error_max
-        << "% largest" << (r.unconverged_steps ? ", " + std::to_string(r.unconverged_steps) +
-                                                      " steps above pbf.tolerance"
-                                                : std::string())
-        << "\n";
+  if (r.iterations_max > 0) {
+    const bool dfsph = r.divergence_iterations_max > 0;
+    log << (dfsph ? "  pressure solve " : "  constraint     ") << r.iterations_mean << " iterations per step (max "
+        << r.iterations_max << ")";
+    if (dfsph)
+      log << ", divergence solve " << r.divergence_iterations_mean << " (max " << r.divergence_iterations_max << ")";
+    log << ", density error left " << 100 * r.density_error_mean << "% mean, " << 100 * r.density_error_max
+        << "% largest";
+    if (r.unconverged_steps)
+      log << ", " << r.unconverged_steps << (dfsph ? " steps at an iteration limit above the tolerance"
+                                                  : " steps above pbf.tolerance");
+    log << "\n";
+  }
   log << "  max speed      " << r.max_speed << " m/s\n"
       << "  ms per step    grid (with the pair masks) " << r.mean_stage_ms.grid
       << ", pairs (forces, density rate, presence where needed) " << r.mean_stage_ms.pairs << ", integrate "

@@ -108,11 +108,14 @@ struct RunSummary {
   double mean_dt = 0, min_dt = 1e300;
   StageTimes mean_stage_ms;
   double max_speed = 0;
-  // The constraint solve of each step (Solver::last_solve; PBF): iterations
-  // mean and max, the density error left (mean over the steps of each step's
-  // mean, and the largest of any particle), steps that missed the tolerance.
+  // The constraint or pressure solve of each step (Solver::last_solve; PBF,
+  // DFSPH): iterations mean and max (DFSPH: also of the divergence solve),
+  // the density error left (mean over the steps of each step's mean, and the
+  // largest of any particle), steps that missed a tolerance within the limits.
   double iterations_mean = 0, density_error_mean = 0, density_error_max = 0;
   int iterations_max = 0;
+  double divergence_iterations_mean = 0;
+  int divergence_iterations_max = 0;
   uint64_t unconverged_steps = 0;
   uint64_t field_builds = 0, field_without_presence = 0;  // presence builds that fell back to full extents
   double field_ms_mean = 0;

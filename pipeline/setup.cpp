@@ -168,7 +168,7 @@ PbfParams make_pbf_params(const Scene& s) {
   p.vorticity = float(c.vorticity);
   p.presence_scale = float(0.5 / presence_lobe_on_lattice(k, dx, volume));
   // The flow speed the scene can reach, sqrt(g H) (or its fastest initial
-  // velocity), and from the same H the depth limit of ChoosePbfStep: the
+  // velocity), and from the same H the depth limit of ChooseFlowStep: the
   // step at which g H dt^2 / (K s^2), the compression a column of depth H
   // keeps when K Jacobi iterations carry the constraint through it, is
   // pbf.depth_error.
@@ -181,6 +181,46 @@ PbfParams make_pbf_params(const Scene& s) {
                        : std::numeric_limits<float>::max();
   p.iterations = c.iterations;
   p.tolerance = float(c.tolerance);
+  return p;
+}
+
+double auto_dfsph_viscosity(const Scene& s) {
+  const SphConfig wcsph;  // the defaults
+  return wcsph.viscosity_alpha * wcsph.smoothing_ratio * s.sph.spacing * auto_speed_of_sound(s) / 10.0;
+}
+
+DfsphParams make_dfsph_params(const Scene& s) {
+  const DfsphConfig& c = s.sph.dfsph;
+  const double dx = s.sph.spacing;
+  const SmoothingKernel<double> k = SmoothingKernel<double>::make(c.kernel, 0.5 * c.support * dx);
+  // The particle volume m / rho0 that gives a full lattice exactly the rest
+  // density with this kernel and support, and the lattice's neighbour count.
+  double w_sum = 0;
+  int neighbours = 0;
+  for_lattice_neighbours(k.support(), dx, [&](int, int, int, double r) {
+    w_sum += k.W(r);
+    ++neighbours;
+  });
+  const double volume = 1.0 / (k.W(0) + w_sum);
+  // Monaghan (2005): artificial viscosity alpha is a kinematic viscosity
+  // alpha h c0 / (2 (d + 2)); the solver's term carries the 2 (d + 2) = 10.
+  const double nu = c.viscosity >= 0 ? c.viscosity : auto_dfsph_viscosity(s);
+  DfsphParams p{};
+  p.kernel = SmoothingKernel<float>::make(c.kernel, float(k.h));
+  p.volume = float(volume);
+  p.viscosity = float(10.0 * nu);
+  p.viscosity_eta2 = float(0.01 * k.h * k.h);
+  for (int face = 0; face < 6; ++face)
+    if (!s.free_slip[face]) p.no_slip_faces |= 1u << face;
+  p.presence_scale = float(0.5 / presence_lobe_on_lattice(k, dx, volume));
+  p.speed_floor = float(expected_flow_speed(s));
+  p.max_dt_viscous = nu > 0 ? float(0.125 * k.h * k.h / nu) : std::numeric_limits<float>::max();
+  p.sparse_neighbours = float(0.5 * neighbours);
+  p.tolerance = float(c.tolerance);
+  p.divergence_tolerance = float(c.divergence_tolerance);
+  p.min_iterations = c.min_iterations;
+  p.max_iterations = c.max_iterations;
+  p.max_divergence_iterations = c.max_divergence_iterations;
   return p;
 }
 
@@ -226,7 +266,8 @@ SceneSize measure_scene(const Scene& s) {
 }
 
 ResolvedScene resolve_scene(const Scene& s) {
-  return {s, make_params(s), s.sph.solver == SolverKind::Pbf ? make_pbf_params(s) : PbfParams{}, measure_scene(s)};
+  return {s, make_params(s), s.sph.solver == SolverKind::Pbf ? make_pbf_params(s) : PbfParams{},
+          s.sph.solver == SolverKind::Dfsph ? make_dfsph_params(s) : DfsphParams{}, measure_scene(s)};
 }
 
 void check_fits(const ResolvedScene& r, Backend backend, bool field) {
@@ -277,6 +318,7 @@ SolverInput make_solver_input(const ResolvedScene& r, PresenceMode presence) {
   in.kind = s.sph.solver;
   in.params = r.params;
   in.pbf = r.pbf;
+  in.dfsph = r.dfsph;
   in.grid = z.grid;
   in.cfl = float(s.sph.cfl);
   in.min_dt = float(s.run.min_dt);
@@ -300,16 +342,16 @@ SolverInput make_solver_input(const ResolvedScene& r, PresenceMode presence) {
           const Vec3d p = start + Vec3d{i * dx, j * dx, k * dx};
           if (covered_before(s.fluid, b, p, dx)) continue;
           // Hydrostatic start (inverse Tait): no pressure wave from a fluid released at
-          // uniform density. PBF computes its density from the positions.
+          // uniform density. PBF and DFSPH compute their density from the positions.
           const double depth = std::max(0.0, surface_above(s.fluid, b, p, up, dx) - dot(p, up));
-          const double rho = in.kind == SolverKind::Pbf ? rho0 : tait_density(b_tait, rho0, rho0 * g * depth);
+          const double rho = incompressible(in.kind) ? rho0 : tait_density(b_tait, rho0, rho0 * g * depth);
           in.fluid_pos_rho.push_back({float(p.x), float(p.y), float(p.z), float(rho)});
           in.fluid_vel.push_back({float(blk.velocity.x), float(blk.velocity.y), float(blk.velocity.z), 0.0f});
         }
   }
 
   const int L = z.boundary_layers;
-  if (L == 0) return in;  // PBF: the walls are the tank's planes
+  if (L == 0) return in;  // PBF, DFSPH: the walls are the tank's planes
   const AxisCoords ax = axis_coords(s.tank.min.x, s.tank.max.x, dx, L, true);
   const AxisCoords ay = axis_coords(s.tank.min.y, s.tank.max.y, dx, L, true);
   const AxisCoords az = axis_coords(s.tank.min.z, s.tank.max.z, dx, L, !s.open_top);

@@ -24,6 +24,7 @@ struct ResolvedScene {
   Scene scene;
   SphParams params;  // make_params
   PbfParams pbf;     // make_pbf_params, when the scene runs PBF
+  DfsphParams dfsph; // make_dfsph_params, when the scene runs DFSPH
   SceneSize size;    // measure_scene
 };
 ResolvedScene resolve_scene(const Scene& s);
@@ -35,6 +36,12 @@ double presence_lobe_on_lattice(const SmoothingKernel<double>& k, double dx);
 // The PBF solver's constants from the scene's "pbf" section, with the
 // particle volume and the constraint's scale computed on a full lattice.
 PbfParams make_pbf_params(const Scene& s);
+// The DFSPH solver's constants from the scene's "dfsph" section, with the
+// particle volume computed on a full lattice and the automatic viscosity.
+DfsphParams make_dfsph_params(const Scene& s);
+// dfsph.viscosity "auto": the kinematic viscosity that WCSPH's default
+// artificial viscosity amounts to in this scene, alpha h c0 / 10 [m^2/s].
+double auto_dfsph_viscosity(const Scene& s);
 SceneSize measure_scene(const Scene& s);  // counts only; generates nothing
 SolverInput make_solver_input(const ResolvedScene& r, PresenceMode presence);
 

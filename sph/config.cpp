@@ -1,6 +1,7 @@
 #include "config.h"
 
 #include <cmath>
+#include <string>
 
 namespace sphray {
 
@@ -51,23 +52,58 @@ PbfConfig read_pbf_config(const ConfigReader& r) {
   return c;
 }
 
+DfsphConfig read_dfsph_config(const ConfigReader& r) {
+  r.only({"tolerance", "divergence_tolerance", "min_iterations", "max_iterations", "max_divergence_iterations",
+          "kernel", "support", "viscosity"});
+  DfsphConfig c;
+  c.tolerance = r.number("tolerance", c.tolerance, 0, 1, false, true);
+  c.divergence_tolerance = r.number("divergence_tolerance", c.divergence_tolerance, 0, 1, false, true);
+  c.min_iterations = r.integer("min_iterations", c.min_iterations, 1, 1000);
+  c.max_iterations = r.integer("max_iterations", c.max_iterations, 1, 1000);
+  if (c.max_iterations < c.min_iterations) {
+    const char* key = r.has("max_iterations") ? "max_iterations" : "min_iterations";
+    r.fail(key, r.at(key), "leaves dfsph.max_iterations (" + std::to_string(c.max_iterations) +
+                               ") below dfsph.min_iterations (" + std::to_string(c.min_iterations) + ")");
+  }
+  c.max_divergence_iterations = r.integer("max_divergence_iterations", c.max_divergence_iterations, 1, 1000);
+  c.kernel = r.string("kernel", "cubic_spline", {"cubic_spline", "wendland_c2"}) == "wendland_c2"
+                 ? KernelType::WendlandC2
+                 : KernelType::CubicSpline;
+  c.support = r.number("support", c.support, 1.5, 4.0);
+  if (r.has("viscosity") && !(r.at("viscosity").is_string() && r.at("viscosity") == "auto"))
+    c.viscosity = r.number("viscosity", 0, 0, 10);
+  return c;
+}
+
+// Options that only the weakly compressible solver reads, refused by name
+// under another solver.
+void refuse_wcsph_options(const ConfigReader& r, SolverKind solver) {
+  const std::string name = solver_name(solver);
+  for (const char* key : kWcsphKeys)
+    if (r.has(key))
+      r.fail(key, r.at(key), "is an option of the wcsph solver, but sph.solver is \"" + name + "\" (remove it; the " +
+                                 name + " solver's options are in the \"" + name + "\" section, docs/scenes.md)");
+}
+
 }  // namespace
 
-SphConfig read_sph_config(const ConfigReader& r, const ConfigReader& pbf) {
+SphConfig read_sph_config(const ConfigReader& r, const ConfigReader& pbf, const ConfigReader& dfsph) {
   r.only({"solver", "spacing", "rest_density", "speed_of_sound", "smoothing_ratio", "kernel", "viscosity_alpha",
           "wall_viscosity_alpha", "density_diffusion", "cfl", "boundary_layers", "presence"});
   SphConfig c;
-  c.solver = r.string("solver", "wcsph", {"wcsph", "pbf"}) == "pbf" ? SolverKind::Pbf : SolverKind::Wcsph;
+  const std::string solver = r.string("solver", "wcsph", {"wcsph", "pbf", "dfsph"});
+  c.solver = solver == "pbf" ? SolverKind::Pbf : solver == "dfsph" ? SolverKind::Dfsph : SolverKind::Wcsph;
   c.spacing = r.number("spacing", c.spacing, 0, 1e3, true, true);
   c.rest_density = r.number("rest_density", c.rest_density, 0, 1e5, false, true);
   if (c.solver == SolverKind::Pbf) {
-    for (const char* key : kWcsphKeys)
-      if (r.has(key))
-        r.fail(key, r.at(key), "is an option of the wcsph solver, but sph.solver is \"pbf\" (remove it; the pbf "
-                               "solver's options are in the \"pbf\" section, docs/scenes.md)");
+    refuse_wcsph_options(r, c.solver);
     // A CFL above 1 is allowed for studies of the step size (docs/validation.md).
     c.cfl = r.number("cfl", SphConfig::kPbfCfl, 0, 10, false, true);
     c.pbf = read_pbf_config(pbf);
+  } else if (c.solver == SolverKind::Dfsph) {
+    refuse_wcsph_options(r, c.solver);
+    c.cfl = r.number("cfl", SphConfig::kDfsphCfl, 0, 10, false, true);
+    c.dfsph = read_dfsph_config(dfsph);
   } else {
     read_wcsph_options(r, c);
     c.cfl = r.number("cfl", SphConfig::kWcsphCfl, 0, 1, false, true);

@@ -25,6 +25,19 @@ struct PbfConfig {
   double vorticity = 0;       // vorticity confinement epsilon [m/s]; 0: off (docs/method.md)
 };
 
+// The scene's "dfsph" section: the divergence-free SPH solver (dfsph.h,
+// docs/method.md). Read only when sph.solver is "dfsph".
+struct DfsphConfig {
+  double tolerance = 0.001;             // mean compression the pressure solve may leave [share of rho0]
+  double divergence_tolerance = 0.001;  // mean density change per step the divergence solve may leave [share of rho0]
+  int min_iterations = 2;               // pressure iterations at least
+  int max_iterations = 100;             // pressure iterations at most
+  int max_divergence_iterations = 100;  // divergence iterations at most (at least 1)
+  KernelType kernel = KernelType::CubicSpline;
+  double support = 2.1;                 // kernel support [spacings]
+  double viscosity = -1;                // kinematic viscosity [m^2/s]; < 0: auto (docs/scenes.md)
+};
+
 struct SphConfig {
   SolverKind solver = SolverKind::Wcsph;
   double spacing = 0;            // dx [m], required
@@ -36,12 +49,13 @@ struct SphConfig {
   double wall_viscosity_alpha = -1;  // against viscous walls; < 0: viscosity_alpha
   double density_diffusion = 0.1;
   // WCSPH: dt = cfl h / (c0 + v_max) (and the force and viscous limits);
-  // PBF: dt = cfl dx / v_max. The default depends on the solver.
-  static constexpr double kWcsphCfl = 0.25, kPbfCfl = 0.9;
+  // PBF and DFSPH: dt = cfl dx / v_max. The default depends on the solver.
+  static constexpr double kWcsphCfl = 0.25, kPbfCfl = 0.9, kDfsphCfl = 0.4;
   double cfl = kWcsphCfl;
   int boundary_layers = 0;  // 0 = auto: enough to cover the support radius
   bool presence = false;    // presence on every step (studies); otherwise only where a stage needs it
   PbfConfig pbf;            // sph.solver "pbf"
+  DfsphConfig dfsph;        // sph.solver "dfsph"
 
   // The smoothing kernel of this section (WCSPH), and its support radius [m].
   SmoothingKernel<double> smoothing_kernel() const {
@@ -52,23 +66,30 @@ struct SphConfig {
   // kernel's support (rounded up), so that a particle at a wall face finds
   // its kernel full. Fewer (boundary_layers) leave part of it empty near walls.
   int auto_boundary_layers() const;
-  // boundary_layers, or the automatic number; none for PBF, whose walls are
-  // the tank's planes.
+  // boundary_layers, or the automatic number; none for PBF and DFSPH, whose
+  // walls are the tank's planes.
   int wall_layers() const {
-    if (solver == SolverKind::Pbf) return 0;
+    if (incompressible(solver)) return 0;
     return boundary_layers > 0 ? boundary_layers : auto_boundary_layers();
   }
   // The neighbour grid's cell edge [m] (and with it the field's voxels): the
-  // WCSPH support, or twice the PBF support, so that both solvers' grids have
-  // cells of about 4 spacings at their defaults and the field keeps its voxel
-  // size whichever solver runs (PBF searches only its support within them).
-  double grid_cell() const { return solver == SolverKind::Pbf ? 2.0 * pbf.support * spacing : support_radius(); }
+  // WCSPH support, or twice the PBF or DFSPH support, so that every solver's
+  // grid has cells of about 4 spacings at its defaults and the field keeps
+  // its voxel size whichever solver runs (PBF and DFSPH search only their
+  // support within them).
+  double grid_cell() const {
+    switch (solver) {
+      case SolverKind::Pbf: return 2.0 * pbf.support * spacing;
+      case SolverKind::Dfsph: return 2.0 * dfsph.support * spacing;
+      default: return support_radius();
+    }
+  }
 };
 
-// The "sph" section, and the "pbf" section when sph.solver is "pbf"; options
-// of the solver the scene does not run are refused by name. The speed of
+// The "sph" section, and the "pbf" or "dfsph" section of the solver it
+// runs; options of a solver the scene does not run are refused by name. The speed of
 // sound against the scene's flow is checked by the scene (io/scene.cpp),
 // which knows the tank and the liquid.
-SphConfig read_sph_config(const ConfigReader& r, const ConfigReader& pbf);
+SphConfig read_sph_config(const ConfigReader& r, const ConfigReader& pbf, const ConfigReader& dfsph);
 
 }  // namespace sphray

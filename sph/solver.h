@@ -16,6 +16,7 @@
 #include "nsearch/grid.h"
 #include "integrate.h"  // StepLimits
 #include "params.h"
+#include "dfsph_params.h"
 #include "pbf_params.h"
 #include "solver_kind.h"
 
@@ -34,15 +35,16 @@ struct SimulationError : std::runtime_error {
 struct SolverInput {
   SolverKind kind = SolverKind::Wcsph;
   SphParams params;
-  PbfParams pbf{};  // kind == Pbf
+  PbfParams pbf{};      // kind == Pbf
+  DfsphParams dfsph{};  // kind == Dfsph
   GridGeom grid;
   std::vector<Float4> fluid_pos_rho;  // x, y, z, initial density
   std::vector<Float4> fluid_vel;      // vx, vy, vz, - (the solver keeps p / rho^2 in w)
-  std::vector<Float4> boundary;       // x, y, z, volume (WCSPH; PBF's walls are the tank's planes)
+  std::vector<Float4> boundary;       // x, y, z, volume (WCSPH; PBF's and DFSPH's walls are the tank's planes)
   std::vector<float> boundary_alpha;  // wall viscosity per boundary particle (0 = free slip)
   // Step control, from the scene (sph.cfl, run.min_dt, run.max_dt; their
-  // defaults are the scene's): WCSPH's CFL on h and the sound speed, PBF's on
-  // the spacing and the largest particle speed.
+  // defaults are the scene's): WCSPH's CFL on h and the sound speed, PBF's
+  // and DFSPH's on the spacing and the largest particle speed.
   float cfl = 0;
   float min_dt = 0;  // a step below this is an error
   float max_dt = 0;
@@ -90,12 +92,15 @@ struct RawParticles {
 // neighbour loop of forces, density rate and presence (interaction.h);
 // integrate: the step-size reduction and the kick/density/drift; grid: the
 // sort, the cell tables and the next step's pair masks.
-// The last step's constraint or pressure solve (PBF; WCSPH has none and
-// reports zeros): iterations run and the density error left, as compression
-// max(rho / rho0 - 1, 0) averaged over the particles and at its largest;
-// converged: the tolerance was met (always true without one).
+// The last step's constraint or pressure solve (PBF, DFSPH; WCSPH has none
+// and reports zeros): iterations run (DFSPH: of the pressure solve, and of
+// its divergence solve) and the density error of the state after the step,
+// as compression max(rho / rho0 - 1, 0) averaged over the particles and at
+// its largest; converged: the tolerances were met within the iteration
+// limits (always true without a tolerance).
 struct SolveStats {
   int iterations = 0;
+  int divergence_iterations = 0;
   double density_error_mean = 0, density_error_max = 0;
   bool converged = true;
 };
@@ -131,6 +136,10 @@ class Solver {
   virtual HostParticles download() const = 0;
   virtual void download_raw(RawParticles& out, bool velocity, bool presence) const = 0;
   virtual std::vector<Vec3f> boundary_positions() const = 0;  // the static wall particles
+  // Per particle in the order of download(), the pressure [Pa] of the last
+  // step's pressure solve (DFSPH); empty for a solver without one (WCSPH's
+  // pressure follows from the density, tait_pressure).
+  virtual std::vector<float> pressures() const { return {}; }
 };
 
 std::unique_ptr<Solver> make_cpu_solver(const SolverInput& in);

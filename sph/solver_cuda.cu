@@ -1,4 +1,4 @@
-// CUDA build of the SPH solvers (WCSPH and PBF): the shared implementations on the CUDA backend.
+// CUDA build of the SPH solvers (WCSPH, PBF and DFSPH): the shared implementations on the CUDA backend.
 #include "core/launch_cuda.cuh"
 #include "stages.h"
 
@@ -6,6 +6,7 @@
 namespace sphray::cuda_backend {
 #include "solver_impl.inl"
 #include "pbf_solver.inl"
+#include "dfsph_solver.inl"
 }  // namespace sphray::cuda_backend
 
 namespace sphray {
@@ -26,6 +27,7 @@ std::unique_ptr<Solver> make_cuda_solver(const SolverInput& in) {
   }();
   (void)pinned;
   if (in.kind == SolverKind::Pbf) return std::make_unique<cuda_backend::PbfSolverImpl>(in);
+  if (in.kind == SolverKind::Dfsph) return std::make_unique<cuda_backend::DfsphSolverImpl>(in);
   return std::make_unique<cuda_backend::SolverImpl>(in);
 }
 

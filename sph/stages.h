@@ -1,4 +1,4 @@
-// Everything solver_impl.inl needs, included once outside the backend namespace.
+// Everything the solvers' .inl files need, included once outside the backend namespace.
 #pragma once
 
 #include <algorithm>
@@ -12,5 +12,6 @@
 #include "integrate.h"
 #include "interaction.h"
 #include "nsearch/grid.h"
+#include "dfsph.h"
 #include "pbf.h"
 #include "solver.h"

@@ -227,7 +227,7 @@ TEST_CASE("run_scene computes presence only toward the frames that use it", "[fi
   // A field every 3rd output frame: presence on the step reaching frames 3, 6,
   // 9 and on no other, and the field built from it there; both solvers (PBF
   // sorts again by the final positions when the field reads its grid).
-  const std::string kind = GENERATE(std::string("wcsph"), std::string("pbf"));
+  const std::string kind = GENERATE(std::string("wcsph"), std::string("pbf"), std::string("dfsph"));
   INFO("sph.solver " << kind);
   Scene s = small_scene({"sph.spacing=0.0125", "run.end_time=0.05", "run.output_interval=0.005", "sph.solver=" + kind});
   s.field.given = false;  // built only where a sink needs it

@@ -1,0 +1,305 @@
+// The divergence-free SPH solver (dfsph.h), written once for both backends.
+// Included by solver_cpu.cpp and solver_cuda.cu after solver_impl.inl, inside
+// the backend namespace (GatherParticles, sort_and_offsets, the copies).
+// One step: the step size from the largest speed (ChooseFlowStep); the
+// explicit forces; the pressure solve on the neighbours of the step's start
+// and the advection; the grid sort and the pair masks at the new positions;
+// the density pass (density, factor, presence); the divergence solve. The
+// grid then matches the positions until the next step, and every pass of
+// the next step's pressure solve reuses its masks.
+
+class DfsphSolverImpl final : public Solver {
+ public:
+  explicit DfsphSolverImpl(const SolverInput& in)
+      : prm_(in.params), df_(in.dfsph), grid_(in.grid), cfl_(in.cfl), min_dt_(in.min_dt), max_dt_(in.max_dt),
+        n_(uint32_t(in.fluid_pos_rho.size())) {
+    const size_t n = n_;
+    upload(pos_, in.fluid_pos_rho);
+    upload(vel_, in.fluid_vel);
+    std::vector<uint32_t> ids(n);
+    for (size_t i = 0; i < n; ++i) ids[i] = uint32_t(i);
+    upload(id_, ids);
+    warm_.assign(n, Float4{0, 0, 0, 0});
+    pos_tmp_.resize(n); vel_tmp_.resize(n); warm_tmp_.resize(n); id_tmp_.resize(n);
+    status_.assign(n, uint8_t(kStatusOk)); status_tmp_.resize(n);
+    acc_.resize(n);
+    press_.assign(n, 0.0f); factor_.resize(n); source_.resize(n); residual_.resize(n); error_.assign(n, 0.0f);
+    sparse_.resize(n);
+    keys_.resize(n); order_.resize(n);
+    offsets_.resize(size_t(grid_.num_cells()) + 1);
+    fine_offsets_.resize(size_t(grid_.num_fine_cells()) + 1);
+    mask_words_ = in.pair_mask_words >= 0 ? uint32_t(in.pair_mask_words)
+                                          : pair_mask_capacity(double(grid_.cell_size) / double(prm_.spacing));
+    pairs_.resize(size_t(mask_words_) * n);
+    pair_count_.resize(n);
+    set_presence(in.presence);
+    sort_and_mask();
+    density(presence_mode_ == PresenceMode::EveryStep);
+    reduce_stats();
+  }
+
+  Backend backend() const override { return kBackend; }
+  SolverKind kind() const override { return SolverKind::Dfsph; }
+  double time() const override { return t_; }
+  uint64_t steps() const override { return steps_; }
+  size_t num_fluid() const override { return n_; }
+  size_t num_removed() const override { return removed_; }
+  uint64_t num_clamped() const override { return 0; }  // the walls are mirrors and a projection, not a guard
+  const StepLimits& last_limits() const override { return limits_; }
+  const StageTimes& last_stage_times() const override { return times_; }
+  SolveStats last_solve() const override { return solve_; }
+  bool has_presence() const override { return presence_valid_; }
+  PresenceMode presence_mode() const override { return presence_mode_; }
+  void set_presence(PresenceMode mode) override {
+    presence_mode_ = mode;
+    if (mode != PresenceMode::Off && presence_.size() < 6 * size_t(n_)) {
+      presence_.resize(6 * size_t(n_));
+      presence_tmp_.resize(6 * size_t(n_));
+    }
+  }
+
+  ParticleView view() const override {
+    return {kBackend, n_, raw(pos_), raw(offsets_), presence_valid_ ? raw(presence_) : nullptr, grid_};
+  }
+
+  size_t device_bytes() const override {
+    auto b = [](const auto& v) { return v.size() * sizeof(typename std::decay_t<decltype(v)>::value_type); };
+    return b(pos_) + b(vel_) + b(warm_) + b(pos_tmp_) + b(vel_tmp_) + b(warm_tmp_) + b(acc_) + b(presence_) +
+           b(presence_tmp_) + b(press_) + b(factor_) + b(source_) + b(residual_) + b(error_) + b(sparse_) + b(id_) +
+           b(id_tmp_) + b(status_) + b(status_tmp_) + b(keys_) + b(order_) + b(offsets_) + b(fine_offsets_) +
+           b(pairs_) + b(pair_count_) + raw_copies_.bytes();
+  }
+
+  void step(double until) override {
+    // Presence on every step that may reach `until` (as PbfSolverImpl::step).
+    const bool presence_now =
+        presence_mode_ == PresenceMode::EveryStep ||
+        (presence_mode_ == PresenceMode::AtUntil && t_ + ChooseFlowStep::kLandStretch * max_dt_ >= until - 1e-12);
+    clock_.start();
+    FlowControl* control = raw(control_);
+    parallel_for("dfsph_choose_step", 1,
+                 ChooseFlowStep{cfl_ * prm_.spacing, double(df_.speed_floor), max_dt_, double(df_.max_dt_viscous), min_dt_,
+                                std::max(until - t_, 0.0), control});
+    forces();
+    parallel_for("dfsph_warm_pressure", n_, DfsphWarmStart<false>{control, raw(warm_), raw(source_), raw(press_)});
+    SolveResult pressure = iterate<false>(df_.min_iterations, df_.max_iterations, df_.tolerance);
+    kick<true>();
+    pos_.swap(pos_tmp_);
+    clock_.end_of("pairs");
+    sort_and_mask();
+    clock_.end_of("grid");
+    density(presence_now);
+    parallel_for("dfsph_warm_divergence", n_, DfsphWarmStart<true>{control, raw(warm_), raw(source_), raw(press_)});
+    SolveResult divergence = iterate<true>(1, df_.max_divergence_iterations, df_.divergence_tolerance);
+    kick<false>();
+    reduce_stats();
+    control_read_.start(control);
+    clock_.end_of("integrate");
+    clock_.finish();
+    const FlowControl& c = control_read_.value();
+    if (c.outcome == kStepBelowFloor) throw SimulationError(describe_dt_floor(c.limits));
+    check_state(c.stats);
+    limits_ = c.limits;
+    times_ = {clock_.ms("grid"), clock_.ms("pairs"), clock_.ms("integrate")};
+    solve_.iterations = pressure.iterations;
+    solve_.divergence_iterations = divergence.iterations;
+    solve_.density_error_mean = n_ ? c.stats.error_sum / n_ : 0.0;
+    solve_.density_error_max = c.stats.error_max;
+    solve_.converged = pressure.converged && divergence.converged;
+    t_ += limits_.dt;
+    ++steps_;
+  }
+
+  HostParticles download() const override {
+    return download_particles(id_, pos_, vel_, presence_valid_ ? &presence_ : nullptr, n_);
+  }
+  void download_raw(RawParticles& out, bool velocity, bool presence) const override {
+    raw_copies_.take(out, pos_, vel_, id_, presence && presence_valid_ ? &presence_ : nullptr, n_, velocity);
+  }
+  std::vector<Vec3f> boundary_positions() const override { return {}; }
+
+  // p = rho0 d^2 p~ of the last pressure solve (p~ the solve's variable [m^2/s^2], dfsph.h).
+  std::vector<float> pressures() const override {
+    const std::vector<Float4> w = sphray::SPHRAY_BK::download(warm_, n_), p = sphray::SPHRAY_BK::download(pos_, n_);
+    std::vector<float> out(n_);
+    const double dt = limits_.dt;
+    for (uint32_t i = 0; i < n_; ++i) {
+      const double d = p[i].w / prm_.rest_density;
+      out[i] = float(prm_.rest_density * d * d * w[i].x / (dt * dt));
+    }
+    return out;
+  }
+
+ private:
+  PairMask pairs() { return {raw(pairs_), raw(pair_count_), n_, mask_words_}; }
+
+  struct SolveResult {
+    int iterations = 0;
+    bool converged = false;
+  };
+
+  // Sorts every particle array by the cell of its position, drops the
+  // particles outside the grid (an open top only), and builds the pair masks
+  // within the support (the grid's cells are two supports wide).
+  void sort_and_mask() {
+    parallel_for("dfsph_keys", n_, KeyOf<Float4>{grid_, raw(pos_), raw(keys_)});
+    sort_and_offsets(grid_, n_, keys_, order_, fine_offsets_, &offsets_);
+    const uint32_t active = prm_.open_top ? read_one(offsets_, grid_.num_cells()) : n_;
+    const bool carry = presence_valid_;
+    const ConstParticleArrays in{raw(pos_), raw(vel_), raw(warm_), raw(id_), raw(status_), carry ? raw(presence_) : nullptr};
+    const ParticleArrays out{raw(pos_tmp_), raw(vel_tmp_), raw(warm_tmp_), raw(id_tmp_), raw(status_tmp_),
+                             raw(presence_tmp_)};
+    parallel_for("dfsph_gather", active, GatherParticles{raw(order_), in, n_, out, active});
+    pos_.swap(pos_tmp_); vel_.swap(vel_tmp_); warm_.swap(warm_tmp_); id_.swap(id_tmp_); status_.swap(status_tmp_);
+    if (carry) presence_.swap(presence_tmp_);
+    removed_ += n_ - active;
+    n_ = active;
+    const float s = df_.kernel.support();
+    BuildPairMask b{grid_, raw(fine_offsets_), raw(pos_), raw(pos_), s * s, true, pairs()};
+    b.search_radius = s;
+    parallel_for("dfsph_pair_masks", n_, b);
+  }
+
+  // The three launches of a neighbour pass (mirror_walls.h, MirrorPass).
+  template <template <int> class Pass, class... Args>
+  void pass_launches(const char* const (&names)[3], Args... args) {
+    parallel_for(names[kInterior], n_, Pass<kInterior>{args...});
+    parallel_for(names[kNearWalls], n_, Pass<kNearWalls>{args...});
+    parallel_for(names[kDirect], n_, Pass<kDirect>{args...});
+  }
+
+  // v* = v + dt (g + viscosity), into vel_.
+  void forces() {
+    const FlowControl* control = raw(control_);
+    if (df_.viscosity <= 0) {
+      parallel_for("dfsph_gravity", n_, DfsphGravity{prm_, control, raw(vel_)});
+      return;
+    }
+    static constexpr const char* kNames[3] = {"dfsph_viscosity", "dfsph_viscosity_walls", "dfsph_viscosity_direct"};
+    pass_launches<DfsphViscosity>(kNames, prm_, df_, grid_, raw(fine_offsets_), pairs(), control, raw(pos_), raw(vel_),
+                                  raw(vel_tmp_));
+    vel_.swap(vel_tmp_);
+  }
+
+  // The density pass (dfsph.h, DfsphDensity) into pos_ (density), factor_,
+  // source_, sparse_, error_ and, when asked for, presence_.
+  void density(bool presence) {
+    presence_valid_ = presence;
+    static constexpr const char* kNames[3] = {"dfsph_density", "dfsph_density_walls", "dfsph_density_direct"};
+    float* pr = presence ? raw(presence_) : nullptr;
+    if (presence)
+      pass_launches<WithFlag<true, DfsphDensity>::template pass>(kNames, prm_, df_, grid_, raw(fine_offsets_), pairs(), raw(pos_), raw(vel_),
+                                                     raw(pos_tmp_), raw(factor_), raw(source_), raw(sparse_), raw(error_), pr, n_);
+    else
+      pass_launches<WithFlag<false, DfsphDensity>::template pass>(kNames, prm_, df_, grid_, raw(fine_offsets_), pairs(), raw(pos_), raw(vel_),
+                                                      raw(pos_tmp_), raw(factor_), raw(source_), raw(sparse_), raw(error_), pr, n_);
+    pos_.swap(pos_tmp_);
+  }
+
+  template <bool WithSource>
+  void accel() {
+    static constexpr const char* kNames[3] = {"dfsph_accel", "dfsph_accel_walls", "dfsph_accel_direct"};
+    static constexpr const char* kSourceNames[3] = {"dfsph_accel_source", "dfsph_accel_source_walls",
+                                                    "dfsph_accel_source_direct"};
+    pass_launches<WithFlag<WithSource, DfsphAccel>::template pass>(WithSource ? kSourceNames : kNames, prm_, df_, grid_,
+                                                               raw(fine_offsets_), pairs(), raw(control_),
+                                                               raw(pos_), raw(vel_), raw(press_), raw(acc_), raw(source_));
+  }
+
+  // The iterations of one solve (dfsph.h): at least min_it, at most max_it,
+  // until the mean residual is at most tol. The first pressure iteration
+  // also computes the density the velocities lead to.
+  template <bool Divergence>
+  SolveResult iterate(int min_it, int max_it, double tol) {
+    static constexpr const char* kNames[3] = {"dfsph_update", "dfsph_update_walls", "dfsph_update_direct"};
+    static constexpr const char* kDivNames[3] = {"dfsph_update_div", "dfsph_update_div_walls", "dfsph_update_div_direct"};
+    SolveResult r;
+    for (int k = 0; k < max_it;) {
+      if (!Divergence && k == 0) accel<true>();
+      else accel<false>();
+      pass_launches<WithFlag<Divergence, DfsphUpdate>::template pass>(
+          Divergence ? kDivNames : kNames, prm_, df_, grid_, raw(fine_offsets_), pairs(), raw(control_),
+          raw(pos_), raw(acc_), raw(factor_), raw(source_), raw(sparse_), raw(press_), raw(residual_));
+      ++k;
+      // The residual is read on the host: one reduction per iteration.
+      const double mean = n_ ? thrust::reduce(policy(), residual_.begin(), residual_.begin() + n_, 0.0) / n_ : 0.0;
+      r.iterations = k;
+      r.converged = mean <= tol;
+      if (r.converged && k >= min_it) break;
+    }
+    return r;
+  }
+
+  // v += dt a of the solve's final pressure; after the pressure solve also
+  // the advection into pos_tmp_.
+  template <bool Advect>
+  void kick() {
+    accel<false>();
+    parallel_for(Advect ? "dfsph_advect" : "dfsph_kick", n_,
+                 DfsphKick<Advect>{prm_, raw(control_), raw(acc_), raw(press_), raw(vel_), raw(warm_), raw(pos_), raw(pos_tmp_)});
+  }
+
+  // Speed, density error and finiteness of the current state, into the
+  // control that the next step's size is chosen from.
+  void reduce_stats() {
+    transform_reduce_into(n_, FlowStatsOf{raw(pos_), raw(vel_), raw(error_)}, CombineFlowStats(), kEmptyFlowStats,
+                          &raw(control_)->stats);
+  }
+
+  // A non-finite value, or a density error that no longer means anything
+  // (the liquid compressed to twice its rest density on average), ends the run.
+  void check_state(const FlowStats& s) const {
+    const double mean = n_ ? s.error_sum / n_ : 0.0;
+    if (s.first_bad == kNoBadParticle && mean <= kDivergedError) return;
+    std::ostringstream os;
+    if (s.first_bad != kNoBadParticle) {
+      const uint32_t i = s.first_bad;
+      const Float4 p = read_one(pos_, i), v = read_one(vel_, i);
+      os << "non-finite position, density or velocity at step " << steps_ << " (t = " << t_ << " s) in particle "
+         << read_one(id_, i) << " (initial index): position (" << p.x << ", " << p.y << ", " << p.z << "), density "
+         << p.w << ", velocity (" << v.x << ", " << v.y << ", " << v.z << ").";
+    } else {
+      os << "the DFSPH density error diverged at step " << steps_ << " (t = " << t_ << " s): mean compression "
+         << 100 * mean << "% (largest " << 100 * s.error_max << "%), above " << 100 * kDivergedError << "%.";
+    }
+    os << " The run is stopped rather than continued with garbage; lower sph.cfl or raise dfsph.max_iterations.";
+    throw SimulationError(os.str());
+  }
+  static constexpr double kDivergedError = 1.0;
+
+  std::string describe_dt_floor(const StepLimits& l) const {
+    std::ostringstream os;
+    os << "time step " << l.dt << " s fell below the floor run.min_dt = " << min_dt_ << " s at t = " << t_
+       << " s (step " << steps_ << "): max speed " << l.max_speed << " m/s at sph.cfl = " << cfl_
+       << ". The flow is too fast for this resolution; raise sph.spacing or check the initial state.";
+    return os.str();
+  }
+
+  SphParams prm_;
+  DfsphParams df_;
+  GridGeom grid_;
+  double cfl_, min_dt_, max_dt_;
+  uint32_t n_;
+  PresenceMode presence_mode_ = PresenceMode::Off;
+  bool presence_valid_ = false;
+  double t_ = 0;
+  uint64_t steps_ = 0;
+  size_t removed_ = 0;
+  StepLimits limits_;
+  StageTimes times_;
+  SolveStats solve_;
+  StageClock clock_;
+  Vector<FlowControl> control_ = Vector<FlowControl>(1);
+  ReadBack<FlowControl> control_read_;
+  mutable RawCopies raw_copies_;
+  // pos_: x, density; vel_: v; warm_: the solves' last pressures (x: pressure,
+  // y: divergence) as p dt^2, sorted with the particles; acc_: a of the solve.
+  Vector<Float4> pos_, vel_, warm_, pos_tmp_, vel_tmp_, warm_tmp_, acc_;
+  Vector<float> presence_, presence_tmp_, press_, factor_, source_, residual_, error_;
+  Vector<uint8_t> sparse_;
+  Vector<uint32_t> id_, id_tmp_, keys_, order_, offsets_, fine_offsets_;
+  Vector<uint8_t> status_, status_tmp_;
+  uint32_t mask_words_ = 0;
+  Vector<PairWord> pairs_;
+  Vector<uint32_t> pair_count_;
+};

@@ -1,0 +1,215 @@
+// Divergence-free SPH (sph/dfsph.h): the rest state at the mirror walls,
+// hydrostatic pressure against rho0 g d, the solves' tolerances and limits,
+// the guards, the scene's "dfsph" options, and the dam break's front against
+// SPlisHSPlasH's DFSPH on the same scene.
+#include <algorithm>
+#include <cmath>
+#include <string>
+
+#include "catch.h"
+#include "helpers.h"
+#include "io/metrics.h"
+
+using namespace sphray;
+
+namespace {
+
+Scene dfsph_scene(const std::string& file, std::vector<std::string> overrides) {
+  overrides.push_back("sph.solver=dfsph");
+  return load_scene(test::source_path(file), overrides);
+}
+
+}  // namespace
+
+TEST_CASE("dfsph: a block in a corner without gravity has the rest density, walls included, and stays still",
+          "[sph][cpu]") {
+  // The block fills the tank's corner at x, y, z < 0.08: the mirror images
+  // continue the lattice exactly, so every particle farther than a support
+  // from the block's free faces has the lattice's density, rho0.
+  Scene s = dfsph_scene("scenes/stress/zero_gravity.json", {});
+  s.fluid[0].box = {{0.0, 0.0, 0.0}, {0.08, 0.08, 0.08}};
+  const ResolvedScene r = resolve_scene(s);
+  auto solver = make_cpu_solver(make_solver_input(r, PresenceMode::Off));
+  const HostParticles before = solver->download();
+  test::run_until(*solver, 0.1);
+  const HostParticles after = solver->download();
+  const double dx = s.sph.spacing, support = r.dfsph.kernel.support();
+  std::vector<Vec3f> start(before.pos.size());
+  for (size_t k = 0; k < before.pos.size(); ++k) start[before.id[k]] = before.pos[k];
+  size_t checked = 0, at_corner = 0;
+  for (size_t k = 0; k < after.pos.size(); ++k) {
+    const Vec3f p = after.pos[k];
+    const Box& b = s.fluid[0].box;
+    if (std::min({b.max.x - p.x, b.max.y - p.y, b.max.z - p.z}) > support) {
+      CHECK(std::abs(after.density[k] / s.sph.rest_density - 1.0) < 1e-4);
+      ++checked;
+      at_corner += std::max({p.x, p.y, p.z}) < dx ? 1 : 0;
+    }
+    CHECK(length(p - start[after.id[k]]) < 0.05 * dx);
+  }
+  CHECK(checked > 0);
+  CHECK(at_corner == 1);
+  CHECK(solver->last_solve().density_error_max < 0.01);
+}
+
+TEST_CASE("dfsph: a column at rest holds hydrostatic pressure within 2% of rho0 g d", "[sph][cpu]") {
+  // 0.12 x 0.12 x 0.2 m at dx = 1 cm (2880 particles), 0.3 s. Reference 1:
+  // the least-squares slope of the pressure over height between 20% and 90%
+  // depth against rho g (the hydrostatic law). Reference 2: the pressure of
+  // the bottom layer against the weight of the liquid above it, rho0 g (H - z)
+  // with H the column's height, 20 layers of rest volume.
+  const Scene s = parse_scene(R"({"tank": {"min": [0,0,0], "max": [0.12,0.12,0.3]},
+    "fluid": [{"min": [0,0,0], "max": [0.12,0.12,0.2]}],
+    "sph": {"spacing": 0.01, "solver": "dfsph"}, "run": {"end_time": 0.3}})", "column.json");
+  auto solver = make_cpu_solver(make_solver_input(resolve_scene(s), PresenceMode::Off));
+  test::run_until(*solver, 0.3);
+  const HostParticles p = solver->download();
+  const std::vector<float> pressure = solver->pressures();
+  REQUIRE(pressure.size() == p.pos.size());
+  const double H = 0.2, g = 9.81, rho0 = s.sph.rest_density;
+  double sz = 0, sp = 0, szz = 0, szp = 0, srho = 0, bottom = 0, bottom_ref = 0;
+  size_t n = 0, nb = 0;
+  for (size_t k = 0; k < p.pos.size(); ++k) {
+    const double z = p.pos[k].z, depth = H - z;
+    if (depth >= 0.2 * H && depth <= 0.9 * H) {
+      sz += z; sp += pressure[k]; szz += z * z; szp += z * pressure[k]; srho += p.density[k];
+      ++n;
+    }
+    if (z < 0.01) {
+      bottom += pressure[k];
+      bottom_ref += rho0 * g * depth;
+      ++nb;
+    }
+  }
+  const double slope = (n * szp - sz * sp) / (n * szz - sz * sz), rho_g = srho / n * g;
+  INFO("dp/dz " << slope << " Pa/m against -rho g " << -rho_g << "; bottom layer " << bottom / nb << " Pa against "
+                << bottom_ref / nb);
+  CHECK(std::abs(-slope / rho_g - 1.0) < 0.02);
+  CHECK(std::abs(bottom / bottom_ref - 1.0) < 0.02);
+  CHECK(solver->last_limits().max_speed < 0.1 * std::sqrt(g * H));
+}
+
+TEST_CASE("dfsph: no particle leaves a closed tank, the step follows the flow CFL, the density error meets the tolerance",
+          "[sph][cpu]") {
+  const Scene s = dfsph_scene("scenes/dam_break.json", {"sph.spacing=0.04", "run.end_time=0.6"});
+  auto solver = make_cpu_solver(make_solver_input(resolve_scene(s), PresenceMode::Off));
+  const size_t n = solver->num_fluid();
+  double worst_cfl = 0, error_sum = 0;
+  int steps = 0, unconverged = 0;
+  while (solver->time() < s.run.end_time - 1e-12) {
+    solver->step(s.run.end_time);
+    const StepLimits& l = solver->last_limits();
+    worst_cfl = std::max(worst_cfl, l.dt * l.max_speed / s.sph.spacing);
+    const SolveStats st = solver->last_solve();
+    REQUIRE(st.iterations >= s.sph.dfsph.min_iterations);
+    REQUIRE(st.iterations <= s.sph.dfsph.max_iterations);
+    REQUIRE(st.divergence_iterations >= 1);
+    error_sum += st.density_error_mean;
+    unconverged += st.converged ? 0 : 1;
+    ++steps;
+    const HostParticles p = solver->download();
+    REQUIRE(p.pos.size() == n);
+    const Aabb tank = resolve_scene(s).params.tank;  // the walls in the solver's single precision
+    for (const Vec3f& x : p.pos) {
+      REQUIRE(x.x >= tank.min.x); REQUIRE(x.x <= tank.max.x);
+      REQUIRE(x.y >= tank.min.y); REQUIRE(x.y <= tank.max.y);
+      REQUIRE(x.z >= tank.min.z); REQUIRE(x.z <= tank.max.z);
+    }
+  }
+  CHECK(worst_cfl <= 1.01 * s.sph.cfl + 1e-9);
+  CHECK(unconverged == 0);
+  // The state's compression after the advection, against the solve's target.
+  INFO("mean density error " << error_sum / steps);
+  CHECK(error_sum / steps < 2 * s.sph.dfsph.tolerance);
+}
+
+TEST_CASE("dfsph: the iteration limits bound the solves, and a step that hits one is counted", "[sph][cpu]") {
+  // Far below a tolerance of 1e-9 no step converges: every pressure solve
+  // runs to its limit.
+  const Scene tight = dfsph_scene("scenes/dam_break.json", {"sph.spacing=0.04", "dfsph.tolerance=1e-9",
+                                                            "dfsph.max_iterations=3", "dfsph.max_divergence_iterations=2"});
+  auto a = make_cpu_solver(make_solver_input(resolve_scene(tight), PresenceMode::Off));
+  for (int k = 0; k < 5; ++k) a->step(1.0);
+  CHECK(a->last_solve().iterations == 3);
+  CHECK(a->last_solve().divergence_iterations <= 2);
+  CHECK_FALSE(a->last_solve().converged);
+  // A loose tolerance stops at the minimum.
+  const Scene loose = dfsph_scene("scenes/dam_break.json", {"sph.spacing=0.04", "dfsph.tolerance=0.5",
+                                                            "dfsph.min_iterations=4"});
+  auto b = make_cpu_solver(make_solver_input(resolve_scene(loose), PresenceMode::Off));
+  b->step(1.0);
+  CHECK(b->last_solve().iterations == 4);
+  CHECK(b->last_solve().converged);
+}
+
+TEST_CASE("dfsph: a diverging run stops with the step named", "[sph][cpu]") {
+  // A block thrown at a wall at 200 m/s with one pressure iteration and steps
+  // of ten spacings piles onto the wall: the pressure of one iteration throws
+  // particles at absurd speeds, and the run stops on whichever guard trips
+  // first (the step falling below run.min_dt, the density error past 100%,
+  // a non-finite value), naming the step.
+  Scene s = dfsph_scene("scenes/dam_break.json", {"sph.spacing=0.04", "dfsph.min_iterations=1", "dfsph.max_iterations=1",
+                                                  "sph.cfl=10", "run.max_dt=0.1"});
+  s.fluid[0] = {{{0.2, 0.0, 0.0}, {0.6, 0.67, 0.3}}, {-200.0, 0.0, 0.0}};
+  auto solver = make_cpu_solver(make_solver_input(resolve_scene(s), PresenceMode::Off));
+  const std::string message = test::run_to_error(*solver, 100.0);
+  INFO(message);
+  CHECK((test::has(message, "at step") || test::has(message, "(step ")));
+  CHECK((test::has(message, "DFSPH density error diverged") || test::has(message, "non-finite") ||
+         test::has(message, "fell below the floor run.min_dt")));
+}
+
+TEST_CASE("dfsph scene options: refused by name where they do not apply or are out of range", "[scene][cpu]") {
+  const std::string base = R"({"tank": {"min": [0,0,0], "max": [1,1,1]}, "fluid": [{"min": [0,0,0], "max": [0.5,0.5,0.5]}], )";
+  auto error_of = [&](const std::string& rest) {
+    try {
+      parse_scene(base + rest, "s.json");
+    } catch (const SceneError& e) {
+      return std::string(e.what());
+    }
+    return std::string();
+  };
+  CHECK(test::has(error_of(R"("sph": {"spacing": 0.1, "solver": "isph"}})"), "\"wcsph\", \"pbf\", \"dfsph\""));
+  CHECK(test::has(error_of(R"("sph": {"spacing": 0.1, "solver": "dfsph", "viscosity_alpha": 0.1}})"),
+                  "sph.viscosity_alpha"));
+  CHECK(test::has(error_of(R"("sph": {"spacing": 0.1}, "dfsph": {"tolerance": 0.01}})"), "dfsph"));
+  CHECK(test::has(error_of(R"("sph": {"spacing": 0.1, "solver": "pbf"}, "dfsph": {"tolerance": 0.01}})"), "dfsph"));
+  CHECK(test::has(error_of(R"("sph": {"spacing": 0.1, "solver": "dfsph"}, "pbf": {"iterations": 3}})"), "pbf"));
+  CHECK(test::has(error_of(R"("sph": {"spacing": 0.1, "solver": "dfsph"}, "dfsph": {"tolerance": 0}})"),
+                  "dfsph.tolerance"));
+  CHECK(test::has(error_of(R"("sph": {"spacing": 0.1, "solver": "dfsph"}, "dfsph": {"divergence_tolerance": -1}})"),
+                  "dfsph.divergence_tolerance"));
+  CHECK(test::has(error_of(R"("sph": {"spacing": 0.1, "solver": "dfsph"}, "dfsph": {"max_iterations": 0}})"),
+                  "dfsph.max_iterations"));
+  CHECK(test::has(error_of(R"("sph": {"spacing": 0.1, "solver": "dfsph"}, "dfsph": {"min_iterations": 5, "max_iterations": 4}})"),
+                  "dfsph.max_iterations"));
+  CHECK(test::has(error_of(R"("sph": {"spacing": 0.1, "solver": "dfsph"}, "dfsph": {"kernel": "gauss"}})"),
+                  "dfsph.kernel"));
+  CHECK(test::has(error_of(R"("sph": {"spacing": 0.1, "solver": "dfsph"}, "dfsph": {"iterations": 3}})"),
+                  "dfsph.iterations"));
+  CHECK(test::has(error_of(R"("sph": {"spacing": 0.1, "solver": "dfsph", "cfl": 0}})"), "sph.cfl"));
+  CHECK(test::has(error_of(R"("sph": {"spacing": 0.1, "solver": "dfsph"}, "run": {"min_dt": 0.01, "max_dt": 0.001}})"),
+                  "run.max_dt"));
+  CHECK(error_of(R"("sph": {"spacing": 0.1, "solver": "dfsph"}, "dfsph": {"viscosity": "auto", "kernel": "wendland_c2"}})")
+            .empty());
+  const Scene d = parse_scene(base + R"("sph": {"spacing": 0.1, "solver": "dfsph"}})", "s.json");
+  CHECK(d.sph.cfl == SphConfig::kDfsphCfl);
+  CHECK(d.run.max_dt == Scene::Run::kFlowMaxDt);
+  CHECK(d.sph.wall_layers() == 0);
+  CHECK(d.sph.grid_cell() == Approx(2 * d.sph.dfsph.support * 0.1));
+}
+
+TEST_CASE("dfsph: the dam break's front follows SPlisHSPlasH's DFSPH on the same scene within 5%", "[validation][slow][cpu]") {
+  // dx = 2 cm, 9,900 particles (data/splishsplash_dfsph_dam_break.csv: a
+  // code-to-code reference with another boundary model and kernel support).
+  const Scene s = dfsph_scene("scenes/dam_break.json", {"run.end_time=0.5", "run.output_interval=0.1"});
+  REQUIRE(s.sph.spacing == 0.02);
+  auto solver = make_cpu_solver(make_solver_input(resolve_scene(s), PresenceMode::Off));
+  const Curve ref = read_csv_curve(test::source_path("data/splishsplash_dfsph_dam_break.csv"));
+  for (double t : {0.1, 0.2, 0.3, 0.4, 0.5}) {
+    test::run_until(*solver, t);
+    const double front = surge_front(solver->download(), 0.0, s.sph.spacing), want = interpolate(ref, t);
+    INFO("t = " << t << " s: front " << front << " m, SPlisHSPlasH " << want << " m");
+    CHECK(std::abs(front / want - 1.0) < 0.05);
+  }
+}
