@@ -3,7 +3,7 @@
 # the cpu and gpu tests, the benchmarks and the CUDA validation runs, leaving
 # JSON and the test log under $OUT (at most 8 files come back from the device
 # tool; build logs stay in $B). Steps can be chosen:
-#   tools/gpu-check.sh [build] [test] [sanitize] [main] [bench] [pbf] [pbf-study] [kernels] [field] [ncu-field]
+#   tools/gpu-check.sh [build] [test] [sanitize] [main] [bench] [pbf] [pbf-study] [dfsph] [dfsph-study] [kernels] [field] [ncu-field]
 #                      [export] [frame]
 #                      [render] [validate] [viewer] [compare]
 #   (default: build test main bench validate; FIELD_SIZES picks the sizes of `field`; `compare` builds the
@@ -62,6 +62,22 @@ if has pbf; then
 fi
 if has pbf-study; then
   OUT=$OUT B=$B tools/pbf-study.sh
+fi
+if has dfsph; then
+  echo "== bench sim, all solvers, from t = 0.3 s of the dam break (the flow's steps)"
+  for solver in dfsph pbf wcsph; do
+    sizes=125k,1M,4M
+    [ $solver = wcsph ] && sizes=125k,1M  # 4M: about 10,000 WCSPH steps to reach 0.3 s
+    $B/sphray bench sim --backend cuda --set sph.solver=$solver --from 0.3 --sizes $sizes \
+      --json "$OUT/bench_sim_$solver.json" 2>&1 | grep -v warm-up
+  done
+  $B/sphray bench sim --backend cuda --set sph.solver=dfsph --from 0.3 --sizes 1M --kernels 2>&1 | grep -E "launches"
+  echo "== bench frame --realtime, dfsph"
+  $B/sphray bench frame --backend cuda --sizes ${FRAME_SIZES:-125k,1M} --realtime --set sph.solver=dfsph \
+    --json "$OUT/bench_frame_dfsph.json" 2>&1 | grep -vE "simulating|sim .* ms"
+fi
+if has dfsph-study; then
+  OUT=$OUT B=$B tools/dfsph-study.sh
 fi
 if has kernels; then
   echo "== bench sim --kernels (ms per step by launch name)"
