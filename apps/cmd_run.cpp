@@ -153,6 +153,9 @@ int cmd_run(RunArgs a) {
   const ResolvedScene rs = resolve_scene(load_scene(a.scene_path, a.sets));
   const Scene& scene = rs.scene;
   std::set<std::string> export_fields = parse_export_fields(a.ex.fields);
+  if (export_fields.count("pressure") && scene.sph.solver == SolverKind::Pbf)
+    throw std::runtime_error("--export-fields: the pbf solver has no pressure (its density constraint moves positions); "
+                             "export density instead");
   check_outputs(a);
   RunOutputs out;
   if (!a.ex.path.empty()) out.exporter = std::make_unique<ExportSink>(a.ex.every, std::move(export_fields), rs.params);

@@ -38,6 +38,7 @@ struct Snapshot {
   SphParams prm{};
   bool velocity = false, density = false, pressure = false, presence = false;
   std::vector<float> field;
+  std::vector<float> solver_pressure;  // Solver::pressures (DFSPH), sorted order; empty: Tait from the density
   VolumeGeom geom{};
   float iso = 0;
   std::vector<uint32_t> rank, slot;  // scratch of convert()
@@ -93,7 +94,7 @@ void convert(Snapshot& s) {
       f.velocity[3 * r] = v.x, f.velocity[3 * r + 1] = v.y, f.velocity[3 * r + 2] = v.z;
     }
     if (s.density) f.density[r] = q.w;
-    if (s.pressure) f.pressure[r] = tait_pressure(s.prm, q.w);
+    if (s.pressure) f.pressure[r] = s.solver_pressure.empty() ? tait_pressure(s.prm, q.w) : s.solver_pressure[i];
     if (pres)
       for (size_t d = 0; d < 6; ++d) f.presence[6 * r + d] = p.presence[d * size_t(n) + i];
   }
@@ -146,6 +147,8 @@ std::function<std::shared_ptr<const Frame>()> capture_frame(const Solver& solver
   s->pressure = fields.count("pressure") > 0;
   s->presence = fields.count("presence") > 0;
   solver.download_raw(s->p, s->velocity, s->presence);
+  s->solver_pressure.clear();
+  if (s->pressure) s->solver_pressure = solver.pressures();
   s->time = solver.time();
   s->step = solver.steps();
   s->dt = solver.last_limits().dt;

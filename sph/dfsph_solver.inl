@@ -118,14 +118,15 @@ class DfsphSolverImpl final : public Solver {
   }
   std::vector<Vec3f> boundary_positions() const override { return {}; }
 
-  // p = rho0 d^2 p~ of the last pressure solve (p~ the solve's variable [m^2/s^2], dfsph.h).
+  // p = rho0 d^2 p~ of the last step (p~ the pressure and the divergence
+  // solves' variables summed, [m^2/s^2], dfsph.h: both push over the step).
   std::vector<float> pressures() const override {
     const std::vector<Float4> w = sphray::SPHRAY_BK::download(warm_, n_), p = sphray::SPHRAY_BK::download(pos_, n_);
     std::vector<float> out(n_);
     const double dt = limits_.dt;
     for (uint32_t i = 0; i < n_; ++i) {
       const double d = p[i].w / prm_.rest_density;
-      out[i] = float(prm_.rest_density * d * d * w[i].x / (dt * dt));
+      out[i] = float(prm_.rest_density * d * d * (w[i].x + w[i].y) / (dt * dt));
     }
     return out;
   }

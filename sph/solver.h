@@ -137,8 +137,10 @@ class Solver {
   virtual void download_raw(RawParticles& out, bool velocity, bool presence) const = 0;
   virtual std::vector<Vec3f> boundary_positions() const = 0;  // the static wall particles
   // Per particle in the order of download(), the pressure [Pa] of the last
-  // step's pressure solve (DFSPH); empty for a solver without one (WCSPH's
-  // pressure follows from the density, tait_pressure).
+  // step's solves (DFSPH: the pressure and the divergence solve's, which
+  // both act over the step); empty for a solver without one (WCSPH's
+  // pressure follows from the density, tait_pressure). A solve that stops at
+  // a tolerance leaves the pressure of one step noisy: average over steps.
   virtual std::vector<float> pressures() const { return {}; }
 };
 

@@ -23,7 +23,7 @@ source "$(dirname "$0")/study-common.sh"
 echo "== dfsph dam break to 0.3 s: CFL"
 { echo "$HDR"
   for dx in 0.00864 0.00432; do
-    for cfl in 0.2 0.4 0.8 1.6; do dam "dx=$dx cfl=$cfl" sph.spacing=$dx sph.cfl=$cfl; done
+    for cfl in 0.1 0.2 0.4 0.8; do dam "dx=$dx cfl=$cfl" sph.spacing=$dx sph.cfl=$cfl; done
   done; } | tee "$OUT/dfsph_cfl.csv"
 echo "== dfsph dam break to 0.3 s: tolerance (both solves)"
 { echo "$HDR"
