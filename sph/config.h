@@ -50,7 +50,7 @@ struct SphConfig {
   double density_diffusion = 0.1;
   // WCSPH: dt = cfl h / (c0 + v_max) (and the force and viscous limits);
   // PBF and DFSPH: dt = cfl dx / v_max. The default depends on the solver.
-  static constexpr double kWcsphCfl = 0.25, kPbfCfl = 0.9, kDfsphCfl = 0.2;
+  static constexpr double kWcsphCfl = 0.25, kPbfCfl = 0.9, kDfsphCfl = 0.4;
   double cfl = kWcsphCfl;
   int boundary_layers = 0;  // 0 = auto: enough to cover the support radius
   bool presence = false;    // presence on every step (studies); otherwise only where a stage needs it
