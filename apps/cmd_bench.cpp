@@ -53,6 +53,8 @@ void add_sim(CLI::App* bench, int& exit_code) {
   s->add_option("--steps", a->opt.steps, "measured steps")->check(CLI::Range(1, 100000));
   s->add_option("--set", a->opt.overrides, "override a scene value for every size, e.g. --set sph.smoothing_ratio=1.3");
   s->add_flag("--kernels", a->opt.kernels, "also time every named launch (ms per step by name, over further steps)");
+  s->add_option("--solvers", a->opt.solvers, "each of these solvers in turn, e.g. wcsph,pbf,dfsph (default: the scene's)")
+      ->delimiter(',');
   s->add_option("--from", a->opt.from, "simulated seconds to advance (untimed) before the warm-up, so that the "
                                        "steps are those of the flow (e.g. 0.3 for the dam break)")
       ->check(CLI::Range(0.0, 100.0));

@@ -47,43 +47,47 @@ std::vector<KernelTime> kernel_times_per_step(Solver& solver, int steps) {
 std::vector<BenchSimRow> bench_sim(const std::string& scene_json, const std::string& scene_name, Backend b,
                                    const BenchSimOptions& opt, std::ostream& log) {
   std::vector<BenchSimRow> rows;
-  for (size_t target : opt.sizes) {
-    const Scene base = parse_scene(scene_json, scene_name, opt.overrides);
-    std::ostringstream set;
-    set.precision(9);
-    set << "sph.spacing=" << spacing_for_count(base, target);
-    std::vector<std::string> overrides = opt.overrides;
-    overrides.push_back(set.str());
-    const ResolvedScene s = resolve_scene(parse_scene(scene_json, scene_name, overrides));
-    for (bool presence : {false, true}) {
-      auto solver = make_solver(s, b, {presence ? PresenceMode::EveryStep : PresenceMode::Off});
-      BenchSimRow row;
-      row.particles = solver->num_fluid();
-      row.boundary = s.size.boundary;
-      row.solver = solver_name(solver->kind());
-      row.presence = presence;
-      log << "  " << row.solver << ", " << row.particles << " particles, presence " << (presence ? "on " : "off")
-          << ": to t = " << opt.from << " s, " << opt.warmup << " warm-up + " << opt.steps << " steps\n";
-      log.flush();
-      advance_to(*solver, opt.from, false);
-      for (int k = 0; k < opt.warmup; ++k) solver->step(1e30);
-      std::vector<double> g, p, in, tot, wall, dt;
-      for (int k = 0; k < opt.steps; ++k) {
-        const auto start = std::chrono::steady_clock::now();
-        solver->step(1e30);  // returns once the step's work is done (the stage clock waits for it)
-        wall.push_back(std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count());
-        const StageTimes& t = solver->last_stage_times();
-        g.push_back(t.grid); p.push_back(t.pairs); in.push_back(t.integrate);
-        tot.push_back(t.total());
-        dt.push_back(solver->last_limits().dt);
+  const std::vector<std::string> solvers = opt.solvers.empty() ? std::vector<std::string>{""} : opt.solvers;
+  for (const std::string& name : solvers) {
+    for (size_t target : opt.sizes) {
+      std::vector<std::string> overrides = opt.overrides;
+      if (!name.empty()) overrides.push_back("sph.solver=" + name);
+      const Scene base = parse_scene(scene_json, scene_name, overrides);
+      std::ostringstream set;
+      set.precision(9);
+      set << "sph.spacing=" << spacing_for_count(base, target);
+      overrides.push_back(set.str());
+      const ResolvedScene s = resolve_scene(parse_scene(scene_json, scene_name, overrides));
+      for (bool presence : {false, true}) {
+        auto solver = make_solver(s, b, {presence ? PresenceMode::EveryStep : PresenceMode::Off});
+        BenchSimRow row;
+        row.particles = solver->num_fluid();
+        row.boundary = s.size.boundary;
+        row.solver = solver_name(solver->kind());
+        row.presence = presence;
+        log << "  " << row.solver << ", " << row.particles << " particles, presence " << (presence ? "on " : "off")
+            << ": to t = " << opt.from << " s, " << opt.warmup << " warm-up + " << opt.steps << " steps\n";
+        log.flush();
+        advance_to(*solver, opt.from, false);
+        for (int k = 0; k < opt.warmup; ++k) solver->step(1e30);
+        std::vector<double> g, p, in, tot, wall, dt;
+        for (int k = 0; k < opt.steps; ++k) {
+          const auto start = std::chrono::steady_clock::now();
+          solver->step(1e30);  // returns once the step's work is done (the stage clock waits for it)
+          wall.push_back(std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count());
+          const StageTimes& t = solver->last_stage_times();
+          g.push_back(t.grid); p.push_back(t.pairs); in.push_back(t.integrate);
+          tot.push_back(t.total());
+          dt.push_back(solver->last_limits().dt);
+        }
+        row.solve = solver->last_solve();
+        row.median_ms = {median(g), median(p), median(in)};
+        row.median_total_ms = median(tot);
+        row.median_wall_ms = median(wall);
+        row.median_dt_s = median(dt);
+        if (opt.kernels) row.kernels = kernel_times_per_step(*solver, opt.steps);
+        rows.push_back(row);
       }
-      row.solve = solver->last_solve();
-      row.median_ms = {median(g), median(p), median(in)};
-      row.median_total_ms = median(tot);
-      row.median_wall_ms = median(wall);
-      row.median_dt_s = median(dt);
-      if (opt.kernels) row.kernels = kernel_times_per_step(*solver, opt.steps);
-      rows.push_back(row);
     }
   }
   return rows;
@@ -105,6 +109,7 @@ nlohmann::json to_json(const std::vector<BenchSimRow>& rows, Backend b, const Be
   j["warmup_steps"] = opt.warmup;
   j["measured_steps"] = opt.steps;
   j["from_s"] = opt.from;
+  j["solvers"] = opt.solvers;
   for (const auto& r : rows)
     j["rows"].push_back({{"solver", r.solver}, {"particles", r.particles}, {"boundary_particles", r.boundary},
                          {"presence", r.presence}, {"iterations", r.solve.iterations},

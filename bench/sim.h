@@ -22,6 +22,7 @@ struct BenchSimOptions {
   int warmup = 20;
   int steps = 100;
   std::vector<std::string> overrides;  // --set key.path=value, applied to every size
+  std::vector<std::string> solvers;    // sph.solver of each series in turn; empty: the scene's
   bool kernels = false;  // also time each named launch (a further `steps` steps, kernel_times.h)
   // Simulated seconds advanced (untimed) before the warm-up: the flow's step
   // sizes, not those of the liquid at rest (a flow-CFL solver steps at

@@ -200,6 +200,24 @@ TEST_CASE("sphray bench sim writes every row with its stages and its wall time",
   CHECK_FALSE(has(bad.output, "presence"));  // no table row printed
 }
 
+TEST_CASE("sphray bench sim --solvers runs each solver in turn, and refuses an unknown one", "[cli][cpu]") {
+  const std::string json_path = tmp + "/sphray_cli_bench_solvers.json";
+  std::remove(json_path.c_str());
+  const Result r = run_cli("bench sim --backend cpu --sizes 1k --warmup 0 --steps 2 --solvers pbf,dfsph,wcsph --json " +
+                           json_path);
+  REQUIRE(r.code == 0);
+  const nlohmann::json j = nlohmann::json::parse(slurp(json_path));
+  REQUIRE(j["rows"].size() == 6);  // three solvers, presence off and on
+  const char* want[] = {"pbf", "pbf", "dfsph", "dfsph", "wcsph", "wcsph"};
+  for (size_t k = 0; k < 6; ++k) CHECK(j["rows"][k]["solver"] == want[k]);
+  CHECK(int(j["rows"][2]["iterations"]) >= 2);              // DFSPH's pressure solve: at least its minimum
+  CHECK(int(j["rows"][2]["divergence_iterations"]) >= 1);
+  CHECK(int(j["rows"][4]["iterations"]) == 0);              // WCSPH has no solve
+  const Result bad = run_cli("bench sim --backend cpu --sizes 1k --solvers pbf,isph");
+  CHECK(bad.code == 2);
+  CHECK(has(bad.output, "\"wcsph\", \"pbf\", \"dfsph\""));
+}
+
 TEST_CASE("sphray bench field reports bad input with exit code 2", "[cli][cpu]") {
   Result r = run_cli("bench field --backend cpu --sizes 8k --json /nonexistent/dir/out.json");
   CHECK(r.code == 2);

@@ -13,7 +13,7 @@ TEST_CASE("every stress scene runs to its end with all particles inside the wall
   // "stiff" sets WCSPH's speed of sound, which PBF and DFSPH have none of.
   const std::string solver = GENERATE(std::string("wcsph"), std::string("pbf"), std::string("dfsph"));
   for (const char* name : {"stiff", "jet", "tall_column", "one_cell", "zero_gravity", "high_gravity",
-                           "single_particle", "empty_tank"}) {
+                           "single_particle", "empty_tank", "impact", "deep_tank"}) {
     if (solver != "wcsph" && std::string(name) == "stiff") continue;
     INFO("scene " << name << ", sph.solver " << solver);
     const Scene s = load_scene(test::source_path(std::string("scenes/stress/") + name + ".json"), {"sph.solver=" + solver});
