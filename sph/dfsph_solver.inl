@@ -97,8 +97,9 @@ class DfsphSolverImpl final : public Solver {
     clock_.end_of("integrate");
     clock_.finish();
     const FlowControl& c = control_read_.value();
-    if (c.outcome == kStepBelowFloor) throw SimulationError(describe_dt_floor(c.limits));
-    check_state(c.stats);
+    if (c.outcome == kStepBelowFloor)
+      throw SimulationError(describe_flow_dt_floor(c.limits, min_dt_, cfl_, t_, steps_));
+    check_flow_state("DFSPH", "lower sph.cfl or raise dfsph.max_iterations", c.stats, n_, steps_, t_, pos_, vel_, id_);
     limits_ = c.limits;
     times_ = {clock_.ms("grid"), clock_.ms("pairs"), clock_.ms("integrate")};
     solve_.iterations = pressure.iterations;
@@ -133,6 +134,9 @@ class DfsphSolverImpl final : public Solver {
 
  private:
   PairMask pairs() { return {raw(pairs_), raw(pair_count_), n_, mask_words_}; }
+  FlowArrays arrays() {
+    return {pos_, vel_, warm_, pos_tmp_, vel_tmp_, warm_tmp_, id_, id_tmp_, status_, status_tmp_, presence_, presence_tmp_};
+  }
 
   struct SolveResult {
     int iterations = 0;
@@ -143,16 +147,9 @@ class DfsphSolverImpl final : public Solver {
   // particles outside the grid (an open top only), and builds the pair masks
   // within the support (the grid's cells are two supports wide).
   void sort_and_mask() {
-    parallel_for("dfsph_keys", n_, KeyOf<Float4>{grid_, raw(pos_), raw(keys_)});
-    sort_and_offsets(grid_, n_, keys_, order_, fine_offsets_, &offsets_);
-    const uint32_t active = prm_.open_top ? read_one(offsets_, grid_.num_cells()) : n_;
-    const bool carry = presence_valid_;
-    const ConstParticleArrays in{raw(pos_), raw(vel_), raw(warm_), raw(id_), raw(status_), carry ? raw(presence_) : nullptr};
-    const ParticleArrays out{raw(pos_tmp_), raw(vel_tmp_), raw(warm_tmp_), raw(id_tmp_), raw(status_tmp_),
-                             raw(presence_tmp_)};
-    parallel_for("dfsph_gather", active, GatherParticles{raw(order_), in, n_, out, active});
-    pos_.swap(pos_tmp_); vel_.swap(vel_tmp_); warm_.swap(warm_tmp_); id_.swap(id_tmp_); status_.swap(status_tmp_);
-    if (carry) presence_.swap(presence_tmp_);
+    static constexpr const char* kNames[2] = {"dfsph_keys", "dfsph_gather"};
+    const uint32_t active = sort_flow_particles(kNames, grid_, prm_.open_top, n_, pos_, presence_valid_, arrays(), keys_,
+                                                order_, fine_offsets_, offsets_);
     removed_ += n_ - active;
     n_ = active;
     const float s = df_.kernel.support();
@@ -161,13 +158,6 @@ class DfsphSolverImpl final : public Solver {
     parallel_for("dfsph_pair_masks", n_, b);
   }
 
-  // The three launches of a neighbour pass (mirror_walls.h, MirrorPass).
-  template <template <int> class Pass, class... Args>
-  void pass_launches(const char* const (&names)[3], Args... args) {
-    parallel_for(names[kInterior], n_, Pass<kInterior>{args...});
-    parallel_for(names[kNearWalls], n_, Pass<kNearWalls>{args...});
-    parallel_for(names[kDirect], n_, Pass<kDirect>{args...});
-  }
 
   // v* = v + dt (g + viscosity), into vel_.
   void forces() {
@@ -177,8 +167,8 @@ class DfsphSolverImpl final : public Solver {
       return;
     }
     static constexpr const char* kNames[3] = {"dfsph_viscosity", "dfsph_viscosity_walls", "dfsph_viscosity_direct"};
-    pass_launches<DfsphViscosity>(kNames, prm_, df_, grid_, raw(fine_offsets_), pairs(), control, raw(pos_), raw(vel_),
-                                  raw(vel_tmp_));
+    mirror_pass_launches<DfsphViscosity>(kNames, n_, prm_, df_, grid_, raw(fine_offsets_), pairs(), control, raw(pos_),
+                                         raw(vel_), raw(vel_tmp_));
     vel_.swap(vel_tmp_);
   }
 
@@ -188,12 +178,14 @@ class DfsphSolverImpl final : public Solver {
     presence_valid_ = presence;
     static constexpr const char* kNames[3] = {"dfsph_density", "dfsph_density_walls", "dfsph_density_direct"};
     float* pr = presence ? raw(presence_) : nullptr;
-    if (presence)
-      pass_launches<WithFlag<true, DfsphDensity>::template pass>(kNames, prm_, df_, grid_, raw(fine_offsets_), pairs(), raw(pos_), raw(vel_),
-                                                     raw(pos_tmp_), raw(factor_), raw(source_), raw(sparse_), raw(error_), pr, n_);
-    else
-      pass_launches<WithFlag<false, DfsphDensity>::template pass>(kNames, prm_, df_, grid_, raw(fine_offsets_), pairs(), raw(pos_), raw(vel_),
-                                                      raw(pos_tmp_), raw(factor_), raw(source_), raw(sparse_), raw(error_), pr, n_);
+    auto launch = [&](auto pass) {
+      using P = decltype(pass);
+      mirror_pass_launches<P::template pass>(kNames, n_, prm_, df_, grid_, raw(fine_offsets_), pairs(), raw(pos_),
+                                             raw(vel_), raw(pos_tmp_), raw(factor_), raw(source_), raw(sparse_),
+                                             raw(error_), pr, n_);
+    };
+    if (presence) launch(WithFlag<true, DfsphDensity>{});
+    else launch(WithFlag<false, DfsphDensity>{});
     pos_.swap(pos_tmp_);
   }
 
@@ -202,9 +194,9 @@ class DfsphSolverImpl final : public Solver {
     static constexpr const char* kNames[3] = {"dfsph_accel", "dfsph_accel_walls", "dfsph_accel_direct"};
     static constexpr const char* kSourceNames[3] = {"dfsph_accel_source", "dfsph_accel_source_walls",
                                                     "dfsph_accel_source_direct"};
-    pass_launches<WithFlag<WithSource, DfsphAccel>::template pass>(WithSource ? kSourceNames : kNames, prm_, df_, grid_,
-                                                               raw(fine_offsets_), pairs(), raw(control_),
-                                                               raw(pos_), raw(vel_), raw(press_), raw(acc_), raw(source_));
+    mirror_pass_launches<WithFlag<WithSource, DfsphAccel>::template pass>(
+        WithSource ? kSourceNames : kNames, n_, prm_, df_, grid_, raw(fine_offsets_), pairs(), raw(control_), raw(pos_),
+        raw(vel_), raw(press_), raw(acc_), raw(source_));
   }
 
   // The iterations of one solve (dfsph.h): at least min_it, at most max_it,
@@ -218,8 +210,8 @@ class DfsphSolverImpl final : public Solver {
     for (int k = 0; k < max_it;) {
       if (!Divergence && k == 0) accel<true>();
       else accel<false>();
-      pass_launches<WithFlag<Divergence, DfsphUpdate>::template pass>(
-          Divergence ? kDivNames : kNames, prm_, df_, grid_, raw(fine_offsets_), pairs(), raw(control_),
+      mirror_pass_launches<WithFlag<Divergence, DfsphUpdate>::template pass>(
+          Divergence ? kDivNames : kNames, n_, prm_, df_, grid_, raw(fine_offsets_), pairs(), raw(control_),
           raw(pos_), raw(acc_), raw(factor_), raw(source_), raw(sparse_), raw(press_), raw(residual_));
       ++k;
       // The residual is read on the host: one reduction per iteration.
@@ -247,34 +239,6 @@ class DfsphSolverImpl final : public Solver {
                           &raw(control_)->stats);
   }
 
-  // A non-finite value, or a density error that no longer means anything
-  // (the liquid compressed to twice its rest density on average), ends the run.
-  void check_state(const FlowStats& s) const {
-    const double mean = n_ ? s.error_sum / n_ : 0.0;
-    if (s.first_bad == kNoBadParticle && mean <= kDivergedError) return;
-    std::ostringstream os;
-    if (s.first_bad != kNoBadParticle) {
-      const uint32_t i = s.first_bad;
-      const Float4 p = read_one(pos_, i), v = read_one(vel_, i);
-      os << "non-finite position, density or velocity at step " << steps_ << " (t = " << t_ << " s) in particle "
-         << read_one(id_, i) << " (initial index): position (" << p.x << ", " << p.y << ", " << p.z << "), density "
-         << p.w << ", velocity (" << v.x << ", " << v.y << ", " << v.z << ").";
-    } else {
-      os << "the DFSPH density error diverged at step " << steps_ << " (t = " << t_ << " s): mean compression "
-         << 100 * mean << "% (largest " << 100 * s.error_max << "%), above " << 100 * kDivergedError << "%.";
-    }
-    os << " The run is stopped rather than continued with garbage; lower sph.cfl or raise dfsph.max_iterations.";
-    throw SimulationError(os.str());
-  }
-  static constexpr double kDivergedError = 1.0;
-
-  std::string describe_dt_floor(const StepLimits& l) const {
-    std::ostringstream os;
-    os << "time step " << l.dt << " s fell below the floor run.min_dt = " << min_dt_ << " s at t = " << t_
-       << " s (step " << steps_ << "): max speed " << l.max_speed << " m/s at sph.cfl = " << cfl_
-       << ". The flow is too fast for this resolution; raise sph.spacing or check the initial state.";
-    return os.str();
-  }
 
   SphParams prm_;
   DfsphParams df_;

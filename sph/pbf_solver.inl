@@ -96,8 +96,9 @@ class PbfSolverImpl final : public Solver {
     const FlowControl& c = control_read_.value();
     // The state is checked once the step's kernels have run: a bad step is
     // reported, not continued from.
-    if (c.outcome == kStepBelowFloor) throw SimulationError(describe_dt_floor(c.limits));
-    check_state(c.stats);
+    if (c.outcome == kStepBelowFloor)
+      throw SimulationError(describe_flow_dt_floor(c.limits, min_dt_, cfl_, t_, steps_));
+    check_flow_state("PBF", "lower sph.cfl or raise pbf.iterations", c.stats, n_, steps_, t_, pos_, vel_, id_);
     limits_ = c.limits;
     times_ = {clock_.ms("grid"), clock_.ms("pairs"), clock_.ms("integrate")};
     solve_.iterations = iterations;
@@ -118,20 +119,16 @@ class PbfSolverImpl final : public Solver {
 
  private:
   PairMask pairs() { return {raw(pairs_), raw(pair_count_), n_, mask_words_}; }
+  FlowArrays arrays() {
+    return {pos_, vel_, pred_, pos_tmp_, vel_tmp_, pred_tmp_, id_, id_tmp_, status_, status_tmp_, presence_, presence_tmp_};
+  }
 
   // Sorts every particle array by the cell of `by` (pos_ or pred_) and drops
   // the particles outside the grid (an open top only).
   void sort_by(const Vector<Float4>& by) {
-    parallel_for("pbf_keys", n_, KeyOf<Float4>{grid_, raw(by), raw(keys_)});
-    sort_and_offsets(grid_, n_, keys_, order_, fine_offsets_, &offsets_);
-    const uint32_t active = prm_.open_top ? read_one(offsets_, grid_.num_cells()) : n_;
-    const bool carry = presence_valid_;
-    const ConstParticleArrays in{raw(pos_), raw(vel_), raw(pred_), raw(id_), raw(status_), carry ? raw(presence_) : nullptr};
-    const ParticleArrays out{raw(pos_tmp_), raw(vel_tmp_), raw(pred_tmp_), raw(id_tmp_), raw(status_tmp_),
-                             raw(presence_tmp_)};
-    parallel_for("pbf_gather", active, GatherParticles{raw(order_), in, n_, out, active});
-    pos_.swap(pos_tmp_); vel_.swap(vel_tmp_); pred_.swap(pred_tmp_); id_.swap(id_tmp_); status_.swap(status_tmp_);
-    if (carry) presence_.swap(presence_tmp_);
+    static constexpr const char* kNames[2] = {"pbf_keys", "pbf_gather"};
+    const uint32_t active = sort_flow_particles(kNames, grid_, prm_.open_top, n_, by, presence_valid_, arrays(), keys_,
+                                                order_, fine_offsets_, offsets_);
     removed_ += n_ - active;
     n_ = active;
     grid_current_ = true;
@@ -145,20 +142,13 @@ class PbfSolverImpl final : public Solver {
     parallel_for("pbf_pair_masks", n_, b);
   }
 
-  // The three launches of a neighbour pass (pbf.h, MirrorPass).
-  template <template <int> class Pass, class... Args>
-  void pass_launches(const char* const (&names)[3], Args... args) {
-    parallel_for(names[kInterior], n_, Pass<kInterior>{args...});
-    parallel_for(names[kNearWalls], n_, Pass<kNearWalls>{args...});
-    parallel_for(names[kDirect], n_, Pass<kDirect>{args...});
-  }
   static constexpr const char* kLambdaNames[3] = {"pbf_lambda", "pbf_lambda_walls", "pbf_lambda_direct"};
   static constexpr const char* kCorrectNames[3] = {"pbf_correct", "pbf_correct_walls", "pbf_correct_direct"};
 
   // The constraint iterations; returns how many corrections were applied.
   int solve() {
     for (int k = 0; k < pbf_.iterations; ++k) {
-      pass_launches<Lambda>(kLambdaNames, prm_, pbf_, grid_, raw(fine_offsets_), pairs(), raw(pred_), raw(pred_tmp_),
+      mirror_pass_launches<Lambda>(kLambdaNames, n_, prm_, pbf_, grid_, raw(fine_offsets_), pairs(), raw(pred_), raw(pred_tmp_),
                             raw(error_));
       pred_.swap(pred_tmp_);
       if (pbf_.tolerance > 0) {
@@ -166,7 +156,7 @@ class PbfSolverImpl final : public Solver {
         const double sum = thrust::reduce(policy(), error_.begin(), error_.begin() + n_, 0.0);
         if (n_ == 0 || sum / n_ <= pbf_.tolerance) return k;
       }
-      pass_launches<Correct>(kCorrectNames, prm_, pbf_, grid_, raw(fine_offsets_), pairs(), raw(pred_), raw(pred_tmp_));
+      mirror_pass_launches<Correct>(kCorrectNames, n_, prm_, pbf_, grid_, raw(fine_offsets_), pairs(), raw(pred_), raw(pred_tmp_));
       pred_.swap(pred_tmp_);
     }
     return pbf_.iterations;
@@ -201,7 +191,7 @@ class PbfSolverImpl final : public Solver {
   void finish_launches() {
     const FlowControl* control = raw(control_);
     float* presence = Presence ? raw(presence_) : nullptr;
-    pass_launches<FinishOf<Presence>::template pass>(kFinishNames, prm_, pbf_, grid_, raw(fine_offsets_), pairs(),
+    mirror_pass_launches<FinishOf<Presence>::template pass>(kFinishNames, n_, prm_, pbf_, grid_, raw(fine_offsets_), pairs(),
                                                      control, raw(pred_), raw(pos_), raw(pos_tmp_), raw(vel_tmp_),
                                                      raw(error_), presence, n_);
   }
@@ -213,34 +203,6 @@ class PbfSolverImpl final : public Solver {
                           &raw(control_)->stats);
   }
 
-  // A non-finite value, or a density error that no longer means anything
-  // (the liquid compressed to twice its rest density on average), ends the run.
-  void check_state(const FlowStats& s) const {
-    const double mean = n_ ? s.error_sum / n_ : 0.0;
-    if (s.first_bad == kNoBadParticle && mean <= kDivergedError) return;
-    std::ostringstream os;
-    if (s.first_bad != kNoBadParticle) {
-      const uint32_t i = s.first_bad;
-      const Float4 p = read_one(pos_, i), v = read_one(vel_, i);
-      os << "non-finite position, density or velocity at step " << steps_ << " (t = " << t_ << " s) in particle "
-         << read_one(id_, i) << " (initial index): position (" << p.x << ", " << p.y << ", " << p.z << "), density "
-         << p.w << ", velocity (" << v.x << ", " << v.y << ", " << v.z << ").";
-    } else {
-      os << "the PBF density error diverged at step " << steps_ << " (t = " << t_ << " s): mean compression "
-         << 100 * mean << "% (largest " << 100 * s.error_max << "%), above " << 100 * kDivergedError << "%.";
-    }
-    os << " The run is stopped rather than continued with garbage; lower sph.cfl or raise pbf.iterations.";
-    throw SimulationError(os.str());
-  }
-  static constexpr double kDivergedError = 1.0;
-
-  std::string describe_dt_floor(const StepLimits& l) const {
-    std::ostringstream os;
-    os << "time step " << l.dt << " s fell below the floor run.min_dt = " << min_dt_ << " s at t = " << t_
-       << " s (step " << steps_ << "): max speed " << l.max_speed << " m/s at sph.cfl = " << cfl_
-       << ". The flow is too fast for this resolution; raise sph.spacing or check the initial state.";
-    return os.str();
-  }
 
   SphParams prm_;
   PbfParams pbf_;

@@ -5,6 +5,7 @@
 #define SPHRAY_BK cuda_backend
 namespace sphray::cuda_backend {
 #include "solver_impl.inl"
+#include "flow_solver.inl"
 #include "pbf_solver.inl"
 #include "dfsph_solver.inl"
 }  // namespace sphray::cuda_backend

@@ -1,7 +1,7 @@
-// Divergence-free SPH (sph/dfsph.h): the rest state at the mirror walls,
-// hydrostatic pressure against rho0 g d, the solves' tolerances and limits,
-// the guards, the scene's "dfsph" options, and the dam break's front against
-// SPlisHSPlasH's DFSPH on the same scene.
+// Divergence-free SPH (sph/dfsph.h): hydrostatic pressure against rho0 g d,
+// the solves' tolerances and limits, the guards, the scene's "dfsph" options, and the dam break's front against
+// SPlisHSPlasH's DFSPH on the same scene. The rest state at the mirror walls
+// is tested with PBF's (test_pbf.cpp).
 #include <algorithm>
 #include <cmath>
 #include <string>
@@ -21,37 +21,6 @@ Scene dfsph_scene(const std::string& file, std::vector<std::string> overrides) {
 }
 
 }  // namespace
-
-TEST_CASE("dfsph: a block in a corner without gravity has the rest density, walls included, and stays still",
-          "[sph][cpu]") {
-  // The block fills the tank's corner at x, y, z < 0.08: the mirror images
-  // continue the lattice exactly, so every particle farther than a support
-  // from the block's free faces has the lattice's density, rho0.
-  Scene s = dfsph_scene("scenes/stress/zero_gravity.json", {});
-  s.fluid[0].box = {{0.0, 0.0, 0.0}, {0.08, 0.08, 0.08}};
-  const ResolvedScene r = resolve_scene(s);
-  auto solver = make_cpu_solver(make_solver_input(r, PresenceMode::Off));
-  const HostParticles before = solver->download();
-  test::run_until(*solver, 0.1);
-  const HostParticles after = solver->download();
-  const double dx = s.sph.spacing, support = r.dfsph.kernel.support();
-  std::vector<Vec3f> start(before.pos.size());
-  for (size_t k = 0; k < before.pos.size(); ++k) start[before.id[k]] = before.pos[k];
-  size_t checked = 0, at_corner = 0;
-  for (size_t k = 0; k < after.pos.size(); ++k) {
-    const Vec3f p = after.pos[k];
-    const Box& b = s.fluid[0].box;
-    if (std::min({b.max.x - p.x, b.max.y - p.y, b.max.z - p.z}) > support) {
-      CHECK(std::abs(after.density[k] / s.sph.rest_density - 1.0) < 1e-4);
-      ++checked;
-      at_corner += std::max({p.x, p.y, p.z}) < dx ? 1 : 0;
-    }
-    CHECK(length(p - start[after.id[k]]) < 0.05 * dx);
-  }
-  CHECK(checked > 0);
-  CHECK(at_corner == 1);
-  CHECK(solver->last_solve().density_error_max < 0.01);
-}
 
 TEST_CASE("dfsph: a column at rest holds hydrostatic pressure within 2% of rho0 g d", "[sph][cpu]") {
   // 0.12 x 0.12 x 0.2 m at dx = 1 cm (2880 particles). The pressure of one

@@ -231,67 +231,53 @@ TEST_CASE("cuda and cpu dam breaks agree to float tolerance", "[gpu]") {
   CHECK(w.presence < 1e-3);
 }
 
-// PBF's one-sided constraint makes the two backends' rounding grow faster
-// than WCSPH's: the particles agree to float tolerance over the first steps,
-// and the run's statistics over twenty.
-TEST_CASE("cuda and cpu pbf dam breaks agree to float tolerance", "[gpu]") {
-  const Scene s = load_scene(test::source_path("scenes/dam_break.json"),
-                             {"sph.spacing=0.02", "sph.solver=pbf", "sph.presence=true"});
-  const SolverInput in = make_solver_input(resolve_scene(s), PresenceMode::EveryStep);
-  auto cpu = make_cpu_solver(in), gpu = make_cuda_solver(in);
-  for (int k = 0; k < 3; ++k) {
-    cpu->step(1.0);
-    gpu->step(1.0);
-    REQUIRE(std::abs(cpu->last_limits().dt - gpu->last_limits().dt) <= 1e-3 * cpu->last_limits().dt);
-    REQUIRE(cpu->last_solve().iterations == gpu->last_solve().iterations);
+// The incompressible solvers on both backends: the particles agree to float
+// tolerance over the first steps, and the run's statistics over twenty more.
+// Their rounding grows faster than WCSPH's (PBF's one-sided constraint;
+// DFSPH's solves stop at a tolerance, and the backends' sums may stop them one
+// iteration apart).
+struct BackendPair {
+  std::unique_ptr<Solver> cpu, gpu;
+  void step(int k) {
+    for (int i = 0; i < k; ++i) {
+      cpu->step(1.0);
+      gpu->step(1.0);
+    }
   }
-  const Worst w = worst_by_id(cpu->download(), gpu->download());
-  INFO("worst position difference " << w.pos << " m, density " << w.rho << ", presence " << w.presence);
+};
+BackendPair compare_first_steps(const std::string& solver) {
+  const Scene s = load_scene(test::source_path("scenes/dam_break.json"),
+                             {"sph.spacing=0.02", "sph.solver=" + solver, "sph.presence=true"});
+  const SolverInput in = make_solver_input(resolve_scene(s), PresenceMode::EveryStep);
+  BackendPair b{make_cpu_solver(in), make_cuda_solver(in)};
+  for (int k = 0; k < 3; ++k) {
+    b.step(1);
+    REQUIRE(std::abs(b.cpu->last_limits().dt - b.gpu->last_limits().dt) <= 1e-3 * b.cpu->last_limits().dt);
+    if (solver == "pbf") REQUIRE(b.cpu->last_solve().iterations == b.gpu->last_solve().iterations);
+  }
+  const Worst w = worst_by_id(b.cpu->download(), b.gpu->download());
+  INFO(solver << ": worst position difference " << w.pos << " m, density " << w.rho << ", presence " << w.presence);
   CHECK(w.pos < 1e-3 * s.sph.spacing);
   CHECK(w.rho < 1e-3 * s.sph.rest_density);
   CHECK(w.presence < 1e-3);
-  for (int k = 0; k < 20; ++k) {
-    cpu->step(1.0);
-    gpu->step(1.0);
-  }
-  const SolveStats sc = cpu->last_solve(), sg = gpu->last_solve();
-  INFO("density error cpu " << sc.density_error_mean << ", cuda " << sg.density_error_mean << "; max speed cpu "
-                            << cpu->last_limits().max_speed << ", cuda " << gpu->last_limits().max_speed);
-  CHECK(std::abs(sc.density_error_mean - sg.density_error_mean) <= 0.1 * sc.density_error_mean + 1e-4);
-  CHECK(std::abs(cpu->last_limits().max_speed - gpu->last_limits().max_speed) <= 0.1 * cpu->last_limits().max_speed);
-}
-
-// DFSPH iterates to a tolerance: the two backends' sums round differently
-// and may stop one iteration apart, so the particles are compared after the
-// first steps and the run's statistics after twenty more.
-TEST_CASE("cuda and cpu dfsph dam breaks agree to float tolerance", "[gpu]") {
-  const Scene s = load_scene(test::source_path("scenes/dam_break.json"),
-                             {"sph.spacing=0.02", "sph.solver=dfsph", "sph.presence=true"});
-  const SolverInput in = make_solver_input(resolve_scene(s), PresenceMode::EveryStep);
-  auto cpu = make_cpu_solver(in), gpu = make_cuda_solver(in);
-  for (int k = 0; k < 3; ++k) {
-    cpu->step(1.0);
-    gpu->step(1.0);
-    REQUIRE(std::abs(cpu->last_limits().dt - gpu->last_limits().dt) <= 1e-3 * cpu->last_limits().dt);
-  }
-  const Worst w = worst_by_id(cpu->download(), gpu->download());
-  INFO("worst position difference " << w.pos << " m, density " << w.rho << ", presence " << w.presence);
-  CHECK(w.pos < 1e-3 * s.sph.spacing);
-  CHECK(w.rho < 1e-3 * s.sph.rest_density);
-  CHECK(w.presence < 1e-3);
-  for (int k = 0; k < 20; ++k) {
-    cpu->step(1.0);
-    gpu->step(1.0);
-  }
-  const SolveStats sc = cpu->last_solve(), sg = gpu->last_solve();
-  INFO("density error cpu " << sc.density_error_mean << ", cuda " << sg.density_error_mean << "; iterations cpu "
-                            << sc.iterations << ", cuda " << sg.iterations << "; max speed cpu "
-                            << cpu->last_limits().max_speed << ", cuda " << gpu->last_limits().max_speed);
+  b.step(20);
+  const SolveStats sc = b.cpu->last_solve(), sg = b.gpu->last_solve();
+  const double vc = b.cpu->last_limits().max_speed, vg = b.gpu->last_limits().max_speed;
+  INFO(solver << ": density error cpu " << sc.density_error_mean << ", cuda " << sg.density_error_mean
+              << "; iterations cpu " << sc.iterations << ", cuda " << sg.iterations << "; max speed cpu " << vc
+              << ", cuda " << vg);
   CHECK(std::abs(sc.density_error_mean - sg.density_error_mean) <= 0.1 * sc.density_error_mean + 1e-4);
   CHECK(std::abs(sc.iterations - sg.iterations) <= 2);
-  CHECK(std::abs(cpu->last_limits().max_speed - gpu->last_limits().max_speed) <= 0.1 * cpu->last_limits().max_speed);
+  CHECK(std::abs(vc - vg) <= 0.1 * vc);
+  return b;
+}
+
+TEST_CASE("cuda and cpu pbf dam breaks agree to float tolerance", "[gpu]") { compare_first_steps("pbf"); }
+
+TEST_CASE("cuda and cpu dfsph dam breaks agree to float tolerance", "[gpu]") {
+  const BackendPair b = compare_first_steps("dfsph");
   // The pressure field agrees as well (the hydrostatic test's quantity).
-  const std::vector<float> pc = cpu->pressures(), pg = gpu->pressures();
+  const std::vector<float> pc = b.cpu->pressures(), pg = b.gpu->pressures();
   REQUIRE(pc.size() == pg.size());
   double sum_c = 0, sum_g = 0;
   for (size_t k = 0; k < pc.size(); ++k) { sum_c += pc[k]; sum_g += pg[k]; }

@@ -56,22 +56,24 @@ TEST_CASE("pbf kernels: poly6 integrates to one, the spiky gradient is the deriv
   CHECK(k.dW_over_r(s) == 0.0);
 }
 
-TEST_CASE("pbf: a block in a corner without gravity has the rest density, walls included, and stays still",
+TEST_CASE("pbf and dfsph: a block in a corner without gravity has the rest density, walls included, and stays still",
           "[sph][cpu]") {
   // The block fills the tank's corner at x, y, z < 0.08: at the three walls the
   // mirror images continue the lattice exactly, so every particle farther than
   // a support from the block's free faces has the lattice's density, rho0.
-  Scene s = pbf_scene("scenes/stress/zero_gravity.json", {});
+  const std::string kind = GENERATE(std::string("pbf"), std::string("dfsph"));
+  INFO("sph.solver " << kind);
+  Scene s = load_scene(test::source_path("scenes/stress/zero_gravity.json"), {"sph.solver=" + kind});
   s.fluid[0].box = {{0.0, 0.0, 0.0}, {0.08, 0.08, 0.08}};
   const ResolvedScene r = resolve_scene(s);
   auto solver = make_cpu_solver(make_solver_input(r, PresenceMode::Off));
   const HostParticles before = solver->download();
   test::run_until(*solver, 0.1);
   const HostParticles after = solver->download();
-  const double dx = s.sph.spacing, support = r.pbf.kernel.s;
+  const double dx = s.sph.spacing, support = kind == "pbf" ? r.pbf.kernel.s : r.dfsph.kernel.support();
   std::vector<Vec3f> start(before.pos.size());
   for (size_t k = 0; k < before.pos.size(); ++k) start[before.id[k]] = before.pos[k];
-  size_t checked = 0, at_wall = 0;
+  size_t checked = 0, at_wall = 0, at_corner = 0;
   for (size_t k = 0; k < after.pos.size(); ++k) {
     const Vec3f p = after.pos[k];
     const Box& b = s.fluid[0].box;
@@ -79,11 +81,13 @@ TEST_CASE("pbf: a block in a corner without gravity has the rest density, walls 
       CHECK(std::abs(after.density[k] / s.sph.rest_density - 1.0) < 1e-4);
       ++checked;
       at_wall += std::min({p.x, p.y, p.z}) < dx ? 1 : 0;
+      at_corner += std::max({p.x, p.y, p.z}) < dx ? 1 : 0;
     }
     CHECK(length(p - start[after.id[k]]) < 0.05 * dx);
   }
   CHECK(checked > 0);
   CHECK(at_wall > 0);
+  CHECK(at_corner == 1);
   CHECK(solver->last_solve().density_error_max < 0.01);
 }
 
