@@ -48,14 +48,15 @@ struct FlowControl {
   uint32_t outcome;    // StepOutcome (integrate.h)
 };
 
-// dt = cfl dx / max(v_max, v_floor), capped at max_dt, at max_dt_depth and
+// dt = cfl dx / max(v_max, v_floor), capped at max_dt, at max_dt_solver and
 // at the time left. The floor is the flow speed the scene can reach
 // (sqrt(g H), io/scene.h), so that a liquid at rest or just released does
-// not take steps sized by its small speed alone. max_dt_depth is PBF's
-// depth limit (its reason in pbf.h); DFSPH, which iterates
-// to a tolerance, has none. Made on the device, like ChooseStep (integrate.h).
+// not take steps sized by its small speed alone. max_dt_solver is the
+// solver's own limit: PBF's depth limit (its reason in pbf.h), DFSPH's
+// explicit viscosity's (dfsph.h; DFSPH iterates to a tolerance and needs no
+// depth limit). Made on the device, like ChooseStep (integrate.h).
 struct ChooseFlowStep {
-  double cfl_dx, speed_floor, max_dt, max_dt_depth, min_dt, remaining;
+  double cfl_dx, speed_floor, max_dt, max_dt_solver, min_dt, remaining;
   FlowControl* control;
   SPHRAY_HD void operator()(uint32_t) const {
     FlowControl& c = *control;
@@ -63,9 +64,9 @@ struct ChooseFlowStep {
     l.max_speed = std::sqrt(double(c.stats.max_speed2));
     const double v = l.max_speed > speed_floor ? l.max_speed : speed_floor;
     l.dt_cfl = v > 0 ? cfl_dx / v : HUGE_VAL;
-    l.dt_force = max_dt_depth;
+    l.dt_force = max_dt_solver;
     l.dt_viscous = HUGE_VAL;
-    const double limit = max_dt < max_dt_depth ? max_dt : max_dt_depth;
+    const double limit = max_dt < max_dt_solver ? max_dt : max_dt_solver;
     const double dt = l.dt_cfl < limit ? l.dt_cfl : limit;
     l.dt = dt;
     if (dt < min_dt) { c.outcome = kStepBelowFloor; return; }

@@ -214,6 +214,12 @@ TEST_CASE("sphray bench sim --solvers runs each solver in turn, and refuses an u
   CHECK(int(j["rows"][2]["divergence_iterations"]) >= 1);
   CHECK(int(j["rows"][4]["iterations"]) == 0);              // WCSPH has no solve
   const Result bad = run_cli("bench sim --backend cpu --sizes 1k --solvers pbf,isph");
+  // PBF has no pressure to export.
+  const std::string scene = sphray::test::source_path("scenes/dam_break.json");
+  const Result no_pressure = run_cli("run " + scene + " --backend cpu --set sph.solver=pbf --set run.end_time=0.01 --export " +
+                                     tmp + "/sphray_pbf_pressure.h5 --export-fields pressure");
+  CHECK(no_pressure.code == 2);
+  CHECK(has(no_pressure.output, "the pbf solver has no pressure"));
   CHECK(bad.code == 2);
   CHECK(has(bad.output, "\"wcsph\", \"pbf\", \"dfsph\""));
 }
