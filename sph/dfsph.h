@@ -126,7 +126,7 @@ struct DfsphDensity {
       if (P != kInterior && mirrors.axes) ghosts(xyz(pj), vj);
     });
     const float d = df.volume * w_sum;
-    if (WithPresence) write_presence_lobes(presence, n, i, df.presence_scale / d, lobes, ux, uy, uz);
+    if (WithPresence) write_presence_lobes(presence, n, i, df.presence_scale, lobes, ux, uy, uz);  // rest volume: presence.h
     const float denom = length2(grad) + g2;
     const bool thin = float(count) < df.sparse_neighbours;
     pos_out[i] = {xi.x, xi.y, xi.z, prm.rest_density * d};

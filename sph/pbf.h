@@ -195,17 +195,20 @@ struct Finish {
       w_sum += w;
       smooth += w * (inv_dt * (xj - xyz(xj_old)) - vi);
       if (P != kInterior && mirrors.axes) mirrors.images(xj, image);
-      if (WithPresence) {
-        const float m_dwr = prm.particle_mass * k.dW_over_r(std::sqrt(r2));
-        grad += m_dwr * r;
-        ux += m_dwr * std::fabs(r.x);
-        uy += m_dwr * std::fabs(r.y);
-        uz += m_dwr * std::fabs(r.z);
+      if (WithPresence) {  // V_j = m / rho0: the volume the lobes are normalised with (make_pbf_params)
+        const float v_dwr = pbf.volume * k.dW_over_r(std::sqrt(r2));
+        grad += v_dwr * r;
+        ux += v_dwr * std::fabs(r.x);
+        uy += v_dwr * std::fabs(r.y);
+        uz += v_dwr * std::fabs(r.z);
       }
     });
     const float rho_rel = pbf.volume * w_sum;
     const float rho = prm.rest_density * rho_rel;
-    if (WithPresence) write_presence_lobes(presence, n, i, pbf.presence_scale / rho, grad, ux, uy, uz);
+    // Weighed by the rest volume, not m / rho_i: the summed density falls by
+    // the kernel's deficit at a free surface, and dividing by it would count
+    // a flat surface's lateral neighbours as a full lattice (presence.h).
+    if (WithPresence) write_presence_lobes(presence, n, i, pbf.presence_scale, grad, ux, uy, uz);
     const Vec3f v = vi + (pbf.xsph * pbf.volume) * smooth;
     pos_out[i] = {xi.x, xi.y, xi.z, rho};
     vel_out[i] = {v.x, v.y, v.z, 0.0f};

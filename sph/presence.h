@@ -1,8 +1,13 @@
 // The six presence lobes of a particle from its neighbour sums (the
 // definition is in interaction.h): per axis a, G_a = sum_j m (dW/dr / r) r_a
-// and U_a = sum_j m (dW/dr / r) |r_a|, scaled by s = 1 / (2 K rho_i). Both
-// solvers' neighbour loops accumulate the sums with their own kernel and call
-// this to write them.
+// and U_a = sum_j m (dW/dr / r) |r_a|, scaled by s = 1 / (2 K rho_i). Each
+// solver's neighbour loop accumulates the sums with its own kernel and calls
+// this to write them. PBF and DFSPH weigh each neighbour by the rest volume
+// m / rho0 instead: their density is a kernel sum, which falls to about 0.7
+// rho0 at a free surface, and m / rho_i there counted a flat surface's
+// lateral neighbours as a full lattice (lateral lobes of 1 instead of 0.83
+// with their kernels, tests/test_presence.cpp). WCSPH's density is integrated and stays
+// near rho0 at a surface.
 #pragma once
 
 #include <cmath>

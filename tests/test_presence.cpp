@@ -117,6 +117,33 @@ TEST_CASE("presence is about 1 deep in the liquid, ~0 toward air, 0 when isolate
   for (int d = 0; d < 6; ++d) CHECK(p.back()[d] == 0.0f);
 }
 
+TEST_CASE("pbf and dfsph presence: 1 deep in the liquid, ~0 toward air, 0 when isolated", "[presence][cpu]") {
+  // Their own kernels and calibrated volumes (make_pbf_params, make_dfsph_params):
+  // a full lattice gives each lobe exactly its normalisation.
+  const std::string kind = GENERATE(std::string("pbf"), std::string("dfsph"));
+  INFO("sph.solver " << kind);
+  const Scene s = parse_scene(R"({"tank": {"min": [-0.1,-0.1,-0.1], "max": [0.4,0.4,0.4]}, "gravity": [0,0,0],
+    "fluid": [{"min": [0,0,0], "max": [0.11,0.11,0.11]}, {"min": [0.3,0.3,0.3], "max": [0.31,0.31,0.31]}],
+    "sph": {"spacing": 0.01, "solver": ")" + kind + R"("}, "run": {"end_time": 1}})", "presence.json");
+  auto solver = make_cpu_solver(make_solver_input(resolve_scene(s), PresenceMode::EveryStep));
+  solver->step(1e-6);
+  const HostParticles p = solver->download();
+  REQUIRE(p.presence.size() == 11 * 11 * 11 + 1);
+  auto near = [&](double x, double y, double z) {
+    for (size_t k = 0; k < p.pos.size(); ++k)
+      if (length(p.pos[k] - Vec3f{float(x), float(y), float(z)}) < 1e-4f) return p.presence[k];
+    FAIL("no particle at (" << x << ", " << y << ", " << z << ")");
+    return std::array<float, 6>{};
+  };
+  const auto deep = near(0.055, 0.055, 0.055), top = near(0.055, 0.055, 0.105), alone = near(0.305, 0.305, 0.305);
+  INFO("top lobes " << top[0] << " " << top[1] << " " << top[2] << " " << top[3] << " " << top[4] << " " << top[5]);
+  for (int d = 0; d < 6; ++d) CHECK(std::abs(deep[d] - 1.0f) < 0.01f);
+  CHECK(top[4] < 0.02f);                  // +z, toward air
+  CHECK(std::abs(top[5] - 1.0f) < 0.01f); // -z, into the liquid
+  for (int d = 0; d < 4; ++d) CHECK((top[d] > 0.4f && top[d] < 0.85f));
+  for (int d = 0; d < 6; ++d) CHECK(alone[d] == 0.0f);
+}
+
 TEST_CASE("presence is mirror symmetric", "[presence][cpu]") {
   // An irregular cluster and its mirror image in x: +x and -x swap, the rest agree.
   std::vector<Vec3d> pts = {{0, 0, 0}, {0.008, 0.001, 0}, {0.015, -0.004, 0.003}, {0.004, 0.009, -0.002}, {-0.007, 0.002, 0.006}};
