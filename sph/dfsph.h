@@ -92,38 +92,24 @@ struct DfsphDensity {
     float w_sum = k.W(0.0f), g2 = 0.0f, rate = 0.0f, ux = 0.0f, uy = 0.0f, uz = 0.0f;
     Vec3f grad = {0.0f, 0.0f, 0.0f}, lobes = {0.0f, 0.0f, 0.0f};
     uint32_t count = 0;
-    // The images of a particle at xo moving at vo (its own images: xo = xi).
-    auto ghosts = [&](Vec3f xo, Vec3f vo) {
-      mirrors.images_flipped(xo, [&](Vec3f m, uint32_t set) {
-        const Vec3f r = xi - m;
-        const float r2 = length2(r);
-        if (r2 >= s2) return;
-        w_sum += k.W(std::sqrt(r2));
-        const Vec3f g = volume_grad(df, r, r2);
-        grad += g;
-        g2 += length2(g);
-        rate += dot(vi - Mirrors::flip(vo, set), g);
-        ++count;
-      });
-    };
-    if (P != kInterior) ghosts(xi, vi);
-    for_each_pair<P == kDirect>(grid, offsets, pos, xi, s2, i, pairs, i, [&](uint32_t j, Float4 pj, Vec3f r, float r2) {
+    // Images move with their originals' mirrored velocity.
+    auto velocity = [&](uint32_t j, Float4) { return xyz(load(vel + j)); };
+    for_each_neighbour_and_image<P>(grid, offsets, pairs, pos, i, xi, s2, mirrors, vi, velocity,
+                                    [&](Vec3f r, float r2, Vec3f vj, uint32_t set) {
       const float dist = std::sqrt(r2);
       w_sum += k.W(dist);
       const float vdw = df.volume * k.dW_over_r(dist);
       const Vec3f g = vdw * r;
-      const Vec3f vj = xyz(load(vel + j));
       grad += g;
       g2 += length2(g);
-      rate += dot(vi - vj, g);
+      rate += dot(vi - Mirrors::flip(vj, set), g);
       ++count;
-      if (WithPresence) {
+      if (WithPresence && set == 0u) {  // the liquid itself, not its images
         lobes += vdw * r;
         ux += vdw * std::fabs(r.x);
         uy += vdw * std::fabs(r.y);
         uz += vdw * std::fabs(r.z);
       }
-      if (P != kInterior && mirrors.axes) ghosts(xyz(pj), vj);
     });
     const float d = df.volume * w_sum;
     if (WithPresence) write_presence_lobes(presence, n, i, df.presence_scale, lobes, ux, uy, uz);  // rest volume: presence.h
@@ -137,8 +123,8 @@ struct DfsphDensity {
   }
 };
 
-// The pressure accelerations a_i = -sum_j V (p_i + p_j) grad W_ij - sum_images V p_i grad W_ib
-// into acc[i]. WithSource (the first pressure iteration): also the density
+// The pressure accelerations a_i = -sum_j V (p_i + p_j) grad W_ij (the
+// images with their originals' pressure) into acc[i]. WithSource (the first pressure iteration): also the density
 // the velocities lead to, d*_i = d_i + dt Dd_i/Dt, into source[i].
 template <bool WithSource, int P>
 struct DfsphAccel {
@@ -165,32 +151,27 @@ struct DfsphAccel {
     const Vec3f vi = WithSource ? xyz(vel[i]) : Vec3f{0.0f, 0.0f, 0.0f};
     Vec3f a = {0.0f, 0.0f, 0.0f};
     float rate = 0.0f;
-    auto ghosts = [&](Vec3f xo, float po, Vec3f vo) {
-      mirrors.images_flipped(xo, [&](Vec3f m, uint32_t set) {
-        const Vec3f r = xi - m;
-        const float r2 = length2(r);
-        if (r2 >= s2) return;
-        const Vec3f g = volume_grad(df, r, r2);
-        a -= (pi + po) * g;
-        if (WithSource) rate += dot(vi - Mirrors::flip(vo, set), g);
-      });
+    // Each neighbour's pressure and, WithSource, velocity (an image's: its original's, mirrored).
+    struct State {
+      float p;
+      Vec3f v;
     };
-    if (P != kInterior) ghosts(xi, pi, vi);
-    for_each_pair<P == kDirect>(grid, offsets, pos, xi, s2, i, pairs, i, [&](uint32_t j, Float4 pj, Vec3f r, float r2) {
+    auto state = [&](uint32_t j, Float4) {
+      return State{press[j], WithSource ? xyz(load(vel + j)) : Vec3f{0.0f, 0.0f, 0.0f}};
+    };
+    for_each_neighbour_and_image<P>(grid, offsets, pairs, pos, i, xi, s2, mirrors, State{pi, vi}, state,
+                                    [&](Vec3f r, float r2, const State& o, uint32_t set) {
       const Vec3f g = volume_grad(df, r, r2);
-      const float p = press[j];
-      const Vec3f vj = WithSource ? xyz(load(vel + j)) : Vec3f{0.0f, 0.0f, 0.0f};
-      a -= (pi + p) * g;
-      if (WithSource) rate += dot(vi - vj, g);
-      if (P != kInterior && mirrors.axes) ghosts(xyz(pj), p, vj);
+      a -= (pi + o.p) * g;
+      if (WithSource) rate += dot(vi - Mirrors::flip(o.v, set), g);
     });
     acc[i] = {a.x, a.y, a.z, 0.0f};
     if (WithSource) source[i] = pi4.w / prm.rest_density + float(control->limits.dt) * rate;
   }
 };
 
-// One relaxed Jacobi iteration of either solve: with (A p)_i = dt^2 (sum_j V (a_i - a_j).grad W_ij
-// + sum_images V a_i.grad W_ib) and s_i = 1 - d*_i (pressure) or -dt Dd_i/Dt
+// One relaxed Jacobi iteration of either solve: with (A p)_i = dt^2 sum_j V
+// (a_i - a_j).grad W_ij (the images with their originals' mirrored a) and s_i = 1 - d*_i (pressure) or -dt Dd_i/Dt
 // (divergence), r_i = (A p)_i - s_i; p_i <- max(p_i + 0.5 r_i factor_i / dt^2, 0);
 // residual[i] = max(-(s_i - (A p)_i), 0) = max(r_i, 0): the compression left
 // (0 at a sparse particle in the divergence solve).
@@ -218,18 +199,10 @@ struct DfsphUpdate {
     if (!serves(P, pairs, i, mirrors)) return;
     const Vec3f ai = xyz(acc[i]);
     float ap = 0.0f;
-    auto ghosts = [&](Vec3f xo, Vec3f ao) {
-      mirrors.images_flipped(xo, [&](Vec3f m, uint32_t set) {
-        const Vec3f r = xi - m;
-        const float r2 = length2(r);
-        if (r2 < s2) ap += dot(ai - Mirrors::flip(ao, set), volume_grad(df, r, r2));
-      });
-    };
-    if (P != kInterior) ghosts(xi, ai);
-    for_each_pair<P == kDirect>(grid, offsets, pos, xi, s2, i, pairs, i, [&](uint32_t j, Float4 pj, Vec3f r, float r2) {
-      const Vec3f aj = xyz(load(acc + j));
-      ap += dot(ai - aj, volume_grad(df, r, r2));
-      if (P != kInterior && mirrors.axes) ghosts(xyz(pj), aj);
+    auto accel = [&](uint32_t j, Float4) { return xyz(load(acc + j)); };
+    for_each_neighbour_and_image<P>(grid, offsets, pairs, pos, i, xi, s2, mirrors, ai, accel,
+                                    [&](Vec3f r, float r2, Vec3f aj, uint32_t set) {
+      ap += dot(ai - Mirrors::flip(aj, set), volume_grad(df, r, r2));
     });
     const float dt = float(control->limits.dt), dt2 = dt * dt;
     const float s = Divergence ? -dt * source[i] : 1.0f - source[i];
@@ -262,20 +235,11 @@ struct DfsphViscosity {
     const Mirrors mirrors = mirrors_of(prm, k.support(), xi);
     if (!serves(P, pairs, i, mirrors)) return;
     Vec3f lap = {0.0f, 0.0f, 0.0f};
-    auto ghosts = [&](Vec3f xo, Vec3f vo) {
-      mirrors.images_flipped(xo, [&](Vec3f m, uint32_t set) {
-        const Vec3f r = xi - m;
-        const float r2 = length2(r);
-        if (r2 >= s2) return;
-        const Vec3f vij = vi - mirrors.viscous_image(vo, set, df.no_slip_faces);
-        lap += (dot(vij, r) / (r2 + df.viscosity_eta2)) * volume_grad(df, r, r2);
-      });
-    };
-    if (P != kInterior) ghosts(xi, vi);
-    for_each_pair<P == kDirect>(grid, offsets, pos, xi, s2, i, pairs, i, [&](uint32_t j, Float4 pj, Vec3f r, float r2) {
-      const Vec3f vj = xyz(load(vel + j));
-      lap += (dot(vi - vj, r) / (r2 + df.viscosity_eta2)) * volume_grad(df, r, r2);
-      if (P != kInterior && mirrors.axes) ghosts(xyz(pj), vj);
+    auto velocity = [&](uint32_t j, Float4) { return xyz(load(vel + j)); };
+    for_each_neighbour_and_image<P>(grid, offsets, pairs, pos, i, xi, s2, mirrors, vi, velocity,
+                                    [&](Vec3f r, float r2, Vec3f vj, uint32_t set) {
+      const Vec3f vij = vi - mirrors.viscous_image(vj, set, df.no_slip_faces);
+      lap += (dot(vij, r) / (r2 + df.viscosity_eta2)) * volume_grad(df, r, r2);
     });
     const float dt = float(control->limits.dt);
     const Vec3f v = vi + dt * (prm.gravity + df.viscosity * lap);

@@ -32,17 +32,13 @@ struct Mirrors {
   uint32_t axes = 0;   // bit a: a wall across axis a is within reach
   uint32_t upper = 0;  // bit a: that wall is the upper one (face 2a + 1, else 2a)
 
-  // Calls f(image) for each image of p: reflected across every non-empty
-  // subset of the walls in reach (one wall: 1 image; an edge: 3; a corner: 7).
+  // Calls f(image, set) for each image of p: reflected across every
+  // non-empty subset of the walls in reach (one wall: 1 image; an edge: 3; a
+  // corner: 7); bit a of set says the image is reflected across the wall of
+  // axis a, so that a vector of the original (a velocity) is the image's
+  // after flip(v, set).
   template <class F>
   SPHRAY_HD SPHRAY_FORCEINLINE void images(Vec3f p, F&& f) const {
-    images_flipped(p, [&](Vec3f m, uint32_t) { f(m); });
-  }
-  // The same with f(image, set): bit a of set says the image is reflected
-  // across the wall of axis a, so that a vector of the original (a velocity)
-  // is the image's after flip(v, set).
-  template <class F>
-  SPHRAY_HD SPHRAY_FORCEINLINE void images_flipped(Vec3f p, F&& f) const {
     for (uint32_t set = 1; set < 8u; ++set) {
       if ((set & ~axes) != 0u) continue;
       Vec3f m = p;
@@ -104,6 +100,33 @@ enum MirrorPass { kInterior = 0, kNearWalls = 1, kDirect = 2 };
 SPHRAY_HD SPHRAY_FORCEINLINE bool serves(int P, const PairMask& m, uint32_t i, const Mirrors& mirrors) {
   if (!mask_complete(m, i)) return P == kDirect;
   return P == (mirrors.axes ? kNearWalls : kInterior);
+}
+
+// The neighbour loop of launch P with the wall images: f(r, r2, a, set) for
+// every neighbour j within the support s2 of particle i at xi (set 0, a =
+// fetch(j, p_j), p_j its entry of pos), and, in the launches near walls, for every image within it of i
+// itself (a = self) and of each neighbour (its a), set the walls it
+// crosses (Mirrors::flip turns the original's vectors into the image's). The
+// order of the terms is fixed: i's images first, then each neighbour followed
+// by its images.
+template <int P, class T, class Fetch, class F>
+SPHRAY_HD SPHRAY_FORCEINLINE void for_each_neighbour_and_image(const GridGeom& grid, const uint32_t* offsets,
+                                                               const PairMask& pairs, const Float4* pos, uint32_t i,
+                                                               Vec3f xi, float s2, const Mirrors& mirrors, T self,
+                                                               Fetch&& fetch, F&& f) {
+  auto images = [&](Vec3f xo, const T& a) {
+    mirrors.images(xo, [&](Vec3f m, uint32_t set) {
+      const Vec3f r = xi - m;
+      const float r2 = length2(r);
+      if (r2 < s2) f(r, r2, a, set);
+    });
+  };
+  if (P != kInterior) images(xi, self);
+  for_each_pair<P == kDirect>(grid, offsets, pos, xi, s2, i, pairs, i, [&](uint32_t j, Float4 pj, Vec3f r, float r2) {
+    const T a = fetch(j, pj);
+    f(r, r2, a, 0u);
+    if (P != kInterior && mirrors.axes) images(xyz(pj), a);
+  });
 }
 
 }  // namespace sphray

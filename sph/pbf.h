@@ -86,20 +86,13 @@ struct Lambda {
     if (!serves(P, pairs, i, mirrors)) return;
     float w_sum = k.W(0.0f), g2 = 0.0f;
     Vec3f grad = {0.0f, 0.0f, 0.0f};
-    auto image = [&](Vec3f m) {
-      const Vec3f r = xi - m;
-      const float r2 = length2(r);
-      if (r2 >= s2) return;
-      w_sum += k.W(r2);
-      grad += volume_grad(pbf, r, r2);
-    };
-    if (P != kInterior) mirrors.images(xi, image);
-    for_each_pair<P == kDirect>(grid, offsets, pred, xi, s2, i, pairs, i, [&](uint32_t, Float4 pj, Vec3f r, float r2) {
+    // The images are static: they add nothing to the sum over the neighbours' gradients.
+    for_each_neighbour_and_image<P>(grid, offsets, pairs, pred, i, xi, s2, mirrors, 0, [](uint32_t, Float4) { return 0; },
+                                    [&](Vec3f r, float r2, int, uint32_t set) {
       w_sum += k.W(r2);
       const Vec3f g = volume_grad(pbf, r, r2);  // grad_j C_i = -g
       grad += g;
-      g2 += length2(g);
-      if (P != kInterior && mirrors.axes) mirrors.images(xyz(pj), image);
+      if (set == 0u) g2 += length2(g);
     });
     const float c = fmaxf(pbf.volume * w_sum - 1.0f, 0.0f);  // rho / rho0 - 1
     const float lambda = -c / (length2(grad) + g2 + pbf.epsilon);
@@ -127,23 +120,21 @@ struct Correct {
     const Mirrors mirrors = mirrors_of(prm, k.s, xi);
     if (!serves(P, pairs, i, mirrors)) return;
     Vec3f dx = {0.0f, 0.0f, 0.0f};
-    auto image = [&](Vec3f m) {  // a static wall particle: lambda_i only
-      const Vec3f r = xi - m;
-      const float r2 = length2(r);
-      if (r2 >= s2) return;
-      dx += (pi.w * pbf.volume * k.dW_over_r(std::sqrt(r2))) * r;
-    };
-    if (P != kInterior) mirrors.images(xi, image);
-    for_each_pair<P == kDirect>(grid, offsets, pred, xi, s2, i, pairs, i, [&](uint32_t, Float4 pj, Vec3f r, float r2) {
-      float scale = pi.w + pj.w;
-      if (pbf.scorr_coef != 0.0f) {  // off by default: the same for every thread, no divergence
-        const float q = k.W(r2) * pbf.inv_w_dq;
-        float qn = 1.0f;
-        for (int e = 0; e < pbf.scorr_n; ++e) qn *= q;
-        scale -= pbf.scorr_coef * qn;
+    // An image is a static wall particle: lambda_i only, no s_corr.
+    auto lambda = [](uint32_t, Float4 pj) { return pj.w; };
+    for_each_neighbour_and_image<P>(grid, offsets, pairs, pred, i, xi, s2, mirrors, 0.0f, lambda,
+                                    [&](Vec3f r, float r2, float lambda_j, uint32_t set) {
+      float scale = pi.w;
+      if (set == 0u) {
+        scale += lambda_j;
+        if (pbf.scorr_coef != 0.0f) {  // off by default: the same for every thread, no divergence
+          const float q = k.W(r2) * pbf.inv_w_dq;
+          float qn = 1.0f;
+          for (int e = 0; e < pbf.scorr_n; ++e) qn *= q;
+          scale -= pbf.scorr_coef * qn;
+        }
       }
       dx += (scale * pbf.volume * k.dW_over_r(std::sqrt(r2))) * r;
-      if (P != kInterior && mirrors.axes) mirrors.images(xyz(pj), image);
     });
     // At most pbf.max_correction per iteration (pbf_params.h).
     const float len2 = length2(dx);
@@ -182,19 +173,16 @@ struct Finish {
     const float inv_dt = float(1.0 / control->limits.dt);
     const Vec3f vi = inv_dt * (xi - xyz(pos[i]));
     float w_sum = k.W(0.0f);
-    auto image = [&](Vec3f m) { w_sum += k.W(length2(xi - m)); };
-    if (P != kInterior) mirrors.images(xi, image);
     Vec3f smooth = {0.0f, 0.0f, 0.0f}, grad = {0.0f, 0.0f, 0.0f};
     float ux = 0.0f, uy = 0.0f, uz = 0.0f;
-    for_each_pair<P == kDirect>(grid, offsets, pred, xi, k.s * k.s, i, pairs, i,
-                          [&](uint32_t j) { return load(pos + j); }, [&](uint32_t j, Float4 xj_old) {
-      const Vec3f xj = xyz(load(pred + j));
-      const Vec3f r = xi - xj;
-      const float r2 = length2(r);
+    // A neighbour's velocity over the step; the images add to the density only.
+    auto velocity = [&](uint32_t j, Float4 pj) { return inv_dt * (xyz(pj) - xyz(load(pos + j))); };
+    for_each_neighbour_and_image<P>(grid, offsets, pairs, pred, i, xi, k.s * k.s, mirrors, vi, velocity,
+                                    [&](Vec3f r, float r2, Vec3f vj, uint32_t set) {
       const float w = k.W(r2);
       w_sum += w;
-      smooth += w * (inv_dt * (xj - xyz(xj_old)) - vi);
-      if (P != kInterior && mirrors.axes) mirrors.images(xj, image);
+      if (set != 0u) return;
+      smooth += w * (vj - vi);
       if (WithPresence) {  // V_j = m / rho0: the volume the lobes are normalised with (make_pbf_params)
         const float v_dwr = pbf.volume * k.dW_over_r(std::sqrt(r2));
         grad += v_dwr * r;
