@@ -121,9 +121,11 @@ class DfsphSolverImpl final : public Solver {
 
   // p = rho0 d^2 p~ of the last step (p~ the pressure and the divergence
   // solves' variables summed, [m^2/s^2], dfsph.h: both push over the step).
+  // Zero before the first step: no solve has run (and there is no dt).
   std::vector<float> pressures() const override {
+    std::vector<float> out(n_, 0.0f);
+    if (steps_ == 0) return out;
     const std::vector<Float4> w = sphray::SPHRAY_BK::download(warm_, n_), p = sphray::SPHRAY_BK::download(pos_, n_);
-    std::vector<float> out(n_);
     const double dt = limits_.dt;
     for (uint32_t i = 0; i < n_; ++i) {
       const double d = p[i].w / prm_.rest_density;

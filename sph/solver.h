@@ -141,6 +141,7 @@ class Solver {
   // both act over the step); empty for a solver without one (WCSPH's
   // pressure follows from the density, tait_pressure). A solve that stops at
   // a tolerance leaves the pressure of one step noisy: average over steps.
+  // Zero before the first step.
   virtual std::vector<float> pressures() const { return {}; }
 };
 

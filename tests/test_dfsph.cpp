@@ -210,6 +210,10 @@ TEST_CASE("dfsph: the exported pressure field is the solver's pressure, row by i
   const Scene s = dfsph_scene("scenes/dam_break.json", {"sph.spacing=0.04"});
   const ResolvedScene r = resolve_scene(s);
   auto solver = make_cpu_solver(make_solver_input(r, PresenceMode::Off));
+  // Before the first step no solve has run: zero, not 0 / 0.
+  const Frame at_start = frame_of(*solver, r.params, parse_export_fields("pressure"), nullptr);
+  REQUIRE(at_start.pressure.size() == solver->num_fluid());
+  for (float v : at_start.pressure) REQUIRE(v == 0.0f);
   for (int k = 0; k < 5; ++k) solver->step(1.0);
   const Frame f = frame_of(*solver, r.params, parse_export_fields("pressure"), nullptr);
   const HostParticles h = solver->download();
