@@ -72,6 +72,13 @@ inline bool inside(const Vec3f& p, const Scene& s) {
          p.y <= s.tank.max.y && p.z <= s.tank.max.z;
 }
 
+// Within the tank as the solver holds it in single precision (SphParams::tank,
+// walls included): where a projection onto a wall leaves a particle.
+inline bool inside(const Vec3f& p, const Aabb& tank) {
+  return p.x >= tank.min.x && p.y >= tank.min.y && p.z >= tank.min.z && p.x <= tank.max.x && p.y <= tank.max.y &&
+         p.z <= tank.max.z;
+}
+
 inline void run_until(Solver& s, double t) {
   while (s.time() < t - 1e-12) s.step(t);
 }

@@ -86,6 +86,7 @@ TEST_CASE("dfsph: no particle leaves a closed tank, the step follows the flow CF
   const Scene s = dfsph_scene("scenes/dam_break.json", {"sph.spacing=0.04", "run.end_time=0.6"});
   auto solver = make_cpu_solver(make_solver_input(resolve_scene(s), PresenceMode::Off));
   const size_t n = solver->num_fluid();
+  const Aabb tank = resolve_scene(s).params.tank;  // the walls in the solver's single precision
   double worst_cfl = 0, error_sum = 0;
   int steps = 0, unconverged = 0;
   while (solver->time() < s.run.end_time - 1e-12) {
@@ -101,12 +102,7 @@ TEST_CASE("dfsph: no particle leaves a closed tank, the step follows the flow CF
     ++steps;
     const HostParticles p = solver->download();
     REQUIRE(p.pos.size() == n);
-    const Aabb tank = resolve_scene(s).params.tank;  // the walls in the solver's single precision
-    for (const Vec3f& x : p.pos) {
-      REQUIRE(x.x >= tank.min.x); REQUIRE(x.x <= tank.max.x);
-      REQUIRE(x.y >= tank.min.y); REQUIRE(x.y <= tank.max.y);
-      REQUIRE(x.z >= tank.min.z); REQUIRE(x.z <= tank.max.z);
-    }
+    for (const Vec3f& x : p.pos) REQUIRE(test::inside(x, tank));
   }
   CHECK(worst_cfl <= 1.01 * s.sph.cfl + 1e-9);
   CHECK(unconverged == 0);

@@ -32,12 +32,7 @@ TEST_CASE("every stress scene runs to its end with all particles inside the wall
     for (size_t i = 0; i < p.pos.size(); ++i) {
       REQUIRE(all_finite(p.pos[i]));
       REQUIRE(std::isfinite(p.density[i]));
-      REQUIRE(p.pos[i].x >= tank.min.x);
-      REQUIRE(p.pos[i].y >= tank.min.y);
-      REQUIRE(p.pos[i].z >= tank.min.z);
-      REQUIRE(p.pos[i].x <= tank.max.x);
-      REQUIRE(p.pos[i].y <= tank.max.y);
-      REQUIRE(p.pos[i].z <= tank.max.z);
+      REQUIRE(test::inside(p.pos[i], tank));
     }
   }
 }
