@@ -9,6 +9,7 @@
 #include <fstream>
 #include <sstream>
 #include <string>
+#include <vector>
 
 #include "pipeline/pipeline.h"
 #include "io/scene.h"
@@ -77,6 +78,17 @@ inline bool inside(const Vec3f& p, const Scene& s) {
 inline bool inside(const Vec3f& p, const Aabb& tank) {
   return p.x >= tank.min.x && p.y >= tank.min.y && p.z >= tank.min.z && p.x <= tank.max.x && p.y <= tank.max.y &&
          p.z <= tank.max.z;
+}
+
+// The message of the SceneError that parsing `text` (with --set overrides)
+// raises, or "" if it parses.
+inline std::string scene_error(const std::string& text, const std::vector<std::string>& sets = {}) {
+  try {
+    parse_scene(text, "t.json", sets);
+  } catch (const SceneError& e) {
+    return e.what();
+  }
+  return "";
 }
 
 inline void run_until(Solver& s, double t) {

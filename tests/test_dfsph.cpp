@@ -149,14 +149,7 @@ TEST_CASE("dfsph: a diverging run stops with the step named", "[sph][cpu]") {
 
 TEST_CASE("dfsph scene options: refused by name where they do not apply or are out of range", "[scene][cpu]") {
   const std::string base = R"({"tank": {"min": [0,0,0], "max": [1,1,1]}, "fluid": [{"min": [0,0,0], "max": [0.5,0.5,0.5]}], )";
-  auto error_of = [&](const std::string& rest) {
-    try {
-      parse_scene(base + rest, "s.json");
-    } catch (const SceneError& e) {
-      return std::string(e.what());
-    }
-    return std::string();
-  };
+  auto error_of = [&](const std::string& rest) { return test::scene_error(base + rest); };
   CHECK(test::has(error_of(R"("sph": {"spacing": 0.1, "solver": "isph"}})"), "\"wcsph\", \"pbf\", \"dfsph\""));
   CHECK(test::has(error_of(R"("sph": {"spacing": 0.1, "solver": "dfsph", "viscosity_alpha": 0.1}})"),
                   "sph.viscosity_alpha"));

@@ -216,14 +216,7 @@ TEST_CASE("pbf vorticity: a rigid rotation has omega = 2 Omega inside, and confi
 
 TEST_CASE("pbf scene options: refused by name where they do not apply or are out of range", "[scene][cpu]") {
   const std::string base = R"({"tank": {"min": [0,0,0], "max": [1,1,1]}, "fluid": [{"min": [0,0,0], "max": [0.5,0.5,0.5]}], )";
-  auto error_of = [&](const std::string& rest) {
-    try {
-      parse_scene(base + rest, "s.json");
-    } catch (const SceneError& e) {
-      return std::string(e.what());
-    }
-    return std::string();
-  };
+  auto error_of = [&](const std::string& rest) { return test::scene_error(base + rest); };
   CHECK(error_of(R"("sph": {"spacing": 0.1, "solver": "sph"}})").find("\"wcsph\", \"pbf\"") != std::string::npos);
   CHECK(error_of(R"("sph": {"spacing": 0.1, "solver": "pbf", "speed_of_sound": 20}})").find("sph.speed_of_sound") !=
         std::string::npos);

@@ -16,15 +16,6 @@ const char* kGood = R"({
   "sph": {"spacing": 0.02}, "run": {"end_time": 0.1}
 })";
 
-std::string error_of(const std::string& text, const std::vector<std::string>& sets = {}) {
-  try {
-    parse_scene(text, "t.json", sets);
-  } catch (const SceneError& e) {
-    return e.what();
-  }
-  return "";
-}
-
 bool contains(const std::string& s, const std::string& part) { return s.find(part) != std::string::npos; }
 
 }  // namespace
@@ -70,16 +61,16 @@ TEST_CASE("wall viscosity: sph.viscosity_alpha unless set apart, none on free-sl
   CHECK(b.at(0.0f) > 0);
   CHECK(b.at(0.3f) > b.at(0.0f));
 
-  CHECK(contains(error_of(kGood, {"sph.wall_viscosity_alpha=-0.1"}), "sph.wall_viscosity_alpha = -0.1"));
+  CHECK(contains(test::scene_error(kGood, {"sph.wall_viscosity_alpha=-0.1"}), "sph.wall_viscosity_alpha = -0.1"));
 }
 
 TEST_CASE("bad scenes get a message naming file, key and value", "[scene][cpu]") {
-  std::string e = error_of(kGood, {"sph.spacingg=0.01"});
+  std::string e = test::scene_error(kGood, {"sph.spacingg=0.01"});
   CHECK(contains(e, "t.json"));
   CHECK(contains(e, "sph.spacingg"));
   CHECK(contains(e, "unknown key"));
 
-  e = error_of(kGood, {"sph.spacing=-0.1"});
+  e = test::scene_error(kGood, {"sph.spacing=-0.1"});
   CHECK(contains(e, "sph.spacing = -0.1"));
 
   // Far from the origin, single-precision positions round distances to a
@@ -87,59 +78,59 @@ TEST_CASE("bad scenes get a message naming file, key and value", "[scene][cpu]")
   // moved 50,000 spacings out ends with 10% more kinetic energy; 10 km out,
   // 0.72% of particle-steps clamped to a wall). 16384 spacings at 2 cm: 327.68 m.
   const std::vector<std::string> far = {"tank.min=[326.5,0,0]", "tank.max=[327.5,0.5,0.5]", "fluid=[]"};
-  CHECK(error_of(kGood, far).empty());
-  e = error_of(kGood, {"tank.min=[0,-328,0]"});
+  CHECK(test::scene_error(kGood, far).empty());
+  e = test::scene_error(kGood, {"tank.min=[0,-328,0]"});
   CHECK(contains(e, "t.json: tank.min = [0,-328,0]: lies 16400 particle spacings from the origin"));
   CHECK(contains(e, "move the tank nearer the origin"));
-  CHECK(contains(error_of(kGood, {"tank.max=[1e300,0.5,0.5]"}), "tank.max = [1e+300,0.5,0.5]: lies 5e+301 particle"));
+  CHECK(contains(test::scene_error(kGood, {"tank.max=[1e300,0.5,0.5]"}), "tank.max = [1e+300,0.5,0.5]: lies 5e+301 particle"));
 
-  e = error_of(kGood, {"sph.spacing=\"small\""});
+  e = test::scene_error(kGood, {"sph.spacing=\"small\""});
   CHECK(contains(e, "sph.spacing"));
   CHECK(contains(e, "must be a number"));
 
-  e = error_of(kGood, {"sph.spacing=nan"});  // not JSON: read as a string, rejected as one
+  e = test::scene_error(kGood, {"sph.spacing=nan"});  // not JSON: read as a string, rejected as one
   CHECK(contains(e, "sph.spacing = \"nan\""));
 
-  e = error_of(kGood, {"fluid.0.max=[2,0.5,0.3]"});
+  e = test::scene_error(kGood, {"fluid.0.max=[2,0.5,0.3]"});
   CHECK(contains(e, "fluid.0"));
   CHECK(contains(e, "outside the tank"));
 
-  e = error_of(kGood, {"tank.max=[1,0.5]"});
+  e = test::scene_error(kGood, {"tank.max=[1,0.5]"});
   CHECK(contains(e, "tank.max"));
 
-  e = error_of(kGood, {"tank.max=[-1,0.5,0.5]"});
+  e = test::scene_error(kGood, {"tank.max=[-1,0.5,0.5]"});
   CHECK(contains(e, "greater than min"));
 
-  e = error_of(kGood, {"sph.kernel=\"gauss\""});
+  e = test::scene_error(kGood, {"sph.kernel=\"gauss\""});
   CHECK(contains(e, "wendland_c2"));
 
-  e = error_of(kGood, {"tank.free_slip=[\"-w\"]"});
+  e = test::scene_error(kGood, {"tank.free_slip=[\"-w\"]"});
   CHECK(contains(e, "unknown face"));
 
-  e = error_of(kGood, {"nosuch.key=1"});
+  e = test::scene_error(kGood, {"nosuch.key=1"});
   CHECK(contains(e, "nosuch"));
   CHECK(contains(e, "unknown key"));
 
-  CHECK(error_of(R"({"tank": {"min": [0,0,0], "max": [1,1,1]}, "sph": {"spacing": 0.1}})", {"run.end_time=2"}).empty());
+  CHECK(test::scene_error(R"({"tank": {"min": [0,0,0], "max": [1,1,1]}, "sph": {"spacing": 0.1}})", {"run.end_time=2"}).empty());
 
-  e = error_of(kGood, {"fluid.5.min=[0,0,0]"});  // one block: index 5 is past the end, not "fluid.1"
+  e = test::scene_error(kGood, {"fluid.5.min=[0,0,0]"});  // one block: index 5 is past the end, not "fluid.1"
   CHECK(contains(e, "--set fluid.5.min"));
   CHECK(contains(e, "fluid has 1 element(s)"));
   CHECK(contains(e, "fluid.1 appends one"));
-  CHECK(contains(error_of(kGood, {"fluid.x.min=[0,0,0]"}), "'x' is not an index"));
-  CHECK(contains(error_of(kGood, {"fluid[0].min=[0,0,0]"}), "--set fluid[0].min: array elements are indexed with a dot: fluid.0.min"));
-  e = error_of(kGood, {"fluid.1.min=[0.5,0,0]"});  // appending a block asks for the rest of it
+  CHECK(contains(test::scene_error(kGood, {"fluid.x.min=[0,0,0]"}), "'x' is not an index"));
+  CHECK(contains(test::scene_error(kGood, {"fluid[0].min=[0,0,0]"}), "--set fluid[0].min: array elements are indexed with a dot: fluid.0.min"));
+  e = test::scene_error(kGood, {"fluid.1.min=[0.5,0,0]"});  // appending a block asks for the rest of it
   CHECK(contains(e, "fluid.1"));
   CHECK(contains(e, "max"));
   CHECK(contains(e, "is required"));
   CHECK(parse_scene(kGood, "t.json", {"fluid.1={\"min\":[0.5,0,0],\"max\":[0.6,0.5,0.1]}"}).fluid.size() == 2);
 
-  e = error_of(kGood, {"gravity"});
+  e = test::scene_error(kGood, {"gravity"});
   CHECK(contains(e, "key.path=value"));
 
-  CHECK(contains(error_of("{ \"tank\": "), "not valid JSON"));
-  CHECK(contains(error_of("[1,2]"), "must be a JSON object"));
-  CHECK(contains(error_of("{}"), "tank"));
+  CHECK(contains(test::scene_error("{ \"tank\": "), "not valid JSON"));
+  CHECK(contains(test::scene_error("[1,2]"), "must be a JSON object"));
+  CHECK(contains(test::scene_error("{}"), "tank"));
 }
 
 TEST_CASE("the speed of sound: auto is 10x the flow speed the scene can reach, an explicit one below it is refused",
@@ -155,12 +146,12 @@ TEST_CASE("the speed of sound: auto is 10x the flow speed the scene can reach, a
   CHECK(expected_flow_speed(parse_scene(kGood, "t.json", {"gravity=[0,0,0]"})) == Approx(v_column).epsilon(1e-12));
   CHECK(expected_flow_speed(parse_scene(kGood, "t.json", {"fluid.0.velocity=[3,4,0]"})) == Approx(5.0).epsilon(1e-12));
 
-  const std::string e = error_of(kGood, {"sph.speed_of_sound=1.5"});  // sqrt(g H) = 1.72 m/s
+  const std::string e = test::scene_error(kGood, {"sph.speed_of_sound=1.5"});  // sqrt(g H) = 1.72 m/s
   CHECK(contains(e, "sph.speed_of_sound = 1.5"));
   CHECK(contains(e, "supersonic"));
   CHECK(contains(e, "1.72 m/s"));
-  CHECK(error_of(kGood, {"sph.speed_of_sound=1.75"}).empty());
-  CHECK(contains(error_of(kGood, {"sph.speed_of_sound=5", "fluid.0.velocity=[6,0,0]"}), "supersonic"));
+  CHECK(test::scene_error(kGood, {"sph.speed_of_sound=1.75"}).empty());
+  CHECK(contains(test::scene_error(kGood, {"sph.speed_of_sound=5", "fluid.0.velocity=[6,0,0]"}), "supersonic"));
 }
 
 TEST_CASE("overlapping fluid blocks fill their union once, at its hydrostatic depth", "[scene][cpu]") {
@@ -209,19 +200,19 @@ TEST_CASE("a key given twice in one object is refused by its dotted path", "[sce
   // JSON allows it and the parser keeps the last, so the first was ignored
   // silently (two "sph" sections ran with the second one's spacing).
   const std::string tank = R"("tank": {"min": [0,0,0], "max": [1,1,1]})";
-  CHECK(error_of("{" + tank + R"(, "sph": {"spacing": 0.1}, "sph": {"spacing": 0.2}})") ==
+  CHECK(test::scene_error("{" + tank + R"(, "sph": {"spacing": 0.1}, "sph": {"spacing": 0.2}})") ==
         "t.json: sph is given twice (JSON keeps only the last; give it once)");
-  CHECK(contains(error_of("{" + tank + R"(, "sph": {"spacing": 0.1, "rest_density": 1000, "spacing": 0.2}})"),
+  CHECK(contains(test::scene_error("{" + tank + R"(, "sph": {"spacing": 0.1, "rest_density": 1000, "spacing": 0.2}})"),
                  "t.json: sph.spacing is given twice"));
   // inside an array: the element's index (arrays count nested objects and scalars alike)
-  CHECK(contains(error_of("{" + tank + R"(, "sph": {"spacing": 0.1}, "fluid": [
+  CHECK(contains(test::scene_error("{" + tank + R"(, "sph": {"spacing": 0.1}, "fluid": [
       {"min": [0,0,0], "max": [0.5,0.5,0.5]},
       {"min": [0.5,0,0], "max": [1,0.5,0.5], "velocity": [0,0,0], "max": [1,1,1]}]})"),
                  "t.json: fluid.1.max is given twice"));
-  CHECK(contains(error_of(kGood, {R"(fluid.0={"min":[0,0,0],"max":[0.1,0.1,0.1],"min":[0,0,0]})"}),
+  CHECK(contains(test::scene_error(kGood, {R"(fluid.0={"min":[0,0,0],"max":[0.1,0.1,0.1],"min":[0,0,0]})"}),
                  "--set fluid.0: the value names 'min' twice"));
   // the same key in different objects is no repeat
-  CHECK(error_of("{" + tank + R"(, "sph": {"spacing": 0.1}, "fluid": [
+  CHECK(test::scene_error("{" + tank + R"(, "sph": {"spacing": 0.1}, "fluid": [
       {"min": [0,0,0], "max": [0.5,0.5,0.5]}, {"min": [0.5,0,0], "max": [1,0.5,0.5]}]})").empty());
 }
 
