@@ -1,10 +1,11 @@
-// `sphray bench sim|field|frame|render`: the benchmarks (bench/), their
+// `sphray bench sim|field|frame|render|surface`: the benchmarks (bench/), their
 // tables on stdout and, with --json, their records.
 #include <iostream>
 
 #include "bench/field.h"
 #include "bench/frame.h"
 #include "bench/sim.h"
+#include "bench/surface.h"
 #include "cli.h"
 #include "commands.h"
 #include "io/scene.h"
@@ -164,6 +165,33 @@ void add_render(CLI::App* bench, int& exit_code) {
   });
 }
 
+void add_surface(CLI::App* bench, int& exit_code) {
+  struct Args {
+    Common c;
+    BenchSurfaceOptions opt;
+  };
+  auto a = std::make_shared<Args>();
+  auto* f = bench->add_subcommand("surface", "surface error of each field kernel and refine level against analytic "
+                                             "surfaces (pool, ball, sheet), with build times");
+  add_common(f, a->c, "");
+  f->add_option("--cells", a->opt.cells, "pool width in particles (default 64 on CUDA, 24 on CPU)")
+      ->check(CLI::Range(12, 512));
+  f->add_option("--settle", a->opt.settle, "seconds the pool settles under gravity")->check(CLI::Range(0.0, 10.0));
+  f->add_option("--jitter", a->opt.jitter, "pool and ball start this many spacings off the lattice, at most")
+      ->check(CLI::Range(0.0, 0.45));
+  f->add_option("--warmup", a->opt.warmup, "warm-up builds per setting")->check(CLI::Range(0, 10000));
+  f->add_option("--frames", a->opt.frames, "measured builds per setting")->check(CLI::Range(1, 100000));
+  f->add_option("--set", a->opt.overrides, "override a value of the generated scene, e.g. --set field.anisotropy.stretch=3");
+  f->callback([a, &exit_code] {
+    run_bench(a->c, [&](Backend b) {
+      const auto rows = bench_surface(b, a->opt, std::cout);
+      print_table(rows, std::cout);
+      return to_json(rows, b, a->opt);
+    });
+    exit_code = 0;
+  });
+}
+
 }  // namespace
 
 CLI::App* add_bench_command(CLI::App& app, int& exit_code) {
@@ -173,6 +201,7 @@ CLI::App* add_bench_command(CLI::App& app, int& exit_code) {
   add_field(bench, exit_code);
   add_frame(bench, exit_code);
   add_render(bench, exit_code);
+  add_surface(bench, exit_code);
   return bench;
 }
 

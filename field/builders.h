@@ -6,6 +6,7 @@
 
 #include <cstdint>
 
+#include "anisotropy.h"
 #include "core/atomics.h"
 #include "sph/params.h"
 #include "volume.h"
@@ -57,29 +58,57 @@ SPHRAY_HD SPHRAY_FORCEINLINE void for_each_box_voxel(uint32_t lane, int x0, int 
   }
 }
 
-// naive: every particle adds its full isotropic falloff to every voxel whose
+// A particle's kernel as the splats see it: a sphere of radius R around the
+// particle, or (Aniso) its ellipsoid (anisotropy.h) around the smoothed
+// centre, whose box reaches R * half along each axis.
+template <bool Aniso>
+struct SplatKernel {
+  Vec3f u;     // centre [voxels]
+  Ellipsoid e; // Aniso only
+  SPHRAY_HD SPHRAY_FORCEINLINE SplatKernel(const VolumeGeom& vol, const Float4* pos, const Float4* ell, uint32_t n,
+                                           uint32_t p) {
+    if (Aniso) {
+      e = Ellipsoid::load(ell, n, p);
+      u = e.centre;
+    } else {
+      u = vol.to_voxels(xyz(pos[p]));
+    }
+  }
+  // Half-extent of the box along axis a for a sphere radius r.
+  SPHRAY_HD SPHRAY_FORCEINLINE float reach(int a, float r) const {
+    if (!Aniso) return r;
+    return r * (a == 0 ? e.half.x : a == 1 ? e.half.y : e.half.z);
+  }
+  SPHRAY_HD SPHRAY_FORCEINLINE float r2(float dx, float dy, float dz) const {
+    return Aniso ? e.r2(dx, dy, dz) : dx * dx + dy * dy + dz * dz;
+  }
+};
+
+// naive: every particle adds its full falloff (sphere or ellipsoid) to every voxel whose
 // centre lies within R (one thread per particle, one atomic add per voxel; the
 // volume is zeroed before). The baseline of Yasuda et al.'s Table 1.
-template <bool Count, int G>
+template <bool Count, int G, bool Aniso>
 struct NaiveSplat {
   VolumeGeom vol;
   FieldShape shape;
   const Float4* pos;
+  const Float4* ell;  // [3][n] ellipsoids (Aniso)
+  uint32_t n;
   float* field;
   CounterSink sink;  // per thread (particle x lane)
 
   SPHRAY_HD void operator()(uint32_t t) const {
     const uint32_t p = t / uint32_t(G), lane = t % uint32_t(G);
-    const Vec3f u = vol.to_voxels(xyz(pos[p]));
+    const SplatKernel<Aniso> kn(vol, pos, ell, n, p);
+    const Vec3f u = kn.u;
     const float R = shape.radius, R2 = R * R;
     int x0, x1, y0, y1, z0, z1;
-    voxel_span(u.x, R, R, vol.nx, x0, x1);
-    voxel_span(u.y, R, R, vol.ny, y0, y1);
-    voxel_span(u.z, R, R, vol.nz, z0, z1);
+    voxel_span(u.x, kn.reach(0, R), kn.reach(0, R), vol.nx, x0, x1);
+    voxel_span(u.y, kn.reach(1, R), kn.reach(1, R), vol.ny, y0, y1);
+    voxel_span(u.z, kn.reach(2, R), kn.reach(2, R), vol.nz, z0, z1);
     uint32_t pairs = 0, adds = 0;
     for_each_box_voxel<G>(lane, x0, x1, y0, y1, z0, z1, [&](int i, int j, int k) {
-      const float dx = float(i) + 0.5f - u.x, dy = float(j) + 0.5f - u.y, dz = float(k) + 0.5f - u.z;
-      const float r2 = dx * dx + dy * dy + dz * dz;
+      const float r2 = kn.r2(float(i) + 0.5f - u.x, float(j) + 0.5f - u.y, float(k) + 0.5f - u.z);
       if (Count) ++pairs;
       if (r2 < R2) {
         atomic_add(field + vol.index(i, j, k), shape.falloff(r2));
@@ -92,19 +121,21 @@ struct NaiveSplat {
 
 // presence, pass 1 (coarse fill, Yasuda et al. sec. 4.2.1): every voxel reads
 // its SPH cell's particle count and becomes `coarse` (just above the iso
-// value) or 0; this pass also initialises the volume. With refine = 0 a voxel
-// is a cell and "holds a particle" is exactly count >= 1 (full_count = 1).
-// With finer voxels a cell's count no longer says which of its voxels hold
-// particles, so only cells at least `full_count` particles full (liquid at
-// rest fills a cell with (cell / dx)^3) are filled whole; pass 2 marks the
-// occupied voxels of the others.
+// value) or 0; this pass also initialises the volume. With spheres at
+// refine = 0 a voxel is a cell and "holds a particle" is exactly count >= 1
+// (full_count = 1). With finer voxels a cell's count no longer says which of
+// its voxels hold particles (nor, with ellipsoids, whether the particle's own
+// voxel is inside), so only cells at least `full_count` particles full
+// (liquid at rest fills a cell with (cell / dx)^3) are filled whole; pass 2
+// marks the occupied voxels of the others.
 struct CoarseFill {
   VolumeGeom vol;
   GridGeom grid;
   const uint32_t* offsets;
-  float coarse;  // value of an occupied cell (refine = 0)
-  float full;    // value of a full cell (refine > 0)
+  float coarse;  // value of an occupied cell (!marked)
+  float full;    // value of a full cell (marked)
   uint32_t full_count;
+  bool marked;   // FieldSetup::mark_occupied: pass 2 follows
   float* field;
 
   // One thread per run of 2^refine voxels along x that share a cell: one
@@ -118,42 +149,55 @@ struct CoarseFill {
     const uint32_t jk = t / runs;
     const int j = int(jk % uint32_t(vol.ny)), k = int(jk / uint32_t(vol.ny));
     const uint32_t c = vol.cell_key(grid, i0, j, k);
-    const float value = offsets[c + 1] - offsets[c] >= full_count ? (vol.refine == 0 ? coarse : full) : 0.0f;
+    const float value = offsets[c + 1] - offsets[c] >= full_count ? (marked ? full : coarse) : 0.0f;
     float* out = field + vol.index(i0, j, k);
     for (int i = 0; i < w; ++i) out[i] = value;
   }
 };
 
-// presence, pass 2 (refine > 0 only): the voxel that holds a particle is
-// inside (iso radius >= half the voxel diagonal), so it becomes `coarse` too.
-// Every writer writes the same value, so a plain (relaxed) store will do.
+// presence, pass 2 (FieldSetup::mark_occupied): the voxel that holds a
+// particle's (kernel) centre becomes `coarse` too. A sphere's iso radius is at
+// least half the voxel diagonal, so that voxel is inside; an ellipsoid may be
+// thinner than a voxel, so it is marked only where the particle's own kernel
+// reaches the iso value at the voxel centre (the field, a sum of such terms,
+// does too). Every writer writes the same value: a plain (relaxed) store will do.
+template <bool Aniso>
 struct MarkOccupied {
   VolumeGeom vol;
-  float coarse;
+  FieldShape shape;
   const Float4* pos;
+  const Float4* ell;
+  uint32_t n;
   float* field;
 
   SPHRAY_HD void operator()(uint32_t p) const {
-    const Vec3f u = vol.to_voxels(xyz(pos[p]));
+    const SplatKernel<Aniso> kn(vol, pos, ell, n, p);
+    const Vec3f u = kn.u;
     const int i = int(std::floor(u.x)), j = int(std::floor(u.y)), k = int(std::floor(u.z));
     if (i < 0 || j < 0 || k < 0 || i >= vol.nx || j >= vol.ny || k >= vol.nz) return;
+    if (Aniso && !(shape.falloff(kn.r2(float(i) + 0.5f - u.x, float(j) + 0.5f - u.y, float(k) + 0.5f - u.z)) >=
+                   shape.iso))
+      return;
+    const float coarse = shape.coarse;
     float* cell = field + vol.index(i, j, k);
     if (load_relaxed(cell) < coarse) store_relaxed(cell, coarse);  // a full cell's voxel already holds more
   }
 };
 
 // presence, pass 3 (fine splat, sec. 4.2.2-4.2.4): each particle adds its
-// falloff over a box whose half-extent toward each of the six directions
-// shrinks with its presence there (FieldShape::extent: a deep particle
+// falloff (sphere or ellipsoid) over a box whose half-extent toward each of
+// the six directions (the ellipsoid's box, scaled by extent / R) shrinks with
+// its presence there (FieldShape::extent: a deep particle
 // touches almost nothing, a lone one keeps the full sphere of radius R),
 // skips voxels already at or above the clip (saturation) value, and leaves
 // none past it (an atomic add, and a second one that takes back any
 // overshoot; see below). Without presence (null) every extent is R.
-template <bool Count, int G>
+template <bool Count, int G, bool Aniso>
 struct PresenceSplat {
   VolumeGeom vol;
   FieldShape shape;
   const Float4* pos;
+  const Float4* ell;      // [3][n] ellipsoids (Aniso)
   const float* presence;  // [6][n] (+x,-x,+y,-y,+z,-z) or null
   uint32_t n;
   float* field;
@@ -183,17 +227,17 @@ struct PresenceSplat {
 
   SPHRAY_HD void operator()(uint32_t t) const {
     const uint32_t p = t / uint32_t(G), lane = t % uint32_t(G);
-    const Vec3f u = vol.to_voxels(xyz(pos[p]));
+    const SplatKernel<Aniso> kn(vol, pos, ell, n, p);
+    const Vec3f u = kn.u;
     const float R2 = shape.radius * shape.radius, clip = shape.clip;
     int x0, x1, y0, y1, z0, z1;
-    voxel_span(u.x, extent(p, 1), extent(p, 0), vol.nx, x0, x1);
-    voxel_span(u.y, extent(p, 3), extent(p, 2), vol.ny, y0, y1);
-    voxel_span(u.z, extent(p, 5), extent(p, 4), vol.nz, z0, z1);
+    voxel_span(u.x, kn.reach(0, extent(p, 1)), kn.reach(0, extent(p, 0)), vol.nx, x0, x1);
+    voxel_span(u.y, kn.reach(1, extent(p, 3)), kn.reach(1, extent(p, 2)), vol.ny, y0, y1);
+    voxel_span(u.z, kn.reach(2, extent(p, 5)), kn.reach(2, extent(p, 4)), vol.nz, z0, z1);
     uint32_t pairs = 0, touched = 0, atomics = 0, skipped = 0;
     if (!all_full(x0, x1, y0, y1, z0, z1)) {
       for_each_box_voxel<G>(lane, x0, x1, y0, y1, z0, z1, [&](int i, int j, int k) {
-        const float dx = float(i) + 0.5f - u.x, dy = float(j) + 0.5f - u.y, dz = float(k) + 0.5f - u.z;
-        const float r2 = dx * dx + dy * dy + dz * dz;
+        const float r2 = kn.r2(float(i) + 0.5f - u.x, float(j) + 0.5f - u.y, float(k) + 0.5f - u.z);
         if (Count) ++pairs;
         if (!(r2 < R2)) return;
         const float f = shape.falloff(r2);

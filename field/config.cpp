@@ -21,7 +21,8 @@ FieldKind parse_field_kind(const std::string& name) {
 }
 
 FieldConfig read_field_config(const ConfigReader& r) {
-  r.only({"builder", "refine", "radius", "core", "clip", "min_extent", "shrink_from", "full_fraction", "full_value"});
+  r.only({"builder", "refine", "radius", "core", "clip", "min_extent", "shrink_from", "full_fraction", "full_value",
+          "kernel", "anisotropy"});
   FieldConfig c;
   c.builder = parse_field_kind(r.string("builder", field_kind_name(c.builder), {"naive", "presence", "gather"}));
   const double refine = r.number("refine", c.refine, 0, 2);
@@ -35,6 +36,19 @@ FieldConfig read_field_config(const ConfigReader& r) {
   c.shrink_from = r.number("shrink_from", c.shrink_from, 0.0, 0.95);
   c.full_fraction = r.number("full_fraction", c.full_fraction, 0.1, 2.0);
   c.full_value_clip = r.string("full_value", c.full_value_clip ? "clip" : "coarse", {"clip", "coarse"}) == "clip";
+  c.kernel = r.string("kernel", "isotropic", {"isotropic", "anisotropic"}) == "anisotropic" ? FieldKernel::Anisotropic
+                                                                                          : FieldKernel::Isotropic;
+  if (c.kernel == FieldKernel::Anisotropic && c.builder == FieldKind::Gather)
+    r.fail("kernel", r.at("kernel"), "the gather builder splats spheres only: use builder naive or presence");
+  if (r.has("anisotropy") && c.kernel != FieldKernel::Anisotropic)
+    r.fail("anisotropy", r.at("anisotropy"), "is read only with \"kernel\": \"anisotropic\"");
+  const ConfigReader a = r.child("anisotropy");
+  a.only({"radius", "stretch", "smoothing", "min_neighbours"});
+  AnisotropyConfig& an = c.anisotropy;
+  an.radius = a.number("radius", an.radius, 0.5, 4.0);
+  an.stretch = a.number("stretch", an.stretch, 1.0, 16.0);
+  an.smoothing = a.number("smoothing", an.smoothing, 0.0, 1.0);
+  an.min_neighbours = a.integer("min_neighbours", an.min_neighbours, 0, 1000);
   return c;
 }
 

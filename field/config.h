@@ -13,6 +13,17 @@ enum class FieldKind { Naive, Presence, Gather };
 const char* field_kind_name(FieldKind k);
 FieldKind parse_field_kind(const std::string& name);  // throws std::invalid_argument
 
+// Each particle's kernel: a sphere, or an ellipsoid stretched along the
+// local surface (Yu & Turk 2013; field/anisotropy.h, docs/field.md).
+enum class FieldKernel { Isotropic, Anisotropic };
+
+struct AnisotropyConfig {
+  double radius = 3.0;     // neighbourhood of the covariance [particle spacings]; at most the SPH grid cell
+  double stretch = 4.0;    // largest over smallest axis, at most (>= 1; 1: spheres)
+  double smoothing = 0.9;  // kernel centre moved this share of the way to the neighbours' weighted mean (0..1)
+  int min_neighbours = 8;  // fewer neighbours than this: a sphere (spray, lone particles)
+};
+
 struct FieldConfig {
   bool given = false;                     // the scene has a "field" section: built at every output frame
   FieldKind builder = FieldKind::Presence;
@@ -24,6 +35,8 @@ struct FieldConfig {
   double shrink_from = 0.5;               // presence builder: a side keeps its full extent up to this presence
   double full_fraction = 0.9;             // presence coarse fill (refine > 0): share of (cell/dx)^3 that fills a cell
   bool full_value_clip = true;            // ... and the value it gets: saturated ("clip") or just inside ("coarse")
+  FieldKernel kernel = FieldKernel::Isotropic;
+  AnisotropyConfig anisotropy;
 };
 
 FieldConfig read_field_config(const ConfigReader& r);

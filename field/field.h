@@ -7,6 +7,7 @@
 #include <string>
 #include <vector>
 
+#include "anisotropy.h"
 #include "config.h"
 #include "volume.h"
 #include "sph/solver.h"
@@ -17,7 +18,19 @@ struct FieldSetup {
   VolumeGeom geom;
   FieldShape shape;
   uint32_t full_count = 1;  // coarse fill: a cell with at least this many particles is filled whole
-  float full_fill = 0;      // ... with this value (refine > 0)
+  float full_fill = 0;      // ... with this value (when mark_occupied)
+  // The presence builder marks the voxel of each particle after the coarse
+  // fill (refine > 0, or anisotropic kernels); otherwise (refine 0, spheres)
+  // any occupied cell is just inside (the paper's rule).
+  bool mark_occupied = false;
+  AnisotropyParams aniso;   // aniso.on: ellipsoids (field/anisotropy.h)
+
+  // How far from a particle its kernel may reach [voxels]: the falloff's
+  // radius, times the largest axis scale and plus the centre's shift.
+  float reach_voxels() const {
+    if (!aniso.on) return shape.radius;
+    return shape.radius * aniso.max_scale() + aniso.smoothing * aniso.radius / geom.voxel;
+  }
 };
 
 // What a build did (counted only when asked; see docs/field.md).
@@ -41,6 +54,7 @@ class FieldBuilder {
   // particle for the splats, 1 or 32 (0: the backend's choice, docs/field.md).
   virtual void build(const ParticleView& particles, bool count = false, int group = 0) = 0;
   virtual double last_ms() const = 0;  // device time of the last build (CUDA events / wall clock on CPU)
+  virtual double last_anisotropy_ms() const = 0;  // ... of which the kernels' covariance pass (0: spheres)
   virtual const FieldCounts& last_counts() const = 0;
   virtual const float* data() const = 0;  // the volume, x fastest, in the backend's memory
   virtual std::vector<float> download() const = 0;

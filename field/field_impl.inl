@@ -7,18 +7,23 @@ struct CounterToU64 {
   SPHRAY_HD uint64_t operator()(uint32_t i) const { return c[i]; }
 };
 
-// Launches over n items the functor that make(count_tag, group_tag) returns,
-// for the four instantiations (counted or not; 1 or 32 threads per particle).
+// Launches over n items the functor that make(count_tag, group_tag,
+// aniso_tag) returns, for the eight instantiations (counted or not; 1 or 32
+// threads per particle; spheres or ellipsoids).
 template <class Make>
-void launch_variant(const char* name, uint32_t n, bool count, int group, Make&& make) {
+void launch_variant(const char* name, uint32_t n, bool count, int group, bool aniso, Make&& make) {
   using G1 = std::integral_constant<int, 1>;
   using G32 = std::integral_constant<int, 32>;
+  auto with_aniso = [&](auto c, auto g) {
+    if (aniso) parallel_for(name, n, make(c, g, std::true_type{}));
+    else parallel_for(name, n, make(c, g, std::false_type{}));
+  };
   if (count) {
-    if (group == 32) parallel_for(name, n, make(std::true_type{}, G32{}));
-    else parallel_for(name, n, make(std::true_type{}, G1{}));
+    if (group == 32) with_aniso(std::true_type{}, G32{});
+    else with_aniso(std::true_type{}, G1{});
   } else {
-    if (group == 32) parallel_for(name, n, make(std::false_type{}, G32{}));
-    else parallel_for(name, n, make(std::false_type{}, G1{}));
+    if (group == 32) with_aniso(std::false_type{}, G32{});
+    else with_aniso(std::false_type{}, G1{});
   }
 }
 
@@ -30,9 +35,12 @@ class FieldBuilderImpl final : public FieldBuilder {
   const FieldSetup& setup() const override { return setup_; }
   FieldKind kind() const override { return kind_; }
   double last_ms() const override { return ms_; }
+  double last_anisotropy_ms() const override { return aniso_ms_; }
   const FieldCounts& last_counts() const override { return counts_; }
   const float* data() const override { return raw(field_); }
-  size_t device_bytes() const override { return field_.size() * sizeof(float) + counters_.size() * sizeof(uint32_t); }
+  size_t device_bytes() const override {
+    return field_.size() * sizeof(float) + counters_.size() * sizeof(uint32_t) + ellipsoids_.size() * sizeof(Float4);
+  }
   std::vector<float> download() const override { return sphray::SPHRAY_BK::download(field_, field_.size()); }
 
   void build(const ParticleView& pv, bool count, int group) override {
@@ -60,33 +68,50 @@ class FieldBuilderImpl final : public FieldBuilder {
     }
     float* f = raw(field_);
     const uint32_t full = saturated_full_count();
+    const bool aniso = setup_.aniso.on;
+    if (aniso && kind == FieldKind::Gather)
+      throw std::invalid_argument("field builder: the gather builder splats spheres only (anisotropic kernels: naive or presence)");
+    if (aniso && !pv.fine_offsets) throw std::invalid_argument("field builder: anisotropic kernels need the grid's slab table");
+    const Float4* ell = nullptr;
+    if (aniso && ellipsoids_.size() < 3 * size_t(pv.n)) ellipsoids_.resize(3 * size_t(pv.n));
     clock_.start();
+    if (aniso) {
+      parallel_for("field_anisotropy", pv.n,
+                   ComputeAnisotropy{pv.grid, pv.fine_offsets, pv.pos, pv.n, vol, setup_.aniso, raw(ellipsoids_)});
+      ell = raw(ellipsoids_);
+    }
+    clock_.end_of("anisotropy");
     switch (kind) {
       case FieldKind::Naive:
         thrust::fill(policy(), field_.begin(), field_.end(), 0.0f);
-        launch_variant("naive_splat", items, count, group, [&](auto c, auto g) {
-          return NaiveSplat<decltype(c)::value, decltype(g)::value>{vol, shape, pv.pos, f, sink};
+        launch_variant("naive_splat", items, count, group, aniso, [&](auto c, auto g, auto a) {
+          return NaiveSplat<decltype(c)::value, decltype(g)::value, decltype(a)::value>{vol, shape, pv.pos, ell, pv.n, f, sink};
         });
         break;
       case FieldKind::Presence: {
-        const CoarseFill fill{vol, pv.grid, pv.offsets, shape.coarse, setup_.full_fill, setup_.full_count, f};
+        const CoarseFill fill{vol, pv.grid, pv.offsets, shape.coarse, setup_.full_fill, setup_.full_count,
+                              setup_.mark_occupied, f};
         parallel_for("field_fill", fill.num_items(), fill);
-        if (vol.refine > 0) parallel_for("field_mark_occupied", pv.n, MarkOccupied{vol, shape.coarse, pv.pos, f});
-        launch_variant("presence_splat", items, count, group, [&](auto c, auto g) {
-          return PresenceSplat<decltype(c)::value, decltype(g)::value>{
-              vol, shape, pv.pos, pv.presence, pv.n, f, sink, pv.grid, pv.offsets, full};
+        if (setup_.mark_occupied) {
+          if (aniso) parallel_for("field_mark_occupied", pv.n, MarkOccupied<true>{vol, shape, pv.pos, ell, pv.n, f});
+          else parallel_for("field_mark_occupied", pv.n, MarkOccupied<false>{vol, shape, pv.pos, ell, pv.n, f});
+        }
+        launch_variant("presence_splat", items, count, group, aniso, [&](auto c, auto g, auto a) {
+          return PresenceSplat<decltype(c)::value, decltype(g)::value, decltype(a)::value>{
+              vol, shape, pv.pos, ell, pv.presence, pv.n, f, sink, pv.grid, pv.offsets, full};
         });
         break;
       }
       case FieldKind::Gather:
-        launch_variant("gather_field", items, count, 1, [&](auto c, auto) {
+        launch_variant("gather_field", items, count, 1, false, [&](auto c, auto, auto) {
           return GatherField<decltype(c)::value>{vol, pv.grid, shape, pv.offsets, pv.pos, f, sink};
         });
         break;
     }
     clock_.end_of("field");
     clock_.finish();
-    ms_ = clock_.ms("field");
+    aniso_ms_ = clock_.ms("anisotropy");
+    ms_ = aniso_ms_ + clock_.ms("field");
     counts_ = FieldCounts{};
     counts_.init_writes = kind == FieldKind::Gather ? 0 : voxels;
     if (count) {
@@ -105,16 +130,17 @@ class FieldBuilderImpl final : public FieldBuilder {
   }
 
  private:
-  // Full cells are saturated when the coarse fill writes the clip value into them (refine > 0).
+  // Full cells are saturated when the coarse fill writes the clip value into them (mark_occupied).
   uint32_t saturated_full_count() const {
-    return setup_.geom.refine > 0 && setup_.full_fill >= setup_.shape.clip ? setup_.full_count : 0u;
+    return setup_.mark_occupied && setup_.full_fill >= setup_.shape.clip ? setup_.full_count : 0u;
   }
 
   FieldSetup setup_;
   FieldKind kind_;
   Vector<float> field_;
   Vector<uint32_t> counters_;
+  Vector<Float4> ellipsoids_;  // [3][n] (anisotropic kernels)
   StageClock clock_;
-  double ms_ = 0;
+  double ms_ = 0, aniso_ms_ = 0;
   FieldCounts counts_;
 };

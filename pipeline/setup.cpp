@@ -418,7 +418,23 @@ FieldSetup make_field_setup(const ResolvedScene& r) {
   sh.shrink_from = float(f.shrink_from);
   const double per_cell = std::pow(g.cell_size / s.sph.spacing, 3.0);
   out.full_fill = f.full_value_clip ? sh.clip : sh.coarse;
-  out.full_count = f.refine == 0 ? 1u : uint32_t(std::max(1.0, std::ceil(f.full_fraction * per_cell - 1e-9)));
+  AnisotropyParams& an = out.aniso;
+  an.on = f.kernel == FieldKernel::Anisotropic;
+  an.radius = float(f.anisotropy.radius * s.sph.spacing);
+  an.stretch = float(f.anisotropy.stretch);
+  an.smoothing = float(f.anisotropy.smoothing);
+  an.min_neighbours = uint32_t(f.anisotropy.min_neighbours);
+  if (an.on && an.radius > g.cell_size) {
+    std::ostringstream os;
+    os << s.file << ": field.anisotropy.radius = " << f.anisotropy.radius << " spacings is wider than the SPH grid cell ("
+       << g.cell_size / s.sph.spacing << " spacings), the farthest the neighbour grid reaches.";
+    throw SceneError(os.str());
+  }
+  // With ellipsoids a particle's own voxel need not be inside (a flat kernel
+  // is thinner than a voxel): only full cells are filled, and each particle's
+  // voxel is marked only where its own kernel reaches the iso value there.
+  out.mark_occupied = f.refine > 0 || an.on;
+  out.full_count = !out.mark_occupied ? 1u : uint32_t(std::max(1.0, std::ceil(f.full_fraction * per_cell - 1e-9)));
   return out;
 }
 

@@ -52,6 +52,19 @@ struct TrilinearField {
   }
 };
 
+// Outward unit normal (toward lower field) at u: the central-difference
+// gradient of the field, half a voxel each way; zero where it is flat.
+template <class Field>
+SPHRAY_HD SPHRAY_FORCEINLINE Vec3f field_normal(const Field& field, Vec3f u) {
+  const float h = 0.5f;
+  const Vec3f gr{field(u + Vec3f{h, 0, 0}) - field(u - Vec3f{h, 0, 0}),
+                 field(u + Vec3f{0, h, 0}) - field(u - Vec3f{0, h, 0}),
+                 field(u + Vec3f{0, 0, h}) - field(u - Vec3f{0, 0, h})};
+  const float l2 = dot(gr, gr);
+  if (!(l2 > 0.0f)) return Vec3f{0, 0, 0};
+  return gr * (-1.0f / std::sqrt(l2));
+}
+
 // Which SPH cells of the volume may hold field above zero: a cell whose
 // neighbourhood within `reach` cells has no particle has f = 0 everywhere in
 // it (no splat or gather reaches it, and neither does a trilinear lookup).
@@ -170,15 +183,7 @@ struct Tracer {
   }
 
   // Outward normal (toward lower field) at u.
-  SPHRAY_HD Vec3f normal(Vec3f u) const {
-    const float h = 0.5f;
-    const Vec3f gr{field(u + Vec3f{h, 0, 0}) - field(u - Vec3f{h, 0, 0}),
-                   field(u + Vec3f{0, h, 0}) - field(u - Vec3f{0, h, 0}),
-                   field(u + Vec3f{0, 0, h}) - field(u - Vec3f{0, 0, h})};
-    const float l2 = dot(gr, gr);
-    if (!(l2 > 0.0f)) return Vec3f{0, 0, 0};
-    return gr * (-1.0f / std::sqrt(l2));
-  }
+  SPHRAY_HD Vec3f normal(Vec3f u) const { return field_normal(field, u); }
 
   // The colour seen along the ray o + t d (o, d in voxel units, d unit).
   template <class Watch = NoTrace>

@@ -35,8 +35,8 @@ class RendererImpl final : public Renderer {
     if (pv && rs.skip_empty) {
       const uint32_t cells = uint32_t(occ.cx) * uint32_t(occ.cy) * uint32_t(occ.cz);
       if (occupancy_.size() < cells) occupancy_.resize(cells);
-      // reach: the falloff's radius plus the trilinear lookup's one voxel, in cells
-      const int reach = int(std::ceil((fs.shape.radius + 1.0f) / float(cell)));
+      // reach: the kernel's (ellipsoids: stretched and shifted) plus the trilinear lookup's one voxel, in cells
+      const int reach = int(std::ceil((fs.reach_voxels() + 1.0f) / float(cell)));
       parallel_for("render_occupancy", cells, BuildOccupancy{vol, pv->grid, pv->offsets, reach, raw(occupancy_)});
       occ.occ = raw(occupancy_);
     }

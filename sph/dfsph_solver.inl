@@ -59,7 +59,8 @@ class DfsphSolverImpl final : public Solver {
   }
 
   ParticleView view() const override {
-    return {kBackend, n_, raw(pos_), raw(offsets_), presence_valid_ ? raw(presence_) : nullptr, grid_};
+    return {kBackend, n_, raw(pos_), raw(offsets_), presence_valid_ ? raw(presence_) : nullptr, grid_,
+            raw(fine_offsets_)};
   }
 
   size_t device_bytes() const override {

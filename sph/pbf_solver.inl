@@ -60,7 +60,8 @@ class PbfSolverImpl final : public Solver {
   // again is logically const (the same particles, in cell order).
   ParticleView view() const override {
     if (!grid_current_) const_cast<PbfSolverImpl*>(this)->sort_by(pos_);
-    return {kBackend, n_, raw(pos_), raw(offsets_), presence_valid_ ? raw(presence_) : nullptr, grid_};
+    return {kBackend, n_, raw(pos_), raw(offsets_), presence_valid_ ? raw(presence_) : nullptr, grid_,
+            raw(fine_offsets_)};
   }
 
   size_t device_bytes() const override {

@@ -74,6 +74,7 @@ struct ParticleView {
   const uint32_t* offsets = nullptr;  // grid.num_cells() + 1
   const float* presence = nullptr;    // [6][n] (+x,-x,+y,-y,+z,-z); null unless the last step computed it
   GridGeom grid{};
+  const uint32_t* fine_offsets = nullptr;  // the x-slab table (nsearch/grid.h): neighbour queries (field/anisotropy.h)
 };
 
 // Device buffers copied as they are (sorted order, no conversion), for sinks

@@ -17,6 +17,7 @@ HostParticleSet::HostParticleSet(const GridGeom& g, const std::vector<Vec3f>& po
     pos[k] = {p.x, p.y, p.z, 0.0f};
   }
   offsets = b.offsets;
+  fine_offsets = b.fine_offsets;
   if (!presence_in.empty()) {
     if (presence_in.size() != 6 * points.size())
       throw std::invalid_argument("HostParticleSet: presence must hold 6 values per point");
@@ -28,7 +29,7 @@ HostParticleSet::HostParticleSet(const GridGeom& g, const std::vector<Vec3f>& po
 
 ParticleView HostParticleSet::view() const {
   return {Backend::Cpu, uint32_t(pos.size()), pos.data(), offsets.data(), presence.empty() ? nullptr : presence.data(),
-          grid};
+          grid, fine_offsets.data()};
 }
 
 }  // namespace sphray

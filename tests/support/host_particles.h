@@ -13,7 +13,7 @@ namespace sphray {
 // Presence optional ([6][n] in the order of `points`).
 struct HostParticleSet {
   std::vector<Float4> pos;
-  std::vector<uint32_t> offsets;
+  std::vector<uint32_t> offsets, fine_offsets;
   std::vector<float> presence;
   GridGeom grid{};
   HostParticleSet(const GridGeom& g, const std::vector<Vec3f>& points, const std::vector<float>& presence_in = {});

@@ -1,0 +1,45 @@
+// `sphray bench surface`: how close the rendered surface is to the true one,
+// for each kernel (spheres, anisotropic ellipsoids) and refine level, against
+// its build time (docs/field.md, "Surface error"). Three liquids whose
+// surface is known: a pool settled under gravity (a plane at the height its
+// particles fill), a ball of particles without gravity (a sphere of the
+// volume they fill), and a sheet two particles thick (no holes).
+#pragma once
+
+#include <iosfwd>
+#include <string>
+#include <vector>
+
+#include <nlohmann/json.hpp>
+
+#include "core/device.h"
+#include "io/surface_error.h"
+
+namespace sphray {
+
+struct BenchSurfaceOptions {
+  int cells = 0;        // pool width in particles: 0 = 64 on CUDA, 24 on CPU
+  double settle = 1.0;  // seconds the pool settles under gravity (DFSPH)
+  double jitter = 0.1;  // pool and ball start from the lattice moved up to this many spacings each way
+  int warmup = 3, frames = 10;
+  std::vector<std::string> overrides;  // --set on the generated scene (field.*, e.g. field.anisotropy.stretch=3)
+};
+
+struct BenchSurfaceRow {
+  std::string kernel;  // isotropic, anisotropic
+  int refine = 0;
+  double voxel_dx = 0;  // voxel edge in particle spacings
+  size_t pool_particles = 0, sphere_particles = 0, sheet_particles = 0;
+  double build_ms = 0, anisotropy_ms = 0;  // pool field, presence builder: median, and its covariance pass
+  SurfaceError pool, sphere;               // distances in particle spacings
+  SheetHoles sheet;
+};
+
+// The generated pool scene (JSON text) with `cells` particles across.
+std::string bench_surface_scene(int cells);
+
+std::vector<BenchSurfaceRow> bench_surface(Backend b, const BenchSurfaceOptions& opt, std::ostream& log);
+nlohmann::json to_json(const std::vector<BenchSurfaceRow>& rows, Backend b, const BenchSurfaceOptions& opt);
+void print_table(const std::vector<BenchSurfaceRow>& rows, std::ostream& out);
+
+}  // namespace sphray

@@ -1,0 +1,146 @@
+// Anisotropic kernels for the density field (Yu & Turk, "Reconstructing
+// Surfaces of Particle-Based Fluids Using Anisotropic Kernels", 2013;
+// docs/field.md): each particle's falloff is stretched along the local
+// surface into an ellipsoid and centred on a smoothed position, so that a flat
+// surface is flat instead of a layer of beads, and a thin sheet is a sheet.
+//
+// Per particle, over the neighbours j within the radius r (itself included),
+// with weights w = 1 - (|x_j - x_i| / r)^3:
+//   mean  m = sum w (x_j - x_i) / sum w
+//   cov   C = sum w (x_j - x_i)(x_j - x_i)^T / sum w - m m^T = R diag(l) R^T
+// sigma_k = sqrt(l_k), the smallest raised to sigma_max / stretch; the axis
+// scales s_k = sigma_k / (s_1 s_2 s_3)^(1/3) keep the kernel's volume (an
+// interior particle, whose neighbours surround it evenly, stays a sphere).
+// Fewer than `min_neighbours` neighbours: a sphere. The kernel is
+// f(|S^-1 R^T (v - c)|) with c = x_i + smoothing * m: the splat evaluates
+// the quadratic form r2 = d^T A d, A = R diag(1 / s^2) R^T, in voxel units.
+#pragma once
+
+#include <cmath>
+#include <cstdint>
+
+// Eigen's fixed-size 3x3 closed-form eigensolver runs in host and device code.
+#include <Eigen/Core>
+#include <Eigen/Eigenvalues>
+
+#include "core/hd.h"
+#include "core/vec.h"
+#include "nsearch/grid.h"
+#include "volume.h"
+
+namespace sphray {
+
+struct AnisotropyParams {
+  bool on = false;
+  float radius = 0;              // neighbourhood [m]
+  float stretch = 4;             // largest / smallest axis, at most
+  float smoothing = 0.9f;        // centre = x + smoothing * mean offset
+  uint32_t min_neighbours = 8;   // fewer: a sphere
+
+  // The largest axis scale: stretch^(2/3) (two short axes at 1 / stretch of the long one, volume kept).
+  SPHRAY_HD SPHRAY_FORCEINLINE float max_scale() const { return std::cbrt(stretch * stretch); }
+};
+
+// One particle's kernel in voxel units, stored as three Float4 per particle in
+// [3][n] layout: {c.x, c.y, c.z, h.z}, {A_xx, A_yy, A_zz, A_xy}, {A_xz, A_yz, h.x, h.y}
+// (c: centre, A: the quadratic form, h: the half-extent of the ellipsoid of
+// unit radius along each axis, sqrt((R S^2 R^T)_aa)).
+struct Ellipsoid {
+  Vec3f centre;
+  float axx, ayy, azz, axy, axz, ayz;
+  Vec3f half;
+
+  SPHRAY_HD SPHRAY_FORCEINLINE static Ellipsoid load(const Float4* e, uint32_t n, uint32_t p) {
+    const Float4 a = e[p], b = e[n + p], c = e[2 * size_t(n) + p];
+    return {{a.x, a.y, a.z}, b.x, b.y, b.z, b.w, c.x, c.y, {c.z, c.w, a.w}};
+  }
+  SPHRAY_HD SPHRAY_FORCEINLINE void store(Float4* e, uint32_t n, uint32_t p) const {
+    e[p] = {centre.x, centre.y, centre.z, half.z};
+    e[n + p] = {axx, ayy, azz, axy};
+    e[2 * size_t(n) + p] = {axz, ayz, half.x, half.y};
+  }
+  SPHRAY_HD SPHRAY_FORCEINLINE float r2(float dx, float dy, float dz) const {
+    return axx * dx * dx + ayy * dy * dy + azz * dz * dz + 2.0f * (axy * dx * dy + axz * dx * dz + ayz * dy * dz);
+  }
+};
+
+// The kernel from a covariance (normalised units) and a neighbour count.
+// Separate from the neighbour loop so that tests can check it alone.
+SPHRAY_HD SPHRAY_FORCEINLINE void ellipsoid_axes(const AnisotropyParams& ap, const Eigen::Matrix3f& cov,
+                                                 uint32_t neighbours, Ellipsoid& e) {
+  float s[3] = {1.0f, 1.0f, 1.0f};
+  Eigen::Matrix3f axes = Eigen::Matrix3f::Identity();
+  if (neighbours >= ap.min_neighbours && ap.stretch > 1.0f) {
+    Eigen::SelfAdjointEigenSolver<Eigen::Matrix3f> es;
+    es.computeDirect(cov);
+    const Eigen::Vector3f l = es.eigenvalues();  // ascending
+    const float top = std::sqrt(l(2) > 0.0f ? l(2) : 0.0f);
+    if (top > 0.0f) {
+      const float floor_sigma = top / ap.stretch;
+      for (int k = 0; k < 3; ++k) {
+        const float sig = std::sqrt(l(k) > 0.0f ? l(k) : 0.0f);
+        s[k] = sig > floor_sigma ? sig : floor_sigma;
+      }
+      const float g = std::cbrt(s[0] * s[1] * s[2]);
+      for (int k = 0; k < 3; ++k) s[k] /= g;
+      axes = es.eigenvectors();
+    }
+  }
+  const Eigen::Vector3f inv2(1.0f / (s[0] * s[0]), 1.0f / (s[1] * s[1]), 1.0f / (s[2] * s[2]));
+  const Eigen::Vector3f sq(s[0] * s[0], s[1] * s[1], s[2] * s[2]);
+  const Eigen::Matrix3f A = axes * inv2.asDiagonal() * axes.transpose();
+  const Eigen::Matrix3f M = axes * sq.asDiagonal() * axes.transpose();
+  e.axx = A(0, 0); e.ayy = A(1, 1); e.azz = A(2, 2);
+  e.axy = A(0, 1); e.axz = A(0, 2); e.ayz = A(1, 2);
+  e.half = {std::sqrt(M(0, 0)), std::sqrt(M(1, 1)), std::sqrt(M(2, 2))};
+}
+
+// One thread per particle: the weighted covariance of its neighbours (the
+// solver's grid, candidate rows culled to the radius), its kernel and centre.
+struct ComputeAnisotropy {
+  GridGeom grid;
+  const uint32_t* fine_offsets;
+  const Float4* pos;
+  uint32_t n;
+  VolumeGeom vol;
+  AnisotropyParams ap;
+  Float4* out;  // [3][n]
+
+  SPHRAY_HD void operator()(uint32_t i) const {
+    const Vec3f xi = xyz(pos[i]);
+    const float inv_r = 1.0f / ap.radius;
+    float W = 0.0f, mx = 0.0f, my = 0.0f, mz = 0.0f;
+    float sxx = 0.0f, syy = 0.0f, szz = 0.0f, sxy = 0.0f, sxz = 0.0f, syz = 0.0f;
+    uint32_t count = 0;
+    for (int row = 0; row < kCandidateRows; ++row) {
+      uint32_t begin = 0, end = 0;
+      if (!candidate_row(grid, fine_offsets, xi, row, begin, end, ap.radius)) continue;
+      for (uint32_t j = begin; j < end; ++j) {
+        const Vec3f pj = xyz(pos[j]);
+        // Offsets in units of the radius: the covariance stays O(1) in float.
+        const float dx = (pj.x - xi.x) * inv_r, dy = (pj.y - xi.y) * inv_r, dz = (pj.z - xi.z) * inv_r;
+        const float q2 = dx * dx + dy * dy + dz * dz;
+        if (!(q2 < 1.0f)) continue;
+        const float w = 1.0f - q2 * std::sqrt(q2);
+        W += w;
+        mx += w * dx; my += w * dy; mz += w * dz;
+        sxx += w * dx * dx; syy += w * dy * dy; szz += w * dz * dz;
+        sxy += w * dx * dy; sxz += w * dx * dz; syz += w * dy * dz;
+        count += j != i;
+      }
+    }
+    const float iw = 1.0f / W;  // W >= 1: the particle itself
+    mx *= iw; my *= iw; mz *= iw;
+    Eigen::Matrix3f cov;
+    cov << sxx * iw - mx * mx, sxy * iw - mx * my, sxz * iw - mx * mz,
+           sxy * iw - mx * my, syy * iw - my * my, syz * iw - my * mz,
+           sxz * iw - mx * mz, syz * iw - my * mz, szz * iw - mz * mz;
+    Ellipsoid e;
+    ellipsoid_axes(ap, cov, count, e);
+    const float shift = ap.smoothing * ap.radius;
+    e.centre = vol.to_voxels(Vec3f{xi.x + shift * mx, xi.y + shift * my, xi.z + shift * mz});
+    e.store(out, n, i);
+  }
+};
+
+}  // namespace sphray

@@ -1,0 +1,352 @@
+// Anisotropic kernels (field/anisotropy.h) and the surface error metrics
+// (io/surface_error.h) against independent references: the covariance pass
+// against a double brute-force computation with another eigensolver, the
+// anisotropic naive field against a double sum over the reference ellipsoids,
+// the presence builder's classification against naive's, the metrics on
+// analytic fields, and the surface claim itself on a pool, a ball and a sheet.
+#include <algorithm>
+#include <cmath>
+#include <random>
+#include <vector>
+
+#include <Eigen/Eigenvalues>
+
+#include "bench/surface.h"
+#include "catch.h"
+#include "helpers.h"
+#include "host_particles.h"
+#include "field/field.h"
+#include "io/metrics.h"
+#include "io/surface_error.h"
+
+using namespace sphray;
+
+namespace {
+
+// The small tank of test_field (dx = 0.01, cells of 0.04 m: a voxel is one spacing at refine 2).
+Scene aniso_scene(const std::vector<std::string>& sets = {}) {
+  std::vector<std::string> all = {"field.kernel=anisotropic"};
+  all.insert(all.end(), sets.begin(), sets.end());
+  const std::string text = R"({"tank": {"min": [0,0,0], "max": [0.4,0.2,0.3]},
+    "fluid": [{"min": [0,0,0], "max": [0.12,0.2,0.2]}],
+    "sph": {"spacing": 0.01}, "field": {"refine": 2}, "run": {"end_time": 1}})";
+  return parse_scene(text, "aniso.json", all);
+}
+
+// A block of lattice points (spacing dx, jittered by `jitter` dx) filling
+// [lo, hi), plus `loose` random points in the tank above it: surfaces, edges,
+// corners and lone particles.
+std::vector<Vec3f> liquid(const Scene& s, double jitter, int loose, unsigned seed) {
+  std::mt19937 rng(seed);
+  std::uniform_real_distribution<double> u(-0.5, 0.5);
+  const double dx = s.sph.spacing;
+  std::vector<Vec3f> pts;
+  for (int k = 0; k < 8; ++k)
+    for (int j = 0; j < 12; ++j)
+      for (int i = 0; i < 14; ++i)
+        pts.push_back({float((i + 3.5 + jitter * u(rng)) * dx), float((j + 3.5 + jitter * u(rng)) * dx),
+                       float((k + 0.5 + jitter * u(rng)) * dx)});
+  std::uniform_real_distribution<double> ux(0.02, 0.38), uy(0.02, 0.18), uz(0.12, 0.28);
+  for (int k = 0; k < loose; ++k) pts.push_back({float(ux(rng)), float(uy(rng)), float(uz(rng))});
+  return pts;
+}
+
+// The kernel of point i, in double from its definition (field/anisotropy.h),
+// with Eigen's iterative (QR) eigensolver instead of the closed form.
+struct RefKernel {
+  Eigen::Vector3d centre;  // voxels
+  Eigen::Matrix3d A;
+};
+RefKernel reference_kernel(const std::vector<Vec3f>& pts, size_t i, const FieldSetup& fs) {
+  const AnisotropyParams& ap = fs.aniso;
+  const double r = ap.radius;
+  const Eigen::Vector3d xi(pts[i].x, pts[i].y, pts[i].z);
+  double W = 0;
+  Eigen::Vector3d m = Eigen::Vector3d::Zero();
+  Eigen::Matrix3d S = Eigen::Matrix3d::Zero();
+  uint32_t count = 0;
+  for (size_t j = 0; j < pts.size(); ++j) {
+    const Eigen::Vector3d d = (Eigen::Vector3d(pts[j].x, pts[j].y, pts[j].z) - xi) / r;
+    const double q = d.norm();
+    if (q >= 1.0) continue;
+    const double w = 1.0 - q * q * q;
+    W += w;
+    m += w * d;
+    S += w * d * d.transpose();
+    count += j != i;
+  }
+  m /= W;
+  const Eigen::Matrix3d C = S / W - m * m.transpose();
+  Eigen::Vector3d s(1, 1, 1);
+  Eigen::Matrix3d R = Eigen::Matrix3d::Identity();
+  if (count >= ap.min_neighbours && ap.stretch > 1) {
+    Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> es(C);
+    const Eigen::Vector3d l = es.eigenvalues();
+    const double top = std::sqrt(std::max(l(2), 0.0));
+    for (int k = 0; k < 3; ++k) s(k) = std::max(std::sqrt(std::max(l(k), 0.0)), top / ap.stretch);
+    s /= std::cbrt(s(0) * s(1) * s(2));
+    R = es.eigenvectors();
+  }
+  RefKernel k;
+  k.A = R * s.cwiseInverse().cwiseAbs2().asDiagonal() * R.transpose();
+  const Eigen::Vector3d c = xi + ap.smoothing * r * m;
+  k.centre = Eigen::Vector3d((c(0) - fs.geom.origin.x) / fs.geom.voxel, (c(1) - fs.geom.origin.y) / fs.geom.voxel,
+                             (c(2) - fs.geom.origin.z) / fs.geom.voxel);
+  return k;
+}
+
+// The covariance pass run on the host over a sorted particle set: the kernels in sorted order.
+std::vector<Ellipsoid> kernels_of(const HostParticleSet& ps, const FieldSetup& fs) {
+  const uint32_t n = uint32_t(ps.pos.size());
+  std::vector<Float4> out(3 * size_t(n));
+  const ComputeAnisotropy pass{ps.grid, ps.fine_offsets.data(), ps.pos.data(), n, fs.geom, fs.aniso, out.data()};
+  for (uint32_t i = 0; i < n; ++i) pass(i);
+  std::vector<Ellipsoid> e(n);
+  for (uint32_t i = 0; i < n; ++i) e[i] = Ellipsoid::load(out.data(), n, i);
+  return e;
+}
+
+std::vector<Vec3f> sorted_points(const HostParticleSet& ps) {
+  std::vector<Vec3f> p;
+  for (const Float4& q : ps.pos) p.push_back({q.x, q.y, q.z});
+  return p;
+}
+
+Eigen::Matrix3d form_of(const Ellipsoid& e) {
+  Eigen::Matrix3d A;
+  A << e.axx, e.axy, e.axz, e.axy, e.ayy, e.ayz, e.axz, e.ayz, e.azz;
+  return A;
+}
+
+std::vector<float> build(const FieldSetup& fs, const ParticleView& v, FieldKind k) {
+  auto b = make_cpu_field_builder(fs, k);
+  b->build(v);
+  return b->download();
+}
+
+}  // namespace
+
+TEST_CASE("anisotropic kernels equal a double brute-force covariance with another eigensolver", "[field]") {
+  const Scene s = aniso_scene();
+  const FieldSetup fs = make_field_setup(resolve_scene(s));
+  REQUIRE(fs.aniso.on);
+  const HostParticleSet ps(measure_scene(s).grid, liquid(s, 0.3, 300, 5));
+  const std::vector<Vec3f> pts = sorted_points(ps);
+  const std::vector<Ellipsoid> e = kernels_of(ps, fs);
+  double worst_form = 0, worst_centre = 0, worst_half = 0;
+  for (size_t i = 0; i < pts.size(); ++i) {
+    const RefKernel r = reference_kernel(pts, i, fs);
+    worst_form = std::max(worst_form, (form_of(e[i]) - r.A).norm() / r.A.norm());
+    worst_centre = std::max(worst_centre, (Eigen::Vector3d(e[i].centre.x, e[i].centre.y, e[i].centre.z) - r.centre).norm());
+    // The box of the unit ellipsoid: sqrt of the diagonal of A's inverse.
+    const Eigen::Matrix3d M = r.A.inverse();
+    worst_half = std::max({worst_half, std::abs(e[i].half.x - std::sqrt(M(0, 0))), std::abs(e[i].half.y - std::sqrt(M(1, 1))),
+                           std::abs(e[i].half.z - std::sqrt(M(2, 2)))});
+  }
+  INFO("worst relative form error " << worst_form << ", centre " << worst_centre << " voxels, half-extent " << worst_half);
+  CHECK(worst_form < 2e-3);
+  CHECK(worst_centre < 1e-4);
+  CHECK(worst_half < 2e-3);
+}
+
+TEST_CASE("anisotropic kernels: spheres inside and alone, flat at a surface, stretch and volume as set", "[field]") {
+  const Scene s = aniso_scene();
+  const FieldSetup fs = make_field_setup(resolve_scene(s));
+  const HostParticleSet ps(measure_scene(s).grid, liquid(s, 0.0, 0, 1));
+  const std::vector<Vec3f> pts = sorted_points(ps);
+  const std::vector<Ellipsoid> e = kernels_of(ps, fs);
+  const double dx = s.sph.spacing;
+  int interior = 0, surface = 0;
+  for (size_t i = 0; i < pts.size(); ++i) {
+    const Eigen::Matrix3d A = form_of(e[i]);
+    CHECK(A.determinant() == Approx(1.0).epsilon(1e-4));  // volume kept
+    const Eigen::Vector3d l = Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d>(A).eigenvalues();
+    CHECK(std::sqrt(l(2) / l(0)) <= fs.aniso.stretch * (1 + 1e-4));  // axis ratio within the limit
+    const double x = pts[i].x / dx, y = pts[i].y / dx, z = pts[i].z / dx;
+    const bool deep = x > 6 && x < 14 && y > 6 && y < 12 && z > 3 && z < 5;
+    const bool top = z > 7 && x > 6 && x < 14 && y > 6 && y < 12;
+    if (deep) {  // surrounded evenly: a sphere where it was
+      ++interior;
+      CHECK((A - Eigen::Matrix3d::Identity()).norm() < 1e-3);
+      const Vec3f u = fs.geom.to_voxels(pts[i]);
+      CHECK(std::abs(e[i].centre.x - u.x) + std::abs(e[i].centre.y - u.y) + std::abs(e[i].centre.z - u.z) < 1e-3);
+    }
+    if (top) {  // the free surface: thin along z, wide along x and y, centre pulled inward
+      ++surface;
+      CHECK(A(2, 2) > 1.5);
+      CHECK(A(0, 0) < 1.0);
+      CHECK(A(1, 1) < 1.0);
+      CHECK(std::abs(A(0, 2)) + std::abs(A(1, 2)) < 1e-3);
+      CHECK(e[i].centre.z < fs.geom.to_voxels(pts[i]).z);
+    }
+  }
+  CHECK(interior > 10);
+  CHECK(surface > 10);
+  // A lone particle, and every particle with stretch 1, is a sphere.
+  const HostParticleSet lone(measure_scene(s).grid, {Vec3f{0.2f, 0.1f, 0.2f}});
+  CHECK((form_of(kernels_of(lone, fs)[0]) - Eigen::Matrix3d::Identity()).norm() < 1e-6);
+  const FieldSetup round = make_field_setup(resolve_scene(aniso_scene({"field.anisotropy.stretch=1"})));
+  for (const Ellipsoid& k : kernels_of(ps, round)) REQUIRE((form_of(k) - Eigen::Matrix3d::Identity()).norm() < 1e-6);
+}
+
+TEST_CASE("anisotropic naive field equals a double sum over the reference ellipsoids", "[field]") {
+  const Scene s = aniso_scene();
+  const FieldSetup fs = make_field_setup(resolve_scene(s));
+  const HostParticleSet ps(measure_scene(s).grid, liquid(s, 0.3, 200, 9));
+  const std::vector<Vec3f> pts = sorted_points(ps);
+  std::vector<RefKernel> ref;
+  for (size_t i = 0; i < pts.size(); ++i) ref.push_back(reference_kernel(pts, i, fs));
+  const std::vector<float> naive = build(fs, ps.view(), FieldKind::Naive);
+  const double R = fs.shape.radius, c2 = fs.shape.core2;
+  double worst = 0;
+  std::mt19937 rng(2);
+  int inside = 0;
+  for (int t = 0; t < 3000; ++t) {
+    // Half the samples near the liquid block, where the ellipsoids overlap.
+    const int i = t % 2 ? int(rng() % 24) : int(rng() % fs.geom.nx), j = int(rng() % fs.geom.ny),
+              k = t % 2 ? int(rng() % 16) : int(rng() % fs.geom.nz);
+    double sum = 0;
+    for (const RefKernel& r : ref) {
+      const Eigen::Vector3d d = Eigen::Vector3d(i + 0.5, j + 0.5, k + 0.5) - r.centre;
+      const double q2 = d.dot(r.A * d);
+      if (q2 < R * R) sum += 1.0 / (q2 + c2) - 1.0 / (R * R + c2);
+    }
+    const float got = naive[fs.geom.index(i, j, k)];
+    inside += got >= fs.shape.iso;
+    worst = std::max(worst, std::abs(got - sum) / (1.0 + sum));
+  }
+  INFO("worst relative error " << worst << ", " << inside << " samples inside");
+  CHECK(inside > 200);
+  CHECK(worst < 1e-3);
+}
+
+TEST_CASE("presence builder with ellipsoids and without presence classifies exactly as naive", "[field]") {
+  for (int refine : {0, 1, 2}) {
+    INFO("refine " << refine);
+    const Scene s = aniso_scene({"field.refine=" + std::to_string(refine)});
+    const FieldSetup fs = make_field_setup(resolve_scene(s));
+    CHECK(fs.mark_occupied);
+    // Random points: no cell is full, so every inside voxel is the splat's or a marked one.
+    std::mt19937 rng(17 + refine);
+    std::uniform_real_distribution<float> ux(0.0f, 0.4f), uy(0.0f, 0.2f), uz(0.0f, 0.3f);
+    std::vector<Vec3f> pts(4000);
+    for (auto& p : pts) p = {ux(rng), uy(rng), uz(rng)};
+    const HostParticleSet ps(measure_scene(s).grid, pts);
+    const std::vector<float> naive = build(fs, ps.view(), FieldKind::Naive);
+    const std::vector<float> pres = build(fs, ps.view(), FieldKind::Presence);
+    size_t differ = 0, inside = 0;
+    for (size_t v = 0; v < naive.size(); ++v) {
+      differ += (naive[v] >= fs.shape.iso) != (pres[v] >= fs.shape.iso);
+      inside += naive[v] >= fs.shape.iso;
+    }
+    CHECK(inside > 500);
+    CHECK(differ == 0);
+    CHECK(*std::max_element(pres.begin(), pres.end()) <= fs.shape.clip * (1.0f + 1e-6f));
+  }
+}
+
+TEST_CASE("surface error metrics on analytic fields", "[field]") {
+  VolumeGeom vol{};
+  vol.origin = {0, 0, 0};
+  vol.voxel = 0.01f;
+  vol.nx = vol.ny = vol.nz = 40;
+  vol.refine = 2;
+  const size_t n = vol.num_voxels();
+  auto fill = [&](auto f) {
+    std::vector<float> v(n);
+    for (int k = 0; k < 40; ++k)
+      for (int j = 0; j < 40; ++j)
+        for (int i = 0; i < 40; ++i) v[vol.index(i, j, k)] = float(f((i + 0.5) * 0.01, (j + 0.5) * 0.01, (k + 0.5) * 0.01));
+    return v;
+  };
+  // A plane at z = 0.173 m, field linear in z: found to the bisection's accuracy, normal vertical.
+  const std::vector<float> plane = fill([](double, double, double z) { return 0.173 - z; });
+  const SurfaceError p = plane_surface_error(plane, vol, 0.0f, {0.05, 0.05, 0.0}, {0.35, 0.35, 0.3}, 0.173, 0.01);
+  CHECK(p.rays == 900);
+  CHECK(p.missed == 0);
+  CHECK(p.rms_distance < 1e-5);
+  CHECK(p.rms_angle_deg < 0.01);
+  // The same plane tilted by 5 degrees: the tilt is measured.
+  const double t = std::tan(5.0 * M_PI / 180.0);
+  const std::vector<float> tilted = fill([&](double x, double, double z) { return 0.173 + t * (x - 0.2) - z; });
+  const SurfaceError pt = plane_surface_error(tilted, vol, 0.0f, {0.05, 0.05, 0.0}, {0.35, 0.35, 0.3}, 0.173, 0.01);
+  CHECK(pt.rms_angle_deg == Approx(5.0).epsilon(0.01));
+  CHECK(pt.rms_distance == Approx(t * 0.15 / std::sqrt(3.0)).epsilon(0.03));  // RMS of a uniform ramp over +-0.15 m
+  // A sphere of radius 0.12 m from a distance field: within a trilinear field's curvature error.
+  const std::vector<float> ball = fill([](double x, double y, double z) {
+    return 0.12 - std::sqrt((x - 0.2) * (x - 0.2) + (y - 0.2) * (y - 0.2) + (z - 0.2) * (z - 0.2));
+  });
+  const SurfaceError b = sphere_surface_error(ball, vol, 0.0f, {0.2, 0.2, 0.2}, 0.12, 500, 0.05);
+  CHECK(b.missed == 0);
+  CHECK(b.rms_distance < 0.02 * 0.01);
+  CHECK(b.rms_angle_deg < 1.0);
+  // Measured against a radius 1 voxel off: the offset.
+  const SurfaceError b2 = sphere_surface_error(ball, vol, 0.0f, {0.2, 0.2, 0.2}, 0.11, 500, 0.05);
+  CHECK(b2.mean_distance == Approx(0.01).epsilon(0.02));
+  // A slab with a square hole of 0.1 x 0.1 m in a 0.3 x 0.3 m window; the
+  // trilinear field widens it to the neighbouring voxel centres (the hole's
+  // -1 outweighs the slab's 0.01 almost up to them): 0.11 x 0.11 m.
+  const std::vector<float> slab = fill([](double x, double y, double z) {
+    const bool hole = x > 0.1 && x < 0.2 && y > 0.1 && y < 0.2;
+    return hole ? -1.0 : 0.01 - std::abs(z - 0.2);
+  });
+  const SheetHoles h = sheet_holes(slab, vol, 0.0f, {0.05, 0.05, 0.15}, {0.35, 0.35, 0.25}, 0.005);
+  CHECK(h.share() == Approx(0.11 * 0.11 / 0.09).epsilon(0.03));
+  CHECK(sheet_holes(plane, vol, 0.0f, {0.05, 0.05, 0.15}, {0.35, 0.35, 0.25}, 0.005).holes == 0);
+}
+
+TEST_CASE("anisotropic kernels make a flatter, truer pool surface and a truer ball radius", "[field][slow]") {
+  // The bench's three liquids at a coarse size (24 particles across; the
+  // numbers of docs/field.md come from larger ones). At refine 2 the
+  // ellipsoids put the pool's surface nearer its true height with less tilt
+  // and the ball's surface nearer its true radius. (The ball's normals are
+  // not better: docs/field.md.)
+  BenchSurfaceOptions opt;
+  opt.cells = 24;
+  opt.settle = 0.5;
+  opt.warmup = 0;
+  opt.frames = 1;
+  std::ostringstream log;
+  const std::vector<BenchSurfaceRow> rows = bench_surface(Backend::Cpu, opt, log);
+  REQUIRE(rows.size() == 6);
+  const BenchSurfaceRow *iso = nullptr, *an = nullptr;
+  for (const auto& r : rows) {
+    if (r.refine == 2) (r.kernel == "anisotropic" ? an : iso) = &r;
+    CHECK(r.pool.missed == 0);
+    CHECK(r.sphere.missed == 0);
+  }
+  REQUIRE(iso);
+  REQUIRE(an);
+  print_table(rows, log);
+  INFO(log.str());
+  CHECK(an->pool.rms_angle_deg < 0.5 * iso->pool.rms_angle_deg);
+  CHECK(an->pool.rms_distance < 0.5 * iso->pool.rms_distance);
+  CHECK(an->pool.rms_distance < 0.3);  // spacings
+  CHECK(an->sphere.rms_distance < 0.5 * iso->sphere.rms_distance);
+  CHECK(an->sphere.rms_distance < 0.4);
+  CHECK(an->sheet.holes <= iso->sheet.holes);
+}
+
+TEST_CASE("anisotropy settings are validated by key", "[field][scene]") {
+  auto names = [](const std::vector<std::string>& sets, const std::string& part) {
+    const std::string e = test::scene_error(R"({"tank": {"min": [0,0,0], "max": [0.4,0.2,0.3]},
+      "fluid": [{"min": [0,0,0], "max": [0.12,0.2,0.2]}], "sph": {"spacing": 0.01}, "run": {"end_time": 1}})", sets);
+    INFO(e);
+    CHECK(test::has(e, part));
+  };
+  names({"field.kernel=elliptic"}, "field.kernel");
+  names({"field.kernel=anisotropic", "field.anisotropy.stretch=0.5"}, "field.anisotropy.stretch");
+  names({"field.kernel=anisotropic", "field.anisotropy.smoothing=-0.1"}, "field.anisotropy.smoothing");
+  names({"field.kernel=anisotropic", "field.anisotropy.radius=0"}, "field.anisotropy.radius");
+  names({"field.kernel=anisotropic", "field.anisotropy.min_neighbours=2.5"}, "field.anisotropy.min_neighbours");
+  names({"field.kernel=anisotropic", "field.anisotropy.size=2"}, "unknown key");
+  names({"field.anisotropy.stretch=2"}, "field.anisotropy");
+  names({"field.kernel=anisotropic", "field.builder=gather"}, "field.kernel");
+  // Wider than the grid cell (4 spacings at the default smoothing): refused when the volume is made.
+  try {
+    make_field_setup(resolve_scene(aniso_scene({"field.anisotropy.radius=4", "sph.smoothing_ratio=1.5"})));
+    FAIL("no error");
+  } catch (const SceneError& e) {
+    CHECK(test::has(e.what(), "field.anisotropy.radius"));
+  }
+}
