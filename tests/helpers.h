@@ -91,6 +91,13 @@ inline std::string scene_error(const std::string& text, const std::vector<std::s
   return "";
 }
 
+// The field the CPU builder of `kind` makes from a particle view.
+inline std::vector<float> cpu_field(const FieldSetup& fs, const ParticleView& v, FieldKind kind) {
+  auto b = make_cpu_field_builder(fs, kind);
+  b->build(v);
+  return b->download();
+}
+
 inline void run_until(Solver& s, double t) {
   while (s.time() < t - 1e-12) s.step(t);
 }

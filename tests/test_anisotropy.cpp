@@ -118,12 +118,6 @@ Eigen::Matrix3d form_of(const Ellipsoid& e) {
   return A;
 }
 
-std::vector<float> build(const FieldSetup& fs, const ParticleView& v, FieldKind k) {
-  auto b = make_cpu_field_builder(fs, k);
-  b->build(v);
-  return b->download();
-}
-
 }  // namespace
 
 TEST_CASE("anisotropic kernels equal a double brute-force covariance with another eigensolver", "[field]") {
@@ -196,7 +190,7 @@ TEST_CASE("anisotropic naive field equals a double sum over the reference ellips
   const std::vector<Vec3f> pts = sorted_points(ps);
   std::vector<RefKernel> ref;
   for (size_t i = 0; i < pts.size(); ++i) ref.push_back(reference_kernel(pts, i, fs));
-  const std::vector<float> naive = build(fs, ps.view(), FieldKind::Naive);
+  const std::vector<float> naive = test::cpu_field(fs, ps.view(), FieldKind::Naive);
   const double R = fs.shape.radius, c2 = fs.shape.core2;
   double worst = 0;
   std::mt19937 rng(2);
@@ -232,8 +226,8 @@ TEST_CASE("presence builder with ellipsoids and without presence classifies exac
     std::vector<Vec3f> pts(4000);
     for (auto& p : pts) p = {ux(rng), uy(rng), uz(rng)};
     const HostParticleSet ps(measure_scene(s).grid, pts);
-    const std::vector<float> naive = build(fs, ps.view(), FieldKind::Naive);
-    const std::vector<float> pres = build(fs, ps.view(), FieldKind::Presence);
+    const std::vector<float> naive = test::cpu_field(fs, ps.view(), FieldKind::Naive);
+    const std::vector<float> pres = test::cpu_field(fs, ps.view(), FieldKind::Presence);
     size_t differ = 0, inside = 0;
     for (size_t v = 0; v < naive.size(); ++v) {
       differ += (naive[v] >= fs.shape.iso) != (pres[v] >= fs.shape.iso);

@@ -54,12 +54,6 @@ std::vector<Vec3f> random_points(const Scene& s, size_t n, unsigned seed) {
   return pts;
 }
 
-std::vector<float> build(const FieldSetup& fs, const ParticleView& v, FieldKind k) {
-  auto b = make_cpu_field_builder(fs, k);
-  b->build(v);
-  return b->download();
-}
-
 }  // namespace
 
 TEST_CASE("field geometry: the volume is the grid over the tank at 2^refine voxels per cell", "[field]") {
@@ -99,7 +93,7 @@ TEST_CASE("a lone particle anywhere in a voxel makes that voxel inside (surface 
     const Vec3f p{fs.geom.origin.x + (vi + u(rng)) * fs.geom.voxel, fs.geom.origin.y + (vj + u(rng)) * fs.geom.voxel,
                   fs.geom.origin.z + (vk + u(rng)) * fs.geom.voxel};
     const HostParticleSet ps(measure_scene(s).grid, {p});
-    const std::vector<float> f = build(fs, ps.view(), FieldKind::Naive);
+    const std::vector<float> f = test::cpu_field(fs, ps.view(), FieldKind::Naive);
     CHECK(f[fs.geom.index(vi, vj, vk)] >= fs.shape.iso);
   }
 }
@@ -109,8 +103,8 @@ TEST_CASE("naive and gather fields equal a double brute-force sum", "[field]") {
   const FieldSetup fs = make_field_setup(resolve_scene(s));
   const std::vector<Vec3f> pts = random_points(s, 3000, 3);
   const HostParticleSet ps(measure_scene(s).grid, pts);
-  const std::vector<float> naive = build(fs, ps.view(), FieldKind::Naive);
-  const std::vector<float> gather = build(fs, ps.view(), FieldKind::Gather);
+  const std::vector<float> naive = test::cpu_field(fs, ps.view(), FieldKind::Naive);
+  const std::vector<float> gather = test::cpu_field(fs, ps.view(), FieldKind::Gather);
   double worst_naive = 0, worst_gather = 0;
   std::mt19937 rng(4);
   for (int t = 0; t < 3000; ++t) {
@@ -130,8 +124,8 @@ TEST_CASE("presence builder without presence classifies exactly as naive, and ne
     const Scene s = small_scene({"field.refine=" + std::to_string(refine)});
     const FieldSetup fs = make_field_setup(resolve_scene(s));
     const HostParticleSet ps(measure_scene(s).grid, random_points(s, 4000, 7 + refine));
-    const std::vector<float> naive = build(fs, ps.view(), FieldKind::Naive);
-    const std::vector<float> pres = build(fs, ps.view(), FieldKind::Presence);
+    const std::vector<float> naive = test::cpu_field(fs, ps.view(), FieldKind::Naive);
+    const std::vector<float> pres = test::cpu_field(fs, ps.view(), FieldKind::Presence);
     size_t differ = 0;
     for (size_t v = 0; v < naive.size(); ++v) differ += (naive[v] >= fs.shape.iso) != (pres[v] >= fs.shape.iso);
     INFO("refine " << refine);
@@ -200,7 +194,7 @@ TEST_CASE("presence builder on a dam break after its collapse: within 1% of naiv
   CHECK(*std::max_element(pres.begin(), pres.end()) <= fs.shape.clip * (1.0f + 1e-6f));  // to float rounding
   if (kernel != "isotropic") return;  // gather splats spheres only
   // Gather computes the naive field.
-  const FieldError g = compare_fields(fs.geom.nx, fs.geom.ny, fs.geom.nz, naive, build(fs, v, FieldKind::Gather),
+  const FieldError g = compare_fields(fs.geom.nx, fs.geom.ny, fs.geom.nz, naive, test::cpu_field(fs, v, FieldKind::Gather),
                                       fs.shape.iso);
   CHECK(g.misclassified_band + g.misclassified_other <= 2);  // float summation order only
   CHECK(g.mean_distance < 1e-3);
