@@ -154,6 +154,14 @@ TEST_CASE("sphray run builds the field at every frame when the scene has one", "
   CHECK(has(r.output, "3 builds"));               // t = 0 and two frames
   CHECK(has(r.output, "1 without presence"));     // only t = 0: the frames' last steps computed it
   CHECK(has(slurp(tmp + "/sphray_field_summary.json"), "\"builds_without_presence\": 1"));
+  CHECK(has(r.output, "isotropic kernels"));
+  // With ellipsoids the summary says so.
+  const Result a = run_cli("run " + scene + " --backend cpu --quiet --set run.end_time=0.02 --set run.output_interval=0.01 "
+                           "--set field.kernel=anisotropic --summary-json " + tmp + "/sphray_field_summary_aniso.json");
+  INFO(a.output);
+  CHECK(a.code == 0);
+  CHECK(has(a.output, "presence builder, anisotropic kernels"));
+  CHECK(has(slurp(tmp + "/sphray_field_summary_aniso.json"), "\"kernel\": \"anisotropic\""));
 }
 
 TEST_CASE("sphray bench sim writes every row with its stages and its wall time", "[cli][cpu]") {
