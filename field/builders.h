@@ -79,7 +79,9 @@ struct SplatKernel {
     if (!Aniso) return r;
     return r * (a == 0 ? e.half.x : a == 1 ? e.half.y : e.half.z);
   }
-  SPHRAY_HD SPHRAY_FORCEINLINE float r2(float dx, float dy, float dz) const {
+  // The kernel's squared distance to the centre of voxel (i, j, k).
+  SPHRAY_HD SPHRAY_FORCEINLINE float r2_at(int i, int j, int k) const {
+    const float dx = float(i) + 0.5f - u.x, dy = float(j) + 0.5f - u.y, dz = float(k) + 0.5f - u.z;
     return Aniso ? e.r2(dx, dy, dz) : dx * dx + dy * dy + dz * dz;
   }
 };
@@ -108,7 +110,7 @@ struct NaiveSplat {
     voxel_span(u.z, kn.reach(2, R), kn.reach(2, R), vol.nz, z0, z1);
     uint32_t pairs = 0, adds = 0;
     for_each_box_voxel<G>(lane, x0, x1, y0, y1, z0, z1, [&](int i, int j, int k) {
-      const float r2 = kn.r2(float(i) + 0.5f - u.x, float(j) + 0.5f - u.y, float(k) + 0.5f - u.z);
+      const float r2 = kn.r2_at(i, j, k);
       if (Count) ++pairs;
       if (r2 < R2) {
         atomic_add(field + vol.index(i, j, k), shape.falloff(r2));
@@ -175,9 +177,7 @@ struct MarkOccupied {
     const Vec3f u = kn.u;
     const int i = int(std::floor(u.x)), j = int(std::floor(u.y)), k = int(std::floor(u.z));
     if (i < 0 || j < 0 || k < 0 || i >= vol.nx || j >= vol.ny || k >= vol.nz) return;
-    if (Aniso && !(shape.falloff(kn.r2(float(i) + 0.5f - u.x, float(j) + 0.5f - u.y, float(k) + 0.5f - u.z)) >=
-                   shape.iso))
-      return;
+    if (Aniso && !(shape.falloff(kn.r2_at(i, j, k)) >= shape.iso)) return;
     const float coarse = shape.coarse;
     float* cell = field + vol.index(i, j, k);
     if (load_relaxed(cell) < coarse) store_relaxed(cell, coarse);  // a full cell's voxel already holds more
@@ -237,7 +237,7 @@ struct PresenceSplat {
     uint32_t pairs = 0, touched = 0, atomics = 0, skipped = 0;
     if (!all_full(x0, x1, y0, y1, z0, z1)) {
       for_each_box_voxel<G>(lane, x0, x1, y0, y1, z0, z1, [&](int i, int j, int k) {
-        const float r2 = kn.r2(float(i) + 0.5f - u.x, float(j) + 0.5f - u.y, float(k) + 0.5f - u.z);
+        const float r2 = kn.r2_at(i, j, k);
         if (Count) ++pairs;
         if (!(r2 < R2)) return;
         const float f = shape.falloff(r2);
