@@ -69,14 +69,14 @@ double angle_deg(Vec3f n, Vec3f want) {
   return std::acos(c) * 180.0 / kPi;
 }
 
-void check(const std::vector<float>& field, const VolumeGeom& vol, double pitch) {
+void check(const std::vector<float>& field, const VolumeGeom& vol) {
   if (field.size() != vol.num_voxels()) throw std::invalid_argument("surface error: field and volume sizes differ");
-  if (!(pitch > 0.0)) throw std::invalid_argument("surface error: the ray pitch must be positive");
 }
 
 // Calls f(x, y) at the centres of a grid of pitch over [lo, hi] in x and y.
 template <class F>
 void for_each_column(Vec3d lo, Vec3d hi, double pitch, F&& f) {
+  if (!(pitch > 0.0)) throw std::invalid_argument("surface error: the ray pitch must be positive");
   const int nx = std::max(1, int(std::floor((hi.x - lo.x) / pitch))), ny = std::max(1, int(std::floor((hi.y - lo.y) / pitch)));
   for (int j = 0; j < ny; ++j)
     for (int i = 0; i < nx; ++i) f(lo.x + (i + 0.5) * (hi.x - lo.x) / nx, lo.y + (j + 0.5) * (hi.y - lo.y) / ny);
@@ -86,7 +86,7 @@ void for_each_column(Vec3d lo, Vec3d hi, double pitch, F&& f) {
 
 SurfaceError plane_surface_error(const std::vector<float>& field, const VolumeGeom& vol, float iso, Vec3d lo,
                                  Vec3d hi, double height, double pitch) {
-  check(field, vol, pitch);
+  check(field, vol);
   const Marcher m{TrilinearField{field.data(), vol.nx, vol.ny, vol.nz}, iso, vol};
   const Vec3f down{0, 0, -1}, up{0, 0, 1};
   const double t_max = (hi.z - lo.z) / vol.voxel;
@@ -103,7 +103,7 @@ SurfaceError plane_surface_error(const std::vector<float>& field, const VolumeGe
 
 SurfaceError sphere_surface_error(const std::vector<float>& field, const VolumeGeom& vol, float iso, Vec3d centre,
                                   double radius, int rays, double margin) {
-  check(field, vol, 1.0);
+  check(field, vol);
   if (rays < 1 || !(radius > 0.0) || !(margin > 0.0)) throw std::invalid_argument("surface error: bad sphere");
   const Marcher m{TrilinearField{field.data(), vol.nx, vol.ny, vol.nz}, iso, vol};
   const double golden = kPi * (3.0 - std::sqrt(5.0));
@@ -124,7 +124,7 @@ SurfaceError sphere_surface_error(const std::vector<float>& field, const VolumeG
 
 SheetHoles sheet_holes(const std::vector<float>& field, const VolumeGeom& vol, float iso, Vec3d lo, Vec3d hi,
                        double pitch) {
-  check(field, vol, pitch);
+  check(field, vol);
   const Marcher m{TrilinearField{field.data(), vol.nx, vol.ny, vol.nz}, iso, vol};
   const double t_max = (hi.z - lo.z) / vol.voxel;
   SheetHoles h;
