@@ -164,8 +164,12 @@ struct Tracer {
       const float gn = field(o + d * tn) - iso;
       const bool crossed = inside ? gn < 0.0f : gn >= 0.0f;
       if (crossed) {
-        // linear interpolation between the two samples, then regula falsi
         float ta = t, ga = g, tb = tn, gb = gn;
+        // No sign change: the ray started already across (its origin lies on
+        // the surface within the hit's accuracy, or a sheet thinner than a
+        // step): the crossing is at the start.
+        if ((ga >= 0.0f) == (gb >= 0.0f)) return ta;
+        // linear interpolation between the two samples, then regula falsi
         float tm = ga != gb ? ta + (tb - ta) * (ga / (ga - gb)) : tb;
         for (int s = 0; s < ts.secant_steps; ++s) {
           const float gm = field(o + d * tm) - iso;

@@ -206,6 +206,31 @@ TEST_CASE("the liquid is confined to the tank: glass is the interface, the margi
   CHECK(at_glass);
 }
 
+TEST_CASE("a ray that starts across the surface finds its crossing within its segment", "[render]") {
+  // Branches start on the surface, within the hit's accuracy of it: a start
+  // already across (outside state, field above iso, or the reverse) must give
+  // a crossing in [0, t_max], never one extrapolated off the segment.
+  const AnalyticVolume vol(sphere);
+  const auto tracer = make_tracer(vol, settings(4));
+  std::mt19937 rng(7);
+  std::uniform_real_distribution<float> u(-1, 1);
+  int checked = 0;
+  for (int r = 0; r < 2000; ++r) {
+    const Vec3f n = normalized(Vec3f{u(rng), u(rng), u(rng)});
+    const float depth = 0.3f * u(rng);  // voxels inside (+) or outside (-) the sphere's surface
+    const Vec3f p = Vec3f{float(kC), float(kC), float(kC)} + n * float(kRho - depth);
+    const Vec3f d = normalized(Vec3f{u(rng), u(rng), u(rng)});
+    for (bool inside : {false, true}) {
+      const float t_max = 20.0f;
+      const float th = tracer.find_crossing(p, d, t_max, inside);
+      INFO("depth " << depth << ", inside " << inside << ": crossing at " << th);
+      CHECK((th == -1.0f || (th >= 0.0f && th <= t_max)));
+      ++checked;
+    }
+  }
+  CHECK(checked == 4000);
+}
+
 TEST_CASE("a ray refracts through a sphere as Snell's law says", "[render]") {
   const AnalyticVolume vol(sphere);
   const auto tracer = make_tracer(vol, settings(2));
