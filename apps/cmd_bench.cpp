@@ -150,7 +150,13 @@ void add_render(CLI::App* bench, int& exit_code) {
   r->add_option("--reference-step", o.reference_step, "reference march step [voxels]")->check(CLI::Range(0.001, 0.5));
   r->add_option("--warmup", o.warmup, "warm-up renders")->check(CLI::Range(0, 10000));
   r->add_option("--frames", o.frames, "measured renders")->check(CLI::Range(1, 100000));
-  r->add_option("--png-dir", o.png_dir, "write the reference and the default-setting image here");
+  r->add_option("--budgets", o.budgets,
+                "branch budgets to compare, e.g. 0,4,8 (interfaces per pixel after the first path; 0: reflections off)")
+      ->delimiter(',')
+      ->check(CLI::Range(0, 64));
+  r->add_option("--min-weight", o.min_weight, "with reflections, branches weaker than this take the environment")
+      ->check(CLI::Range(0.0, 1.0));
+  r->add_option("--png-dir", o.png_dir, "write the reference and the default-setting images here");
   r->add_option("--set", o.overrides, "override a value of the generated scene");
   r->callback([a, &exit_code] {
     run_bench(a->c, [&](Backend b) {

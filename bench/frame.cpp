@@ -142,13 +142,18 @@ std::vector<BenchRenderRow> bench_render(Backend b, const BenchRenderOptions& op
   const Camera cam = make_camera(s.tank, s.render);
   const Environment env = make_environment(s.tank, field->setup().geom, cam);
 
+  // Every branch to 8 interfaces: at most 255 interfaces per pixel, no weight cut.
   RenderSettings ref = s.render;
   ref.step = float(opt.reference_step);
   ref.interfaces = 8;
+  ref.reflections = true;
+  ref.budget = 255;
+  ref.min_weight = 0;
   field->build(pv);
   renderer->render(field->data(), field->setup(), &pv, cam, env, ref);
   const Image reference = renderer->download();
-  log << "  reference: naive field, step " << ref.step << " voxels, 8 interfaces, " << renderer->last_ms() << " ms\n";
+  log << "  reference: naive field, step " << ref.step << " voxels, every branch to 8 interfaces, "
+      << renderer->last_ms() << " ms\n";
   if (!opt.png_dir.empty()) write_png(png_path(opt.png_dir, "render_reference.png"), reference);
 
   std::vector<BenchRenderRow> rows;
@@ -160,23 +165,30 @@ std::vector<BenchRenderRow> bench_render(Backend b, const BenchRenderOptions& op
       if (k >= opt.warmup) fms.push_back(field->last_ms());
     }
     for (double step : opt.steps)
-      for (int n : opt.interfaces) {
-        RenderSettings rs = s.render;
-        rs.step = float(step);
-        rs.interfaces = n;
-        std::vector<double> ms;
-        for (int k = 0; k < opt.warmup + opt.frames; ++k) {
-          renderer->render(field->data(), field->setup(), &pv, cam, env, rs);
-          if (k >= opt.warmup) ms.push_back(renderer->last_ms());
+      for (int n : opt.interfaces)
+        for (int budget : opt.budgets) {
+          RenderSettings rs = s.render;
+          rs.step = float(step);
+          rs.interfaces = n;
+          rs.reflections = budget > 0;
+          if (budget > 0) rs.budget = budget;
+          rs.min_weight = opt.min_weight;
+          std::vector<double> ms;
+          for (int k = 0; k < opt.warmup + opt.frames; ++k) {
+            renderer->render(field->data(), field->setup(), &pv, cam, env, rs);
+            if (k >= opt.warmup) ms.push_back(renderer->last_ms());
+          }
+          const Image img = renderer->download();
+          BenchRenderRow r{field_kind_name(kind), step, n, budget, median(ms), median(fms), psnr(reference, img)};
+          if (!opt.png_dir.empty() && kind == FieldKind::Presence && step == 0.5 && n == 4 && budget == 0)
+            write_png(png_path(opt.png_dir, "render_no_reflections.png"), img);
+          if (!opt.png_dir.empty() && kind == FieldKind::Presence && step == 0.5 && n == 4 && budget == 8)
+            write_png(png_path(opt.png_dir, "render_default.png"), img);
+          log << "    " << r.builder << " step " << step << " N " << n << " budget " << budget << ": " << std::fixed
+              << std::setprecision(3) << r.render_ms << " ms, PSNR " << std::setprecision(2) << r.psnr_db << " dB\n"
+              << std::defaultfloat;
+          rows.push_back(r);
         }
-        const Image img = renderer->download();
-        BenchRenderRow r{field_kind_name(kind), step, n, median(ms), median(fms), psnr(reference, img)};
-        if (!opt.png_dir.empty() && kind == FieldKind::Presence && step == 0.5 && n == 4)
-          write_png(png_path(opt.png_dir, "render_default.png"), img);
-        log << "    " << r.builder << " step " << step << " N " << n << ": " << std::fixed << std::setprecision(3)
-            << r.render_ms << " ms, PSNR " << std::setprecision(2) << r.psnr_db << " dB\n" << std::defaultfloat;
-        rows.push_back(r);
-      }
   }
   return rows;
 }
@@ -185,22 +197,24 @@ nlohmann::json to_json(const std::vector<BenchRenderRow>& rows, Backend b, const
   nlohmann::json j = bench_json("render", b, "median ms (device events); PSNR over R, G, B in dB", opt.overrides);
   j["particles"] = opt.particles;
   j["image"] = {opt.width, opt.height};
-  j["reference"] = {{"builder", "naive"}, {"step_voxels", opt.reference_step}, {"interfaces", 8}};
+  j["reference"] = {{"builder", "naive"}, {"step_voxels", opt.reference_step}, {"interfaces", 8},
+                    {"branches", "all (budget 255, no weight cut)"}};
+  j["min_weight"] = opt.min_weight;
   j["warmup_renders"] = opt.warmup;
   j["measured_renders"] = opt.frames;
   j["rows"] = nlohmann::json::array();
   for (const auto& r : rows)
     j["rows"].push_back({{"builder", r.builder}, {"step_voxels", r.step}, {"interfaces", r.interfaces},
-                         {"render_ms", r.render_ms}, {"field_ms", r.field_ms},
+                         {"budget", r.budget}, {"render_ms", r.render_ms}, {"field_ms", r.field_ms},
                          {"psnr_db", std::isinf(r.psnr_db) ? nlohmann::json("inf") : nlohmann::json(r.psnr_db)}});
   return j;
 }
 
 void print_table(const std::vector<BenchRenderRow>& rows, std::ostream& out) {
-  out << std::setw(10) << "builder" << std::setw(8) << "step" << std::setw(5) << "N" << std::setw(10) << "field ms"
+  out << std::setw(10) << "builder" << std::setw(8) << "step" << std::setw(5) << "N" << std::setw(8) << "budget" << std::setw(10) << "field ms"
       << std::setw(11) << "render ms" << std::setw(10) << "PSNR dB\n";
   for (const auto& r : rows)
-    out << std::setw(10) << r.builder << std::setw(8) << r.step << std::setw(5) << r.interfaces << std::fixed
+    out << std::setw(10) << r.builder << std::setw(8) << r.step << std::setw(5) << r.interfaces << std::setw(8) << r.budget << std::fixed
         << std::setprecision(3) << std::setw(10) << r.field_ms << std::setw(11) << r.render_ms << std::setprecision(2)
         << std::setw(10) << r.psnr_db << "\n" << std::defaultfloat;
 }

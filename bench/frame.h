@@ -2,8 +2,9 @@
 // the density field and the raycast, each timed with device events after a
 // warm-up, medians over the measured frames (and the frame's wall time).
 // `sphray bench render`: the raycaster's image error (PSNR against a reference
-// rendered with a very small step and 8 interfaces from the naive field)
-// against its run time, over step size, interfaces and field builder.
+// rendered from the naive field with a very small step and every branch traced
+// to 8 interfaces) against its run time, over step size, interfaces, the
+// reflected branch's budget and field builder.
 #pragma once
 
 #include <iosfwd>
@@ -55,8 +56,10 @@ struct BenchRenderOptions {
   size_t particles = 125000;
   int width = 960, height = 540;
   double reference_step = 0.05;  // voxels
-  std::vector<double> steps{0.5, 0.25, 0.125};
-  std::vector<int> interfaces{1, 2, 4, 8};
+  std::vector<double> steps{0.5, 0.25};
+  std::vector<int> interfaces{2, 4, 8};
+  std::vector<int> budgets{0, 4, 8, 16};  // interfaces per pixel after the first path; 0: reflected branch not traced
+  double min_weight = 1.0 / 256;           // with reflections: weaker branches take the environment
   int warmup = 3;
   int frames = 10;
   double collapse = 2.5;
@@ -68,6 +71,7 @@ struct BenchRenderRow {
   std::string builder;
   double step = 0;
   int interfaces = 0;
+  int budget = 0;                      // 0: reflections off
   double render_ms = 0, field_ms = 0;  // medians
   double psnr_db = 0;                  // against the reference
 };

@@ -9,13 +9,18 @@
 //  2. at a sign change of f - iso, refine between the last two samples: linear
 //     interpolation, then secant (regula falsi) steps that keep the bracket;
 //  3. normal from the central-difference gradient of the trilinear field;
-//  4. split with Schlick's Fresnel (Schlick 1994): the reflected part goes to
-//     the environment, the refracted part (Snell, index `ior`) is followed; a
-//     ray that cannot leave (total internal reflection) is reflected whole;
-//  5. repeat up to `interfaces` interfaces; Beer-Lambert absorption on every
-//     segment inside the liquid; the last ray goes to the environment.
-// Every contribution is weight x environment colour, and the weights of one
-// ray sum to at most 1 (exactly 1 without absorption): tests check it.
+//  4. split with Schlick's Fresnel (Schlick 1994) into a reflected and a
+//     refracted (Snell, index `ior`) branch; a ray that cannot leave (total
+//     internal reflection) is reflected whole. Without `reflections` the
+//     reflected branch takes the environment and the refracted one is
+//     followed; with them the stronger is followed and the weaker waits,
+//     traced after the first path (strongest first) within a budget of
+//     further interfaces per pixel;
+//  5. repeat up to `interfaces` interfaces along each path; Beer-Lambert
+//     absorption on every segment inside the liquid, the absorbed share
+//     replaced by the liquid's `tint`; a path's last ray takes the environment.
+// Every contribution is weight x colour (environment or tint), and the
+// weights of one pixel sum to exactly 1: tests check it.
 // The optics are in optics.h, the camera and the surroundings in environment.h.
 #pragma once
 
@@ -122,10 +127,19 @@ struct BuildOccupancy {
 struct TraceSettings {
   float iso;
   float step;        // march step [voxels], at most 0.5
-  int interfaces;    // 1 .. 8
+  int interfaces;    // 1 .. 8: interfaces along any one path
   float ior;         // liquid / air
   Rgb absorption;    // Beer-Lambert coefficient per voxel of path
   int secant_steps;  // after the linear interpolation
+  // The reflected branch: false sends it to the environment in its
+  // direction; true traces it too: the stronger branch of each interface is
+  // followed first, the other waits; the waiting branches, strongest first,
+  // share `budget` interfaces per pixel beyond those of the first path; a
+  // branch weaker than `min_weight` (every channel) takes the environment.
+  bool reflections = false;
+  int budget = 8;
+  float min_weight = 0.0f;
+  Rgb tint{0, 0, 0};  // what the liquid scatters toward the eye where it absorbs (deep water's colour)
 };
 
 // What a test may watch (the renderer passes NoTrace: compiled away).
@@ -135,7 +149,9 @@ struct NoTrace {
   SPHRAY_HD void contribution(Rgb) const {}
 };
 
-template <class Field>
+// Pending: how many branches may wait at once (the weakest take the
+// environment beyond that).
+template <class Field, int Pending = 16>
 struct Tracer {
   Field field;
   Occupancy occupancy;
@@ -192,25 +208,71 @@ struct Tracer {
   // The colour seen along the ray o + t d (o, d in voxel units, d unit).
   template <class Watch = NoTrace>
   SPHRAY_HD Rgb trace(Vec3f o, Vec3f d, const Watch& watch = Watch{}) const {
-    Rgb colour{0, 0, 0}, w{1, 1, 1};
     Vec3f p, entry_n;
     bool on_face;
     if (!enter(o, d, p, entry_n, on_face)) {
-      watch.contribution(w);
+      watch.contribution(Rgb{1, 1, 1});
       return env(o, d);
     }
-    bool inside = field(p) >= ts.iso;
-    int k = 0;
-    if (inside && on_face) {
+    Rgb colour{0, 0, 0};
+    Waiting pending;
+    int budget = ts.interfaces;  // the first path's; the branches then share ts.budget
+    Branch b{p, d, Rgb{1, 1, 1}, field(p) >= ts.iso, 0};
+    if (b.inside && on_face) {
       // The liquid touches the face it enters through (the tank's glass):
       // an interface with the face's normal, not the field's.
-      inside = false;
-      interface_at(p, entry_n, d, inside, w, colour, watch);
-      ++k;
+      b.inside = false;
+      interface_at(b, entry_n, colour, pending, watch);
+      --budget;
     }
+    follow(b, o, budget, colour, pending, watch);
+    budget = ts.budget;
+    while (pending.n > 0) {
+      b = pending.take(pending.strongest());
+      follow(b, o, budget, colour, pending, watch);
+    }
+    return colour;
+  }
+
+ private:
+  struct Branch {
+    Vec3f p, d;
+    Rgb w;        // the share of the pixel this branch carries
+    bool inside;  // in the liquid
+    int k;        // interfaces met along this path
+  };
+  SPHRAY_HD static float share(const Branch& b) { return b.w.r + b.w.g + b.w.b; }
+  // The branches waiting to be traced, strongest first: the budget goes
+  // where the pixel's weight is.
+  struct Waiting {
+    Branch item[Pending];
+    int n = 0;
+    SPHRAY_HD int strongest() const {
+      int best = 0;
+      for (int i = 1; i < n; ++i) best = share(item[i]) > share(item[best]) ? i : best;
+      return best;
+    }
+    SPHRAY_HD int weakest() const {
+      int worst = 0;
+      for (int i = 1; i < n; ++i) worst = share(item[i]) < share(item[worst]) ? i : worst;
+      return worst;
+    }
+    SPHRAY_HD Branch take(int i) {
+      const Branch b = item[i];
+      item[i] = item[--n];
+      return b;
+    }
+  };
+
+  // Follow one branch to its end (the environment, the floor or a wall),
+  // keeping the weaker branch of each interface in `pending`.
+  template <class Watch>
+  SPHRAY_HD void follow(Branch& b, Vec3f o, int& budget, Rgb& colour, Waiting& pending, const Watch& watch) const {
+    Vec3f& p = b.p;
+    const Vec3f& d = b.d;
     bool stopped = false;  // on the floor or an opaque wall (wall_face)
     int wall_face = 4;
-    for (; k < ts.interfaces && !stopped; ++k) {
+    for (; b.k < ts.interfaces && budget > 0 && !stopped;) {
       float b0, b1;
       ray_box(p, d, Vec3f{0, 0, 0}, box_hi, b0, b1);
       const float t_box = b1 > 0.0f ? b1 : 0.0f;
@@ -226,10 +288,10 @@ struct Tracer {
       }
       float t_max = t_wall < t_box ? t_wall : t_box;
       t_max = t_glass < t_max ? t_glass : t_max;
-      const float th = find_crossing(p, d, t_max, inside);
+      const float th = find_crossing(p, d, t_max, b.inside);
       const float len = th >= 0.0f ? th : t_max;
-      watch.segment(p, p + d * len, inside);
-      if (inside) absorb(w, len);
+      watch.segment(p, p + d * len, b.inside);
+      if (b.inside) absorb(b.w, len, colour, watch);
       if (th < 0.0f) {
         if (t_wall <= t_box && t_wall <= t_glass) {  // the tank stops the ray: the environment at the wall
           p = p + d * t_wall;
@@ -239,31 +301,33 @@ struct Tracer {
         }
         if (t_glass < t_box) {  // at the glass: out of the liquid through it, or already in air
           p = p + d * t_glass;
-          if (!inside) break;
-          interface_at(p, face_normal(face), d, inside, w, colour, watch);
-          if (!inside) break;  // refracted out of the tank: nothing more to meet
-          continue;            // totally reflected back into the liquid
+          if (!b.inside) break;
+          interface_at(b, face_normal(face), colour, pending, watch);
+          --budget;
+          if (!b.inside) break;  // refracted out of the tank: nothing more to meet
+          continue;              // reflected back into the liquid
         }
-        if (!inside) break;  // left the volume: the environment
+        if (!b.inside) break;  // left the volume: the environment
         // still inside at the box: leave through the tank's glass
         p = p + d * t_max;
-        interface_at(p, box_face_normal(p), d, inside, w, colour, watch);
+        interface_at(b, box_face_normal(p), colour, pending, watch);
+        --budget;
         continue;
       }
       p = p + d * th;
       Vec3f n = normal(p);
       if (n.x == 0.0f && n.y == 0.0f && n.z == 0.0f) n = -d;
-      interface_at(p, n, d, inside, w, colour, watch);
+      interface_at(b, n, colour, pending, watch);
+      --budget;
     }
-    watch.contribution(w);
+    watch.contribution(b.w);
     // A ray that met no interface looks at the environment from its own
-    // origin (the volume box reaches below the floor, where the ground would
-    // otherwise be seen from underneath).
-    if (stopped) return colour + w * env.surface(wall_face, p, d);
-    return colour + w * env(k == 0 ? o : p, d);
+    // origin o (the volume box reaches below the floor, where the ground
+    // would otherwise be seen from underneath). Branches start at one.
+    if (stopped) colour = colour + b.w * env.surface(wall_face, p, d);
+    else colour = colour + b.w * env(b.k == 0 ? o : p, d);
   }
 
- private:
   // Where the ray o + t d starts looking for liquid: on the volume box (or at
   // o inside it) and within the tank's walls. The liquid stays within them:
   // a ray that starts in the volume's margin goes on to where it enters them
@@ -290,37 +354,74 @@ struct Tracer {
 
   SPHRAY_HD Vec3f box_face_normal(Vec3f p) const { return face_normal(nearest_face(p, Vec3f{0, 0, 0}, box_hi)); }
 
-  SPHRAY_HD void absorb(Rgb& w, float len) const {
-    w.r *= std::exp(-ts.absorption.r * len);
-    w.g *= std::exp(-ts.absorption.g * len);
-    w.b *= std::exp(-ts.absorption.b * len);
+  // Beer-Lambert over len voxels of liquid; what is absorbed is replaced by
+  // the tint (light the liquid scatters toward the eye), so the weights of a
+  // pixel still sum to 1.
+  template <class Watch>
+  SPHRAY_HD void absorb(Rgb& w, float len, Rgb& colour, const Watch& watch) const {
+    const Rgb T{std::exp(-ts.absorption.r * len), std::exp(-ts.absorption.g * len), std::exp(-ts.absorption.b * len)};
+    const Rgb lost = w * Rgb{1.0f - T.r, 1.0f - T.g, 1.0f - T.b};
+    watch.contribution(lost);
+    colour = colour + lost * ts.tint;
+    w = w * T;
   }
 
-  // One interface at p with outward normal n_out: the reflected part to the
-  // environment, the refracted part followed (d, inside, w updated). Total
-  // internal reflection keeps everything inside.
+  // One interface at b.p with outward normal n_out, split with Schlick's
+  // Fresnel term. Total internal reflection keeps everything inside. Else
+  // without `reflections` the reflected part takes the environment and the
+  // refracted part goes on; with them the stronger part goes on and the
+  // weaker waits in `pending` (or takes the environment when it is weaker
+  // than min_weight or could meet no further interface; when every slot is
+  // taken, the weaker of it and the weakest waiting branch does).
   template <class Watch>
-  SPHRAY_HD void interface_at(Vec3f& p, Vec3f n_out, Vec3f& d, bool& inside, Rgb& w, Rgb& colour,
-                              const Watch& watch) const {
+  SPHRAY_HD void interface_at(Branch& b, Vec3f n_out, Rgb& colour, Waiting& pending, const Watch& watch) const {
+    const Vec3f p = b.p, d = b.d;
     const Vec3f n = dot(n_out, d) < 0.0f ? n_out : -n_out;  // facing the incoming ray
-    const float n1 = inside ? ts.ior : 1.0f, n2 = inside ? 1.0f : ts.ior;
+    const float n1 = b.inside ? ts.ior : 1.0f, n2 = b.inside ? 1.0f : ts.ior;
     const float cos_i = -dot(n, d);
     Vec3f r;
     float cos_t;
     const Vec3f refl = reflect(d, n);
+    ++b.k;
     if (!refract(d, n, n1 / n2, r, cos_t)) {  // total internal reflection
       watch.interface(p, n, refl, true, 1.0f);
-      d = refl;
+      b.d = refl;
       return;
     }
+    r = normalized(r);
     const float F = schlick(n1, n2, n1 <= n2 ? cos_i : cos_t);
-    const Rgb wr = w * F;
-    watch.contribution(wr);
-    colour = colour + wr * env(p, refl);
     watch.interface(p, n, r, false, F);
-    w = w * (1.0f - F);
-    d = normalized(r);
-    inside = !inside;
+    const bool go_reflected = ts.reflections && F > 0.5f;
+    Branch weak = b;  // the part not followed
+    if (go_reflected) {
+      weak.w = b.w * (1.0f - F);
+      weak.d = r;
+      weak.inside = !b.inside;
+      b.w = b.w * F;
+      b.d = refl;
+    } else {
+      weak.w = b.w * F;
+      weak.d = refl;
+      b.w = b.w * (1.0f - F);
+      b.d = r;
+      b.inside = !b.inside;
+    }
+    const bool keep = ts.reflections && weak.k < ts.interfaces &&
+                      (weak.w.r >= ts.min_weight || weak.w.g >= ts.min_weight || weak.w.b >= ts.min_weight);
+    if (keep) {
+      if (pending.n < Pending) {
+        pending.item[pending.n++] = weak;
+        return;
+      }
+      const int i = pending.weakest();  // full: the weaker of it and the weakest waiting ends here
+      if (share(pending.item[i]) < share(weak)) {
+        const Branch out = pending.take(i);
+        pending.item[pending.n++] = weak;
+        weak = out;
+      }
+    }
+    watch.contribution(weak.w);
+    colour = colour + weak.w * env(weak.p, weak.d);
   }
 };
 

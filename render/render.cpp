@@ -69,7 +69,11 @@ TraceSettings make_trace_settings(const RenderSettings& r, const FieldSetup& fs)
                        r.interfaces,
                        r.ior,
                        Rgb{float(r.absorption.x * v), float(r.absorption.y * v), float(r.absorption.z * v)},
-                       r.secant_steps};
+                       r.secant_steps,
+                       r.reflections,
+                       r.budget,
+                       float(r.min_weight),
+                       Rgb{float(r.tint.x), float(r.tint.y), float(r.tint.z)}};
 }
 
 std::unique_ptr<Renderer> make_renderer(Backend b) {

@@ -5,7 +5,8 @@
 namespace sphray {
 
 RenderSettings read_render_settings(const ConfigReader& r) {
-  r.only({"width", "height", "interfaces", "step", "secant_steps", "ior", "absorption", "skip_empty", "eye", "target",
+  r.only({"width", "height", "interfaces", "step", "secant_steps", "ior", "absorption", "tint", "reflections",
+          "budget", "min_weight", "skip_empty", "eye", "target",
           "fov", "frames_every"});
   RenderSettings R;
   R.width = r.integer("width", R.width, 16, 8192);
@@ -18,6 +19,12 @@ RenderSettings read_render_settings(const ConfigReader& r) {
   if (std::min({R.absorption.x, R.absorption.y, R.absorption.z}) < 0 ||
       std::max({R.absorption.x, R.absorption.y, R.absorption.z}) > 1e4)
     r.fail("absorption", r.at("absorption"), "must be three coefficients in [0, 1e4] per metre");
+  R.tint = r.vec3("tint", R.tint);
+  if (std::min({R.tint.x, R.tint.y, R.tint.z}) < 0 || std::max({R.tint.x, R.tint.y, R.tint.z}) > 1)
+    r.fail("tint", r.at("tint"), "must be three linear colour values in [0, 1]");
+  R.reflections = r.boolean("reflections", R.reflections);
+  R.budget = r.integer("budget", R.budget, 1, 64);
+  R.min_weight = r.number("min_weight", R.min_weight, 0.0, 1.0);
   R.skip_empty = r.boolean("skip_empty", R.skip_empty);
   R.eye = r.vec3("eye", R.eye);
   R.target = r.vec3("target", R.target);

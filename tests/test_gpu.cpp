@@ -399,16 +399,19 @@ TEST_CASE("cuda raycast agrees with the cpu raycast", "[gpu]") {
   const Camera cam = make_camera(s.tank, s.render);
   const Environment env = make_environment(s.tank, fs.geom, cam);
   auto rc = make_cpu_renderer(), rg = make_cuda_renderer();
-  for (int interfaces : {1, 4, 8}) {
-    RenderSettings rs = s.render;
-    rs.interfaces = interfaces;
-    const ParticleView vc = cpu->view(), vg = gpu->view();
-    rc->render(fc->data(), fs, &vc, cam, env, rs);
-    rg->render(fg->data(), fs, &vg, cam, env, rs);
-    const Image a = rc->download(), b = rg->download();
-    const size_t differ = pixels_differing(a, b, 3);
-    INFO(interfaces << " interfaces: PSNR " << psnr(a, b) << " dB, " << differ << " pixels differ by more than 3 levels");
-    CHECK(psnr(a, b) > 40.0);
-    CHECK(differ < a.rgba.size() / 200);
-  }
+  for (int interfaces : {1, 4, 8})
+    for (bool reflections : {false, true}) {
+      RenderSettings rs = s.render;
+      rs.interfaces = interfaces;
+      rs.reflections = reflections;
+      const ParticleView vc = cpu->view(), vg = gpu->view();
+      rc->render(fc->data(), fs, &vc, cam, env, rs);
+      rg->render(fg->data(), fs, &vg, cam, env, rs);
+      const Image a = rc->download(), b = rg->download();
+      const size_t differ = pixels_differing(a, b, 3);
+      INFO(interfaces << " interfaces, reflections " << reflections << ": PSNR " << psnr(a, b) << " dB, " << differ
+                      << " pixels differ by more than 3 levels");
+      CHECK(psnr(a, b) > 40.0);
+      CHECK(differ < a.rgba.size() / 200);
+    }
 }

@@ -292,6 +292,8 @@ void draw_panel(PanelState& s, RenderSettings& rs, const Solver& solver, Backend
   const char* builders[] = {"naive", "presence", "gather"};
   if (ImGui::Combo("field builder", &s.builder_index, builders, 3)) s.kind = parse_field_kind(builders[s.builder_index]);
   ImGui::SliderInt("interfaces", &rs.interfaces, 1, 8);
+  ImGui::Checkbox("reflections traced", &rs.reflections);
+  if (rs.reflections) ImGui::SliderInt("branch budget", &rs.budget, 1, 64);
   ImGui::Text("sim %.2f ms  field %.2f ms  render %.2f ms", s.sim_ms, s.field_ms, s.render_ms);
   ImGui::Text("%.1f fps (%dx%d)", s.fps, w, h);
   ImGui::Text("drag: orbit  wheel: zoom  space: pause  N: step  R: reset");
