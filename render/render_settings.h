@@ -14,8 +14,8 @@ struct RenderSettings {
   float step = 0.5f;        // march step [voxels], (0, 0.5]
   int secant_steps = 3;     // after the linear interpolation of a hit
   float ior = 1.33f;        // refractive index of the liquid
-  Vec3d absorption{1.2, 0.35, 0.2};  // Beer-Lambert [1/m], r g b
-  Vec3d tint{0, 0, 0};  // colour the absorbed share turns into (deep liquid's colour), linear r g b
+  Vec3d absorption{8, 2, 1};  // Beer-Lambert [1/m], r g b
+  Vec3d tint{0.02, 0.13, 0.18};  // colour the absorbed share turns into (deep liquid's colour), linear r g b
   bool reflections = true;  // trace the reflected branch too (else it takes the environment)
   int budget = 8;           // interfaces per pixel for the branches after the first path, 1 .. 64
   double min_weight = 1.0 / 256;  // weaker branches take the environment, [0, 1]
