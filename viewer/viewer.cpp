@@ -270,6 +270,7 @@ struct PanelState {
   bool realtime = true;  // real-time playback, or `substeps` steps per frame
   int substeps = 2, builder_index = 1;
   FieldKind kind = FieldKind::Presence;
+  bool anisotropic = false;  // the field's kernels: ellipsoids or spheres
   double sim_ms = 0, field_ms = 0, render_ms = 0, fps = 0;
   int steps = 0;                  // SPH steps in the last frame
   double frame_wall_s = 0;        // the last frame's wall time
@@ -291,6 +292,7 @@ void draw_panel(PanelState& s, RenderSettings& rs, const Solver& solver, Backend
   if (!s.realtime) ImGui::SliderInt("substeps / frame", &s.substeps, 1, 20);
   const char* builders[] = {"naive", "presence", "gather"};
   if (ImGui::Combo("field builder", &s.builder_index, builders, 3)) s.kind = parse_field_kind(builders[s.builder_index]);
+  ImGui::Checkbox("anisotropic kernels", &s.anisotropic);
   ImGui::SliderInt("interfaces", &rs.interfaces, 1, 8);
   ImGui::Checkbox("reflections traced", &rs.reflections);
   if (rs.reflections) ImGui::SliderInt("branch budget", &rs.budget, 1, 64);
@@ -302,6 +304,31 @@ void draw_panel(PanelState& s, RenderSettings& rs, const Solver& solver, Backend
   ImGui::End();
   ImGui::Render();
   ImGui_ImplOpenGL3_RenderDrawData(ImGui::GetDrawData());
+}
+
+// The field builder the panel asks for (builder and kernel), or the one in
+// use with the reason in the status line where the scene cannot take it.
+std::unique_ptr<FieldBuilder> switch_field(const ResolvedScene& rscene, Backend b, const FieldBuilder& current,
+                                           PanelState& s) {
+  const FieldSetup* setup = &current.setup();
+  FieldSetup other;
+  if (current.setup().aniso.on != s.anisotropic) {
+    ResolvedScene r = rscene;
+    r.scene.field.kernel = s.anisotropic ? FieldKernel::Anisotropic : FieldKernel::Isotropic;
+    try {
+      other = make_field_setup(r);
+      setup = &other;
+    } catch (const std::exception& e) {
+      s.anisotropic = current.setup().aniso.on;
+      s.status = e.what();
+    }
+  }
+  if (setup->aniso.on && s.kind == FieldKind::Gather) {
+    s.status = "the gather builder takes no ellipsoids: presence instead";
+    s.kind = FieldKind::Presence;
+    s.builder_index = int(s.kind);
+  }
+  return make_field_builder(b, *setup, s.kind);
 }
 
 // One displayed frame of simulation unless paused (or N: one step while
@@ -370,6 +397,7 @@ int run_viewer(const ViewOptions& opt, std::ostream& log) {
   s.substeps = opt.substeps > 0 ? opt.substeps : 2;
   s.kind = scene.field.builder;
   s.builder_index = int(s.kind);
+  s.anisotropic = scene.field.kernel == FieldKernel::Anisotropic;
   const StageNeeds needs{PresenceMode::Off, true};
   std::unique_ptr<Solver> solver = make_solver(rscene, b, needs);
   std::unique_ptr<FieldBuilder> field = make_field(rscene, b, needs);
@@ -398,7 +426,8 @@ int run_viewer(const ViewOptions& opt, std::ostream& log) {
     simulate(*solver, s, ctl, scene.run.end_time, opt.max_sim_per_frame);
     s.sim_advance_s = solver->time() - t_before;
     const ParticleView pv = solver->view();
-    if (field->kind() != s.kind) field = make_field_builder(b, field->setup(), s.kind);  // switched in the panel
+    if (field->kind() != s.kind || field->setup().aniso.on != s.anisotropic)  // switched in the panel
+      field = switch_field(rscene, b, *field, s);
     field->build(pv);
     s.field_ms = field->last_ms();
     const Camera cam = look_at(ctl.orbit.eye(), ctl.orbit.target, rs.fov, W, H);
