@@ -44,7 +44,7 @@ int render_scene(const RenderArgs& ra, const std::string& backend_arg, std::vect
   // state at the end (frame 1; frame 0 when the scene ends at t = 0).
   PngSink png(single ? "" : ra.out, scene.render.frames_every, "--out");
   const int last = scene.run.end_time > 0 ? 1 : 0;
-  FunctionSink one([&](const Solver& s, const FieldBuilder* f, int) { png.frames().render_to(s.view(), *f, ra.out); },
+  FunctionSink one([&](const Solver&, const FieldBuilder* f, int) { png.frames().render_to(*f, ra.out); },
                    FrameNeeds{true, false}, [last](int f) { return f == last; });
   OutputSink* sink = single ? static_cast<OutputSink*>(&one) : &png;
   const StageNeeds needs = needs_of(scene, {sink});
@@ -122,8 +122,8 @@ int render_file(const RenderArgs& ra, const std::string& backend_arg, const std:
     // exported presence is in the file's order, not the grid's: the presence
     // builder uses full extents (its field then classifies as naive's)
     field->build(solver->view());
-    if (single) frames.render_to(solver->view(), *field, ra.out);
-    else frames.write_frame(solver->view(), *field, int(k));
+    if (single) frames.render_to(*field, ra.out);
+    else frames.write_frame(*field, int(k));
     std::cout << "  frame " << k << " (t = " << f.time << " s, " << f.count() << " particles): field "
               << field->last_ms() << " ms\n";
   }

@@ -58,7 +58,7 @@ std::vector<BenchFrameRow> bench_frame(Backend b, const BenchFrameOptions& opt, 
                        : advance_frame(*solver, opt.substeps, kind == FieldKind::Presence, 1e30);
       const ParticleView pv = solver->view();
       field->build(pv);
-      renderer->render(field->data(), field->setup(), &pv, cam, env, s.render);
+      renderer->render(field->data(), field->setup(), cam, env, s.render);
       const double w = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
       prev_wall_s = 1e-3 * w;
       if (f < opt.warmup) continue;
@@ -150,7 +150,7 @@ std::vector<BenchRenderRow> bench_render(Backend b, const BenchRenderOptions& op
   ref.budget = 255;
   ref.min_weight = 0;
   field->build(pv);
-  renderer->render(field->data(), field->setup(), &pv, cam, env, ref);
+  renderer->render(field->data(), field->setup(), cam, env, ref);
   const Image reference = renderer->download();
   log << "  reference: naive field, step " << ref.step << " voxels, every branch to 8 interfaces, "
       << renderer->last_ms() << " ms\n";
@@ -175,7 +175,7 @@ std::vector<BenchRenderRow> bench_render(Backend b, const BenchRenderOptions& op
           rs.min_weight = opt.min_weight;
           std::vector<double> ms;
           for (int k = 0; k < opt.warmup + opt.frames; ++k) {
-            renderer->render(field->data(), field->setup(), &pv, cam, env, rs);
+            renderer->render(field->data(), field->setup(), cam, env, rs);
             if (k >= opt.warmup) ms.push_back(renderer->last_ms());
           }
           const Image img = renderer->download();

@@ -36,9 +36,6 @@ struct AnisotropyParams {
   float stretch = 4;             // largest / smallest axis, at most
   float smoothing = 0.9f;        // centre = x + smoothing * mean offset
   uint32_t min_neighbours = 8;   // fewer: a sphere
-
-  // The largest axis scale: stretch^(2/3) (two short axes at 1 / stretch of the long one, volume kept).
-  SPHRAY_HD SPHRAY_FORCEINLINE float max_scale() const { return std::cbrt(stretch * stretch); }
 };
 
 // One particle's kernel in voxel units, stored as three Float4 per particle in

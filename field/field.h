@@ -24,13 +24,6 @@ struct FieldSetup {
   // any occupied cell is just inside (the paper's rule).
   bool mark_occupied = false;
   AnisotropyParams aniso;   // aniso.on: ellipsoids (field/anisotropy.h)
-
-  // How far from a particle its kernel may reach [voxels]: the falloff's
-  // radius, times the largest axis scale and plus the centre's shift.
-  float reach_voxels() const {
-    if (!aniso.on) return shape.radius;
-    return shape.radius * aniso.max_scale() + aniso.smoothing * aniso.radius / geom.voxel;
-  }
 };
 
 // What a build did (counted only when asked; see docs/field.md).

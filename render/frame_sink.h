@@ -21,8 +21,8 @@ class FrameRenderer {
   // Renders dir/frame_NNNNNN.png; the PNG is encoded and written on a
   // background thread (BackgroundQueue), so the run does not wait for it.
   // Throws std::runtime_error if an earlier write failed.
-  void write_frame(const ParticleView& pv, const FieldBuilder& field, int frame);
-  void render_to(const ParticleView& pv, const FieldBuilder& field, const std::string& png_path);  // written at once
+  void write_frame(const FieldBuilder& field, int frame);
+  void render_to(const FieldBuilder& field, const std::string& png_path);  // written at once
   // Waits for the queued PNGs; throws std::runtime_error naming a failed write.
   void finish();
   int frames_written() const { return written_ + int(png_ ? png_->done() : 0); }
@@ -30,7 +30,7 @@ class FrameRenderer {
   const std::string& dir() const { return dir_; }
 
  private:
-  Image render(const ParticleView& pv, const FieldBuilder& field);  // the image, its time counted
+  Image render(const FieldBuilder& field);  // the image, its time counted
 
   std::unique_ptr<Renderer> renderer_;
   RenderSettings rs_;

@@ -5,7 +5,7 @@
 // VolumeGeom::to_voxels): the field is sampled there and the march step is a
 // fraction of a voxel. Per ray (docs/rendering.md has the reasoning):
 //  1. clip to the volume box; march with a step of at most half a voxel,
-//     jumping over SPH cells whose field is known to be zero (occupancy below);
+//     jumping over bricks the surface cannot cross (occupancy below);
 //  2. at a sign change of f - iso, refine between the last two samples: linear
 //     interpolation, then secant (regula falsi) steps that keep the bracket;
 //  3. normal from the central-difference gradient of the trilinear field;
@@ -70,21 +70,26 @@ SPHRAY_HD SPHRAY_FORCEINLINE Vec3f field_normal(const Field& field, Vec3f u) {
   return gr * (-1.0f / std::sqrt(l2));
 }
 
-// Which SPH cells of the volume may hold field above zero: a cell whose
-// neighbourhood within `reach` cells has no particle has f = 0 everywhere in
-// it (no splat or gather reaches it, and neither does a trilinear lookup).
+// Which bricks of the volume the iso-surface cannot cross. The trilinear
+// field anywhere in a brick lies between the smallest and the largest of the
+// voxels within one voxel of it: where all of those are below iso the brick
+// holds only air, where all are at or above it only liquid. A ray outside the
+// liquid crosses an air brick, and one inside crosses a liquid brick, in one
+// jump.
 struct Occupancy {
-  const uint8_t* occ;  // per volume cell, x fastest; null: every cell may be occupied
-  int cx, cy, cz;      // volume cells per axis
-  int cell;            // voxels per cell edge
+  static constexpr uint8_t kMayCross = 0, kAir = 1, kLiquid = 2;
+  const uint8_t* occ;  // per brick, x fastest; null: no skipping
+  int cx, cy, cz;      // bricks per axis
+  int cell;            // voxels per brick edge
 
-  SPHRAY_HD SPHRAY_FORCEINLINE bool empty_at(Vec3f u) const {
+  // True where the ray at u, inside the liquid or not, meets no crossing in this brick.
+  SPHRAY_HD SPHRAY_FORCEINLINE bool skip_at(Vec3f u, bool inside) const {
     if (!occ) return false;
     const int i = int(std::floor(u.x)) / cell, j = int(std::floor(u.y)) / cell, k = int(std::floor(u.z)) / cell;
-    if (u.x < 0.0f || u.y < 0.0f || u.z < 0.0f || i >= cx || j >= cy || k >= cz) return true;
-    return occ[(size_t(k) * size_t(cy) + size_t(j)) * size_t(cx) + size_t(i)] == 0;
+    if (u.x < 0.0f || u.y < 0.0f || u.z < 0.0f || i >= cx || j >= cy || k >= cz) return !inside;  // f = 0 out there
+    return occ[(size_t(k) * size_t(cy) + size_t(j)) * size_t(cx) + size_t(i)] == (inside ? kLiquid : kAir);
   }
-  // Distance along d from u to the far side of u's cell.
+  // Distance along d from u to the far side of u's brick.
   SPHRAY_HD SPHRAY_FORCEINLINE float cell_exit(Vec3f u, Vec3f d) const {
     const float c = float(cell);
     const float uu[3] = {u.x, u.y, u.z}, dd[3] = {d.x, d.y, d.z};
@@ -100,27 +105,28 @@ struct Occupancy {
   }
 };
 
-// The per-cell occupancy functor: one thread per volume cell.
+// The per-brick classification: one thread per brick, over the voxels within
+// one voxel of it (outside the volume the field is 0).
 struct BuildOccupancy {
-  VolumeGeom vol;
-  GridGeom grid;
-  const uint32_t* offsets;
-  int reach;  // cells
+  const float* f;
+  int nx, ny, nz;
+  int cell;  // voxels per brick edge
+  float iso;
   uint8_t* occ;
 
   SPHRAY_HD void operator()(uint32_t c) const {
-    const int cx = vol.nx >> vol.refine, cy = vol.ny >> vol.refine;
-    const int i = int(c % uint32_t(cx)), j = int((c / uint32_t(cx)) % uint32_t(cy)), k = int(c / uint32_t(cx * cy));
-    uint8_t any = 0;
-    for (int dk = -reach; dk <= reach && !any; ++dk)
-      for (int dj = -reach; dj <= reach && !any; ++dj)
-        for (int di = -reach; di <= reach && !any; ++di) {
-          const int gx = vol.cell0[0] + i + di, gy = vol.cell0[1] + j + dj, gz = vol.cell0[2] + k + dk;
-          if (gx < 0 || gy < 0 || gz < 0 || gx >= grid.nx || gy >= grid.ny || gz >= grid.nz) continue;
-          const uint32_t key = (uint32_t(gz) * uint32_t(grid.ny) + uint32_t(gy)) * uint32_t(grid.nx) + uint32_t(gx);
-          any = offsets[key + 1] > offsets[key];
+    const int cx = (nx + cell - 1) / cell, cy = (ny + cell - 1) / cell;
+    const int bi = int(c % uint32_t(cx)), bj = int((c / uint32_t(cx)) % uint32_t(cy)), bk = int(c / uint32_t(cx * cy));
+    bool below = true, above = true;
+    for (int k = bk * cell - 1; k <= (bk + 1) * cell && (below || above); ++k)
+      for (int j = bj * cell - 1; j <= (bj + 1) * cell; ++j)
+        for (int i = bi * cell - 1; i <= (bi + 1) * cell; ++i) {
+          const bool in = i >= 0 && j >= 0 && k >= 0 && i < nx && j < ny && k < nz;
+          const float v = in ? f[(size_t(k) * size_t(ny) + size_t(j)) * size_t(nx) + size_t(i)] : 0.0f;
+          below = below && v < iso;
+          above = above && v >= iso;
         }
-    occ[c] = any;
+    occ[c] = below ? Occupancy::kAir : (above ? Occupancy::kLiquid : Occupancy::kMayCross);
   }
 };
 
@@ -169,7 +175,7 @@ struct Tracer {
     // `inside` is what the last interface decided, not the sign of g here: a
     // ray that starts on the surface looks for the next crossing out of its state.
     while (t < t_max) {
-      if (!inside && occupancy.empty_at(o + d * t)) {
+      if (occupancy.skip_at(o + d * t, inside)) {
         t += occupancy.cell_exit(o + d * t, d) + 1e-3f;
         if (t >= t_max) return -1.0f;
         g = field(o + d * t) - iso;

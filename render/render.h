@@ -32,10 +32,10 @@ class Renderer {
   virtual ~Renderer() = default;
   virtual Backend backend() const = 0;
   // Renders `field` (the backend's memory, layout and iso of `fs`) into the
-  // renderer's image. `particles` gives the SPH cell occupancy for the
-  // empty-space skip (null, or settings.skip_empty false: no skip).
-  virtual void render(const float* field, const FieldSetup& fs, const ParticleView* particles, const Camera& cam,
-                      const Environment& env, const RenderSettings& rs) = 0;
+  // renderer's image; with settings.skip_empty, after classifying the
+  // field's bricks for the march to skip (raycast.h, Occupancy).
+  virtual void render(const float* field, const FieldSetup& fs, const Camera& cam, const Environment& env,
+                      const RenderSettings& rs) = 0;
   virtual double last_ms() const = 0;               // device time of the last render (occupancy included)
   virtual const uint32_t* pixels() const = 0;       // the image in the backend's memory
   virtual Image download() const = 0;

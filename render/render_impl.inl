@@ -4,6 +4,7 @@
 
 class RendererImpl final : public Renderer {
  public:
+
   Backend backend() const override { return kBackend; }
   double last_ms() const override { return ms_; }
   const uint32_t* pixels() const override { return target_ ? target_ : raw(image_); }
@@ -18,26 +19,23 @@ class RendererImpl final : public Renderer {
     return img;
   }
 
-  void render(const float* field, const FieldSetup& fs, const ParticleView* pv, const Camera& cam,
-              const Environment& env, const RenderSettings& rs) override {
-    if (pv && pv->backend != kBackend)
-      throw std::invalid_argument(std::string("renderer on the ") + backend_name(kBackend) +
-                                  " backend was given particles of the " + backend_name(pv->backend) + " backend");
+  void render(const float* field, const FieldSetup& fs, const Camera& cam, const Environment& env,
+              const RenderSettings& rs) override {
     if (cam.width <= 0 || cam.height <= 0) throw std::invalid_argument("renderer: empty image");
     width_ = cam.width;
     height_ = cam.height;
     const uint32_t n_pix = uint32_t(width_) * uint32_t(height_);
     if (!target_ && image_.size() < n_pix) image_.resize(n_pix);
     const VolumeGeom& vol = fs.geom;
-    const int cell = 1 << vol.refine;
-    Occupancy occ{nullptr, vol.nx / cell, vol.ny / cell, vol.nz / cell, cell};
+    const int brick = 1 << vol.refine;  // bricks as wide as the SPH cells: 1 voxel at refine 0, 4 at refine 2
+    Occupancy occ{nullptr, (vol.nx + brick - 1) / brick, (vol.ny + brick - 1) / brick, (vol.nz + brick - 1) / brick,
+                  brick};
     clock_.start();
-    if (pv && rs.skip_empty) {
-      const uint32_t cells = uint32_t(occ.cx) * uint32_t(occ.cy) * uint32_t(occ.cz);
-      if (occupancy_.size() < cells) occupancy_.resize(cells);
-      // reach: the kernel's (ellipsoids: stretched and shifted) plus the trilinear lookup's one voxel, in cells
-      const int reach = int(std::ceil((fs.reach_voxels() + 1.0f) / float(cell)));
-      parallel_for("render_occupancy", cells, BuildOccupancy{vol, pv->grid, pv->offsets, reach, raw(occupancy_)});
+    if (rs.skip_empty) {
+      const uint32_t bricks = uint32_t(occ.cx) * uint32_t(occ.cy) * uint32_t(occ.cz);
+      if (occupancy_.size() < bricks) occupancy_.resize(bricks);
+      parallel_for("render_occupancy", bricks,
+                   BuildOccupancy{field, vol.nx, vol.ny, vol.nz, brick, fs.shape.iso, raw(occupancy_)});
       occ.occ = raw(occupancy_);
     }
     Tracer<TrilinearField> tracer{TrilinearField{field, vol.nx, vol.ny, vol.nz}, occ,

@@ -19,7 +19,7 @@ struct RenderSettings {
   bool reflections = true;  // trace the reflected branch too (else it takes the environment)
   int budget = 8;           // interfaces per pixel for the branches after the first path, 1 .. 64
   double min_weight = 1.0 / 256;  // weaker branches take the environment, [0, 1]
-  bool skip_empty = true;   // empty-space skipping over unoccupied SPH cells
+  bool skip_empty = true;   // the march jumps over bricks the surface cannot cross
   // Camera [m]; eye == target means "auto" (a three-quarter view of the tank).
   Vec3d eye{0, 0, 0}, target{0, 0, 0};
   double fov = 40;          // vertical, degrees

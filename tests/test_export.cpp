@@ -618,7 +618,7 @@ TEST_CASE("PNG frames are written in the background; a failed write is reported 
   {
     FrameRenderer fr(s.render, s.tank, Backend::Cpu, field->setup(), dir);
     field->build(solver->view());
-    for (int f = 0; f < 3; ++f) fr.write_frame(solver->view(), *field, f);
+    for (int f = 0; f < 3; ++f) fr.write_frame(*field, f);
     fr.finish();
     CHECK(fr.frames_written() == 3);
     for (int f = 0; f < 3; ++f) CHECK(std::filesystem::exists(dir + "/frame_00000" + std::to_string(f) + ".png"));
@@ -627,7 +627,7 @@ TEST_CASE("PNG frames are written in the background; a failed write is reported 
   std::filesystem::remove_all(dir);  // the directory goes away under the run
   std::string msg;
   try {
-    for (int f = 0; f < 20; ++f) fr.write_frame(solver->view(), *field, f);
+    for (int f = 0; f < 20; ++f) fr.write_frame(*field, f);
     fr.finish();
   } catch (const std::runtime_error& e) {
     msg = e.what();

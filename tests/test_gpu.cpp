@@ -405,8 +405,8 @@ TEST_CASE("cuda raycast agrees with the cpu raycast", "[gpu]") {
       rs.interfaces = interfaces;
       rs.reflections = reflections;
       const ParticleView vc = cpu->view(), vg = gpu->view();
-      rc->render(fc->data(), fs, &vc, cam, env, rs);
-      rg->render(fg->data(), fs, &vg, cam, env, rs);
+      rc->render(fc->data(), fs, cam, env, rs);
+      rg->render(fg->data(), fs, cam, env, rs);
       const Image a = rc->download(), b = rg->download();
       const size_t differ = pixels_differing(a, b, 3);
       INFO(interfaces << " interfaces, reflections " << reflections << ": PSNR " << psnr(a, b) << " dB, " << differ

@@ -534,7 +534,7 @@ TEST_CASE("reflections: the budget converges to every branch, the slots do not l
   CHECK(errors.back() < 0.05 * errors.front());
 }
 
-TEST_CASE("empty-space skipping is conservative and leaves the image unchanged", "[render]") {
+TEST_CASE("brick skipping is exact and leaves the image unchanged", "[render]") {
   const Scene s = load_scene(test::source_path("scenes/dam_break.json"),
                              {"sph.spacing=0.04", "render.width=160", "render.height=90"});
   const SolverInput in = make_solver_input(resolve_scene(s), PresenceMode::Off);
@@ -549,42 +549,57 @@ TEST_CASE("empty-space skipping is conservative and leaves the image unchanged",
     const ParticleView pv = solver->view();
     builder->build(pv);
     const std::vector<float> f = builder->download();
-    // the guarantee: a cell the occupancy calls empty has zero field within one voxel of it
-    const int cell = 1 << fs.geom.refine;
-    const int cx = fs.geom.nx / cell, cy = fs.geom.ny / cell, cz = fs.geom.nz / cell;
+    // the guarantee: in a brick (an SPH cell of the volume, as the renderer's)
+    // called air (liquid) the trilinear field, sampled in double on a 9^3
+    // lattice over the brick and its faces, is below (at or above) iso everywhere
+    const VolumeGeom& g = fs.geom;
+    const int B = 1 << g.refine, cx = (g.nx + B - 1) / B, cy = (g.ny + B - 1) / B, cz = (g.nz + B - 1) / B;
     std::vector<uint8_t> occ(size_t(cx) * cy * cz);
-    const int reach = int(std::ceil((fs.shape.radius + 1.0f) / float(cell)));
-    for (uint32_t c = 0; c < occ.size(); ++c)
-      BuildOccupancy{fs.geom, pv.grid, pv.offsets, reach, occ.data()}(c);
-    size_t empty = 0, violations = 0;
-    for (int k = 0; k < fs.geom.nz; ++k)
-      for (int j = 0; j < fs.geom.ny; ++j)
-        for (int i = 0; i < fs.geom.nx; ++i) {
-          const float v = f[fs.geom.index(i, j, k)];
-          if (v == 0) continue;
-          // every cell within one voxel of a non-zero voxel must be occupied
-          for (int dk = -1; dk <= 1; ++dk)
-            for (int dj = -1; dj <= 1; ++dj)
-              for (int di = -1; di <= 1; ++di) {
-                const int a = (i + di) / cell, b = (j + dj) / cell, c = (k + dk) / cell;
-                if (i + di < 0 || j + dj < 0 || k + dk < 0 || a >= cx || b >= cy || c >= cz) continue;
-                violations += occ[(size_t(c) * cy + b) * cx + a] == 0;
+    for (uint32_t c = 0; c < occ.size(); ++c) BuildOccupancy{f.data(), g.nx, g.ny, g.nz, B, fs.shape.iso, occ.data()}(c);
+    auto voxel = [&](int i, int j, int k) -> double {
+      if (i < 0 || j < 0 || k < 0 || i >= g.nx || j >= g.ny || k >= g.nz) return 0.0;
+      return f[g.index(i, j, k)];
+    };
+    auto trilinear = [&](double x, double y, double z) {
+      x -= 0.5, y -= 0.5, z -= 0.5;
+      const int i = int(std::floor(x)), j = int(std::floor(y)), k = int(std::floor(z));
+      const double a = x - i, b = y - j, c = z - k;
+      double sum = 0;
+      for (int dk = 0; dk < 2; ++dk)
+        for (int dj = 0; dj < 2; ++dj)
+          for (int di = 0; di < 2; ++di)
+            sum += voxel(i + di, j + dj, k + dk) * (di ? a : 1 - a) * (dj ? b : 1 - b) * (dk ? c : 1 - c);
+      return sum;
+    };
+    size_t air = 0, liquid = 0, violations = 0;
+    for (int bk = 0; bk < cz; ++bk)
+      for (int bj = 0; bj < cy; ++bj)
+        for (int bi = 0; bi < cx; ++bi) {
+          const uint8_t o = occ[(size_t(bk) * cy + bj) * cx + bi];
+          air += o == Occupancy::kAir;
+          liquid += o == Occupancy::kLiquid;
+          if (o == Occupancy::kMayCross) continue;
+          for (int sk = 0; sk <= 8; ++sk)
+            for (int sj = 0; sj <= 8; ++sj)
+              for (int si = 0; si <= 8; ++si) {
+                const double v = trilinear(B * (bi + si / 8.0), B * (bj + sj / 8.0), B * (bk + sk / 8.0));
+                violations += o == Occupancy::kAir ? !(v < fs.shape.iso) : !(v >= fs.shape.iso);
               }
         }
-    for (uint8_t o : occ) empty += o == 0;
-    INFO("refine " << refine << ": " << empty << " of " << occ.size() << " cells empty");
+    INFO("refine " << refine << ": " << air << " air and " << liquid << " liquid bricks of " << occ.size());
     CHECK(violations == 0);
-    CHECK(empty > occ.size() / 4);  // the skip has something to skip
+    CHECK(air > occ.size() / 4);  // the skip has something to skip
+    if (refine == 2) CHECK(liquid > 0);
 
     RenderSettings rs = sr.render;
     const Camera cam = make_camera(sr.tank, rs);
     const Environment env = make_environment(sr.tank, fs.geom, cam);
     auto renderer = make_cpu_renderer();
     rs.skip_empty = false;
-    renderer->render(builder->data(), fs, &pv, cam, env, rs);
+    renderer->render(builder->data(), fs, cam, env, rs);
     const Image plain = renderer->download();
     rs.skip_empty = true;
-    renderer->render(builder->data(), fs, &pv, cam, env, rs);
+    renderer->render(builder->data(), fs, cam, env, rs);
     const Image skipped = renderer->download();
     const size_t differ = pixels_differing(plain, skipped, 2);
     INFO("PSNR " << psnr(plain, skipped) << " dB, " << differ << " pixels differ by more than 2 levels");
@@ -592,7 +607,7 @@ TEST_CASE("empty-space skipping is conservative and leaves the image unchanged",
     CHECK(differ < plain.rgba.size() / 500);
     // the liquid is in the picture: an empty field renders differently
     const std::vector<float> zero(f.size(), 0.0f);
-    renderer->render(zero.data(), fs, nullptr, cam, env, rs);
+    renderer->render(zero.data(), fs, cam, env, rs);
     CHECK(psnr(renderer->download(), skipped) < 30.0);
   }
 }
@@ -676,7 +691,7 @@ TEST_CASE("still water a few centimetres deep stands out from the tiles with the
   const Environment env = make_environment(s.tank, fs.geom, cam);
   auto renderer = make_cpu_renderer();
   auto render = [&](const RenderSettings& r, const float* f, const ParticleView* v) {
-    renderer->render(f, fs, v, cam, env, r);
+    renderer->render(f, fs, cam, env, r);
     return renderer->download();
   };
   const std::vector<float> zero(size_t(fs.geom.nx) * fs.geom.ny * fs.geom.nz, 0.0f);

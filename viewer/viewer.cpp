@@ -222,13 +222,13 @@ class Display {
   }
 
   // Raycasts the field into the texture.
-  void render(Renderer& r, const FieldBuilder& field, const ParticleView& pv, const Camera& cam, const Environment& env,
+  void render(Renderer& r, const FieldBuilder& field, const Camera& cam, const Environment& env,
               const RenderSettings& rs) {
     glBindTexture(GL_TEXTURE_2D, tex_);
 #if defined(SPHRAY_HAVE_CUDA)
     if (interop_) {  // the CUDA raycaster writes into the GL buffer; GL copies it into the texture on the device
       r.set_target(interop_->map());
-      r.render(field.data(), field.setup(), &pv, cam, env, rs);
+      r.render(field.data(), field.setup(), cam, env, rs);
       interop_->unmap();
       glBindBuffer(GL_PIXEL_UNPACK_BUFFER, pbo_);
       glTexSubImage2D(GL_TEXTURE_2D, 0, 0, 0, w_, h_, GL_RGBA, GL_UNSIGNED_BYTE, nullptr);
@@ -237,7 +237,7 @@ class Display {
     }
 #endif
     // CPU: texture upload; CUDA without interop: the image through the host
-    r.render(field.data(), field.setup(), &pv, cam, env, rs);
+    r.render(field.data(), field.setup(), cam, env, rs);
     if (backend_ == Backend::Cpu) {
       glTexSubImage2D(GL_TEXTURE_2D, 0, 0, 0, w_, h_, GL_RGBA, GL_UNSIGNED_BYTE, r.pixels());
     } else {
@@ -431,7 +431,7 @@ int run_viewer(const ViewOptions& opt, std::ostream& log) {
     field->build(pv);
     s.field_ms = field->last_ms();
     const Camera cam = look_at(ctl.orbit.eye(), ctl.orbit.target, rs.fov, W, H);
-    display.render(*renderer, *field, pv, cam, make_environment(scene.tank, field->setup().geom, cam), rs);
+    display.render(*renderer, *field, cam, make_environment(scene.tank, field->setup().geom, cam), rs);
     s.render_ms = renderer->last_ms();
     display.draw(fw, fh);
     draw_panel(s, rs, *solver, b, ctl.paused, W, H);
