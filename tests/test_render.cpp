@@ -118,21 +118,28 @@ std::string error_of(F&& f) {
   return "(no error)";
 }
 
-// f of the volume at u (voxel units) in double: the trilinear interpolant the tracer samples.
-double trilinear_d(const AnalyticVolume& v, Vec3d u) {
+// The trilinear interpolant between voxel centres at u (voxel units) in
+// double, the one the tracer samples; at(i, j, k) gives a voxel (0 outside).
+template <class At>
+double trilinear_at(const At& at, Vec3d u) {
   const double x = u.x - 0.5, y = u.y - 0.5, z = u.z - 0.5;
   const int i = int(std::floor(x)), j = int(std::floor(y)), k = int(std::floor(z));
   const double a = x - i, b = y - j, c = z - k;
-  auto at = [&](int ii, int jj, int kk) -> double {
-    if (ii < 0 || jj < 0 || kk < 0 || ii >= N || jj >= N || kk >= N) return 0.0;
-    return v.f[(size_t(kk) * N + jj) * N + ii];
-  };
   double s = 0;
   for (int dk = 0; dk < 2; ++dk)
     for (int dj = 0; dj < 2; ++dj)
       for (int di = 0; di < 2; ++di)
         s += at(i + di, j + dj, k + dk) * (di ? a : 1 - a) * (dj ? b : 1 - b) * (dk ? c : 1 - c);
   return s;
+}
+// f of an analytic volume at u.
+double trilinear_d(const AnalyticVolume& v, Vec3d u) {
+  return trilinear_at(
+      [&](int i, int j, int k) -> double {
+        if (i < 0 || j < 0 || k < 0 || i >= N || j >= N || k >= N) return 0.0;
+        return v.f[(size_t(k) * N + j) * N + i];
+      },
+      u);
 }
 
 // A realistic field: random clusters of particles through the naive builder.
@@ -560,17 +567,6 @@ TEST_CASE("brick skipping is exact and leaves the image unchanged", "[render]") 
       if (i < 0 || j < 0 || k < 0 || i >= g.nx || j >= g.ny || k >= g.nz) return 0.0;
       return f[g.index(i, j, k)];
     };
-    auto trilinear = [&](double x, double y, double z) {
-      x -= 0.5, y -= 0.5, z -= 0.5;
-      const int i = int(std::floor(x)), j = int(std::floor(y)), k = int(std::floor(z));
-      const double a = x - i, b = y - j, c = z - k;
-      double sum = 0;
-      for (int dk = 0; dk < 2; ++dk)
-        for (int dj = 0; dj < 2; ++dj)
-          for (int di = 0; di < 2; ++di)
-            sum += voxel(i + di, j + dj, k + dk) * (di ? a : 1 - a) * (dj ? b : 1 - b) * (dk ? c : 1 - c);
-      return sum;
-    };
     size_t air = 0, liquid = 0, violations = 0;
     for (int bk = 0; bk < cz; ++bk)
       for (int bj = 0; bj < cy; ++bj)
@@ -582,7 +578,7 @@ TEST_CASE("brick skipping is exact and leaves the image unchanged", "[render]") 
           for (int sk = 0; sk <= 8; ++sk)
             for (int sj = 0; sj <= 8; ++sj)
               for (int si = 0; si <= 8; ++si) {
-                const double v = trilinear(B * (bi + si / 8.0), B * (bj + sj / 8.0), B * (bk + sk / 8.0));
+                const double v = trilinear_at(voxel, Vec3d{B * (bi + si / 8.0), B * (bj + sj / 8.0), B * (bk + sk / 8.0)});
                 violations += o == Occupancy::kAir ? !(v < fs.shape.iso) : !(v >= fs.shape.iso);
               }
         }
