@@ -228,8 +228,7 @@ struct Tracer {
       // The liquid touches the face it enters through (the tank's glass):
       // an interface with the face's normal, not the field's.
       b.inside = false;
-      interface_at(b, entry_n, colour, pending, watch);
-      --budget;
+      interface_at(b, entry_n, budget, colour, pending, watch);
     }
     follow(b, o, budget, colour, pending, watch);
     budget = ts.budget;
@@ -308,23 +307,20 @@ struct Tracer {
         if (t_glass < t_box) {  // at the glass: out of the liquid through it, or already in air
           p = p + d * t_glass;
           if (!b.inside) break;
-          interface_at(b, face_normal(face), colour, pending, watch);
-          --budget;
+          interface_at(b, face_normal(face), budget, colour, pending, watch);
           if (!b.inside) break;  // refracted out of the tank: nothing more to meet
           continue;              // reflected back into the liquid
         }
         if (!b.inside) break;  // left the volume: the environment
         // still inside at the box: leave through the tank's glass
         p = p + d * t_max;
-        interface_at(b, box_face_normal(p), colour, pending, watch);
-        --budget;
+        interface_at(b, box_face_normal(p), budget, colour, pending, watch);
         continue;
       }
       p = p + d * th;
       Vec3f n = normal(p);
       if (n.x == 0.0f && n.y == 0.0f && n.z == 0.0f) n = -d;
-      interface_at(b, n, colour, pending, watch);
-      --budget;
+      interface_at(b, n, budget, colour, pending, watch);
     }
     watch.contribution(b.w);
     // A ray that met no interface looks at the environment from its own
@@ -372,15 +368,16 @@ struct Tracer {
     w = w * T;
   }
 
-  // One interface at b.p with outward normal n_out, split with Schlick's
-  // Fresnel term. Total internal reflection keeps everything inside. Else
+  // One interface at b.p with outward normal n_out (one of the path's
+  // interfaces and of the `budget`), split with Schlick's Fresnel term. Total internal reflection keeps everything inside. Else
   // without `reflections` the reflected part takes the environment and the
   // refracted part goes on; with them the stronger part goes on and the
   // weaker waits in `pending` (or takes the environment when it is weaker
   // than min_weight or could meet no further interface; when every slot is
   // taken, the weaker of it and the weakest waiting branch does).
   template <class Watch>
-  SPHRAY_HD void interface_at(Branch& b, Vec3f n_out, Rgb& colour, Waiting& pending, const Watch& watch) const {
+  SPHRAY_HD void interface_at(Branch& b, Vec3f n_out, int& budget, Rgb& colour, Waiting& pending,
+                              const Watch& watch) const {
     const Vec3f p = b.p, d = b.d;
     const Vec3f n = dot(n_out, d) < 0.0f ? n_out : -n_out;  // facing the incoming ray
     const float n1 = b.inside ? ts.ior : 1.0f, n2 = b.inside ? 1.0f : ts.ior;
@@ -389,6 +386,7 @@ struct Tracer {
     float cos_t;
     const Vec3f refl = reflect(d, n);
     ++b.k;
+    --budget;
     if (!refract(d, n, n1 / n2, r, cos_t)) {  // total internal reflection
       watch.interface(p, n, refl, true, 1.0f);
       b.d = refl;

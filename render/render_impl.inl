@@ -4,7 +4,6 @@
 
 class RendererImpl final : public Renderer {
  public:
-
   Backend backend() const override { return kBackend; }
   double last_ms() const override { return ms_; }
   const uint32_t* pixels() const override { return target_ ? target_ : raw(image_); }
