@@ -6,8 +6,7 @@ namespace sphray {
 
 RenderSettings read_render_settings(const ConfigReader& r) {
   r.only({"width", "height", "interfaces", "step", "secant_steps", "ior", "absorption", "tint", "reflections",
-          "budget", "min_weight", "skip_empty", "eye", "target",
-          "fov", "frames_every"});
+          "budget", "min_weight", "skip_empty", "eye", "target", "fov", "frames_every"});
   RenderSettings R;
   R.width = r.integer("width", R.width, 16, 8192);
   R.height = r.integer("height", R.height, 16, 8192);
@@ -15,13 +14,14 @@ RenderSettings read_render_settings(const ConfigReader& r) {
   R.step = float(r.number("step", R.step, 0.0, 0.5, false, true));
   R.secant_steps = r.integer("secant_steps", R.secant_steps, 0, 16);
   R.ior = float(r.number("ior", R.ior, 1.0, 3.0));
-  R.absorption = r.vec3("absorption", R.absorption);
-  if (std::min({R.absorption.x, R.absorption.y, R.absorption.z}) < 0 ||
-      std::max({R.absorption.x, R.absorption.y, R.absorption.z}) > 1e4)
-    r.fail("absorption", r.at("absorption"), "must be three coefficients in [0, 1e4] per metre");
-  R.tint = r.vec3("tint", R.tint);
-  if (std::min({R.tint.x, R.tint.y, R.tint.z}) < 0 || std::max({R.tint.x, R.tint.y, R.tint.z}) > 1)
-    r.fail("tint", r.at("tint"), "must be three linear colour values in [0, 1]");
+  // r, g, b, each in [0, hi]
+  auto rgb = [&](const char* key, Vec3d def, double hi, const char* must) {
+    const Vec3d v = r.vec3(key, def);
+    if (std::min({v.x, v.y, v.z}) < 0 || std::max({v.x, v.y, v.z}) > hi) r.fail(key, r.at(key), must);
+    return v;
+  };
+  R.absorption = rgb("absorption", R.absorption, 1e4, "must be three coefficients in [0, 1e4] per metre");
+  R.tint = rgb("tint", R.tint, 1.0, "must be three linear colour values in [0, 1]");
   R.reflections = r.boolean("reflections", R.reflections);
   R.budget = r.integer("budget", R.budget, 1, 64);
   R.min_weight = r.number("min_weight", R.min_weight, 0.0, 1.0);
