@@ -87,8 +87,9 @@ nlohmann::json completed_json(const RunSummary& r, const RunArgs& a, const Scene
     j["constraint"]["divergence_iterations"] = {{"mean", r.divergence_iterations_mean},
                                                 {"max", r.divergence_iterations_max}};
   if (r.field_builds)
-    j["field"] = {{"builder", r.field_builder}, {"kernel", r.field_kernel}, {"volume", r.field_dims}, {"builds", r.field_builds},
-                  {"ms_per_build", r.field_ms_mean}, {"builds_without_presence", r.field_without_presence}};
+    j["field"] = {{"builder", r.field_builder}, {"kernel", r.field_kernel}, {"volume", r.field_dims},
+                  {"builds", r.field_builds}, {"ms_per_build", r.field_ms_mean},
+                  {"builds_without_presence", r.field_without_presence}};
   return j;
 }
 

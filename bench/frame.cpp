@@ -180,10 +180,10 @@ std::vector<BenchRenderRow> bench_render(Backend b, const BenchRenderOptions& op
           }
           const Image img = renderer->download();
           BenchRenderRow r{field_kind_name(kind), step, n, budget, median(ms), median(fms), psnr(reference, img)};
-          if (!opt.png_dir.empty() && kind == FieldKind::Presence && step == 0.5 && n == 4 && budget == 0)
-            write_png(png_path(opt.png_dir, "render_no_reflections.png"), img);
-          if (!opt.png_dir.empty() && kind == FieldKind::Presence && step == 0.5 && n == 4 && budget == 8)
-            write_png(png_path(opt.png_dir, "render_default.png"), img);
+          // the default settings' image, and the same without reflections
+          if (!opt.png_dir.empty() && kind == FieldKind::Presence && step == 0.5 && n == 4 &&
+              (budget == 0 || budget == s.render.budget))
+            write_png(png_path(opt.png_dir, budget == 0 ? "render_no_reflections.png" : "render_default.png"), img);
           log << "    " << r.builder << " step " << step << " N " << n << " budget " << budget << ": " << std::fixed
               << std::setprecision(3) << r.render_ms << " ms, PSNR " << std::setprecision(2) << r.psnr_db << " dB\n"
               << std::defaultfloat;
@@ -211,12 +211,12 @@ nlohmann::json to_json(const std::vector<BenchRenderRow>& rows, Backend b, const
 }
 
 void print_table(const std::vector<BenchRenderRow>& rows, std::ostream& out) {
-  out << std::setw(10) << "builder" << std::setw(8) << "step" << std::setw(5) << "N" << std::setw(8) << "budget" << std::setw(10) << "field ms"
-      << std::setw(11) << "render ms" << std::setw(10) << "PSNR dB\n";
+  out << std::setw(10) << "builder" << std::setw(8) << "step" << std::setw(5) << "N" << std::setw(8) << "budget"
+      << std::setw(10) << "field ms" << std::setw(11) << "render ms" << std::setw(10) << "PSNR dB\n";
   for (const auto& r : rows)
-    out << std::setw(10) << r.builder << std::setw(8) << r.step << std::setw(5) << r.interfaces << std::setw(8) << r.budget << std::fixed
-        << std::setprecision(3) << std::setw(10) << r.field_ms << std::setw(11) << r.render_ms << std::setprecision(2)
-        << std::setw(10) << r.psnr_db << "\n" << std::defaultfloat;
+    out << std::setw(10) << r.builder << std::setw(8) << r.step << std::setw(5) << r.interfaces << std::setw(8)
+        << r.budget << std::fixed << std::setprecision(3) << std::setw(10) << r.field_ms << std::setw(11) << r.render_ms
+        << std::setprecision(2) << std::setw(10) << r.psnr_db << "\n" << std::defaultfloat;
 }
 
 }  // namespace sphray

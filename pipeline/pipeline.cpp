@@ -272,8 +272,8 @@ void print_summary(const RunSummary& r, std::ostream& log) {
       << ", pairs (forces, density rate, presence where needed) " << r.mean_stage_ms.pairs << ", integrate "
       << r.mean_stage_ms.integrate << "\n";
   if (r.field_builds)
-    log << "  field          " << r.field_builder << " builder, " << r.field_kernel << " kernels, " << r.field_dims[0] << "x" << r.field_dims[1] << "x"
-        << r.field_dims[2] << " voxels, " << r.field_builds << " builds, " << r.field_ms_mean << " ms per build"
+    log << "  field          " << r.field_builder << " builder, " << r.field_kernel << " kernels, " << r.field_dims[0]
+        << "x" << r.field_dims[1] << "x" << r.field_dims[2] << " voxels, " << r.field_builds << " builds, " << r.field_ms_mean << " ms per build"
         << (r.field_without_presence ? " (" + std::to_string(r.field_without_presence) +
                                            " without presence, e.g. at t = 0: full extents)"
                                      : std::string())
