@@ -141,12 +141,29 @@ void add_render(CLI::App* bench, int& exit_code) {
     BenchRenderOptions opt;
   };
   auto a = std::make_shared<Args>();
-  auto* r = bench->add_subcommand("render", "raycast image error (PSNR vs a fine reference) against render time");
+  auto* r = bench->add_subcommand("render", "each render method's image error (PSNR, SSIM vs a fine raycast reference) "
+                                            "against render time");
   add_common(r, a->c, "");
   BenchRenderOptions& o = a->opt;
   r->add_option("--size", a->size, "fluid particle count (default 125k on CUDA, 8k on CPU)");
   r->add_option("--width", o.width, "image width")->check(CLI::Range(16, 8192));
   r->add_option("--height", o.height, "image height")->check(CLI::Range(16, 8192));
+  r->add_option("--scene", o.scene, "dam_break (the collapse at T = --collapse) or pool (a still pool)")
+      ->check(CLI::IsMember({"dam_break", "pool"}));
+  r->add_option("--collapse", o.collapse, "dam_break: render at T = t sqrt(2g/a)")->check(CLI::Range(0.0, 100.0));
+  r->add_option("--methods", o.methods, "render methods to compare: raycast, screen_space, slices")
+      ->delimiter(',')
+      ->check(CLI::IsMember({"raycast", "screen_space", "slices"}));
+  r->add_option("--filter-iterations", o.filter_iterations, "screen_space: bilateral filter passes to compare")
+      ->delimiter(',')
+      ->check(CLI::Range(0, 64));
+  r->add_option("--slices", o.slices, "slices: slice counts to compare")->delimiter(',')->check(CLI::Range(8, 4096));
+  r->add_option("--steps", o.steps, "raycast: march steps [voxels] to compare")
+      ->delimiter(',')
+      ->check(CLI::Range(0.001, 0.5));
+  r->add_option("--interfaces", o.interfaces, "raycast: interface counts to compare")
+      ->delimiter(',')
+      ->check(CLI::Range(1, 8));
   r->add_option("--reference-step", o.reference_step, "reference march step [voxels]")->check(CLI::Range(0.001, 0.5));
   r->add_option("--warmup", o.warmup, "warm-up renders")->check(CLI::Range(0, 10000));
   r->add_option("--frames", o.frames, "measured renders")->check(CLI::Range(1, 100000));
@@ -156,7 +173,7 @@ void add_render(CLI::App* bench, int& exit_code) {
       ->check(CLI::Range(0, 64));
   r->add_option("--min-weight", o.min_weight, "with reflections, branches weaker than this take the environment")
       ->check(CLI::Range(0.0, 1.0));
-  r->add_option("--png-dir", o.png_dir, "write the reference and the default-setting images here");
+  r->add_option("--png-dir", o.png_dir, "write the reference and each method's image at the scene's settings here");
   r->add_option("--set", o.overrides, "override a value of the generated scene");
   r->callback([a, &exit_code] {
     run_bench(a->c, [&](Backend b) {

@@ -42,15 +42,18 @@ int render_scene(const RenderArgs& ra, const std::string& backend_arg, std::vect
   const Backend b = choose_backend(backend_arg, std::cout);
   // A directory: every render.frames_every-th output frame; one image: the
   // state at the end (frame 1; frame 0 when the scene ends at t = 0).
-  PngSink png(single ? "" : ra.out, scene.render.frames_every, "--out");
+  PngSink png(single ? "" : ra.out, scene.render, "--out");
   const int last = scene.run.end_time > 0 ? 1 : 0;
-  FunctionSink one([&](const Solver&, const FieldBuilder* f, int) { png.frames().render_to(*f, ra.out); },
-                   FrameNeeds{true, false}, [last](int f) { return f == last; });
+  const bool needs_field = method_needs_field(scene.render.method);
+  FunctionSink one([&](const Solver& s, const FieldBuilder* f, int) {
+                     png.frames().render_to(s.view(), needs_field ? f : nullptr, ra.out);
+                   },
+                   FrameNeeds{needs_field, false}, [last](int f) { return f == last; });
   OutputSink* sink = single ? static_cast<OutputSink*>(&one) : &png;
   const StageNeeds needs = needs_of(scene, {sink});
   auto solver = make_solver(rs, b, needs);
   auto field = make_field(rs, b, needs);
-  png.open(scene, b, field->setup());
+  png.open(scene, b, make_field_setup(rs));
   FrameRenderer& frames = png.frames();
   RunOptions opt;
   opt.field = field.get();
@@ -105,8 +108,9 @@ int render_file(const RenderArgs& ra, const std::string& backend_arg, const std:
   const Backend b = choose_backend(backend_arg, std::cout);
   const ResolvedScene rs = resolve_scene(scene);
   const FieldSetup fs = make_field_setup(rs);
-  auto field = make_field_builder(b, fs, scene.field.builder);
-  FrameRenderer frames(scene.render, scene.tank, b, fs, single ? "" : ra.out, "--out");
+  const bool needs_field = method_needs_field(scene.render.method);
+  auto field = needs_field ? make_field_builder(b, fs, scene.field.builder) : nullptr;
+  FrameRenderer frames(scene.render, scene.tank, scene.sph.spacing, b, fs, single ? "" : ra.out, "--out");
   const size_t first = ra.frame >= 0 ? size_t(ra.frame) : 0, end = ra.frame >= 0 ? first + 1 : n;
   for (size_t k = first; k < end; ++k) {
     const Frame f = reader.read(k);
@@ -121,11 +125,12 @@ int render_file(const RenderArgs& ra, const std::string& backend_arg, const std:
     auto solver = b == Backend::Cuda ? make_cuda_solver(in) : make_cpu_solver(in);  // sorts them into the grid
     // exported presence is in the file's order, not the grid's: the presence
     // builder uses full extents (its field then classifies as naive's)
-    field->build(solver->view());
-    if (single) frames.render_to(*field, ra.out);
-    else frames.write_frame(*field, int(k));
-    std::cout << "  frame " << k << " (t = " << f.time << " s, " << f.count() << " particles): field "
-              << field->last_ms() << " ms\n";
+    if (needs_field) field->build(solver->view());
+    if (single) frames.render_to(solver->view(), needs_field ? field.get() : nullptr, ra.out);
+    else frames.write_frame(solver->view(), needs_field ? field.get() : nullptr, int(k));
+    std::cout << "  frame " << k << " (t = " << f.time << " s, " << f.count() << " particles)";
+    if (needs_field) std::cout << ": field " << field->last_ms() << " ms";
+    std::cout << "\n";
   }
   frames.finish();
   std::cout << "rendered " << frames.frames_written() << " frame" << (frames.frames_written() == 1 ? "" : "s")

@@ -160,7 +160,7 @@ int cmd_run(RunArgs a) {
   check_outputs(a);
   RunOutputs out;
   if (!a.ex.path.empty()) out.exporter = std::make_unique<ExportSink>(a.ex.every, std::move(export_fields), rs.params);
-  if (!a.fa.dir.empty()) out.png = std::make_unique<PngSink>(a.fa.dir, scene.render.frames_every);
+  if (!a.fa.dir.empty()) out.png = std::make_unique<PngSink>(a.fa.dir, scene.render);
   if (!a.metrics_csv.empty()) out.metrics = std::make_unique<MetricsSink>(a.metrics_csv, scene, rs.params);
   if (!a.summary_json.empty()) out.summary = open_output("--summary-json", a.summary_json);
   const Backend b = choose_backend(a.backend, std::cout);
@@ -168,7 +168,7 @@ int cmd_run(RunArgs a) {
   const StageNeeds needs = needs_of(scene, out.sinks());
   auto solver = make_solver(rs, b, needs);
   auto field = make_field(rs, b, needs);
-  if (out.png) out.png->open(scene, b, field->setup());
+  if (out.png) out.png->open(scene, b, make_field_setup(rs));
   if (out.exporter) {  // created before the run: an unwritable path fails before any step
     try {
       out.exporter->open(a.ex.path, export_header(scene, b, *solver), scene.export_.gzip);

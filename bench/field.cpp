@@ -13,26 +13,44 @@
 
 namespace sphray {
 
-std::string bench_field_scene(size_t particles, int volume) {
-  // A 1 m tank whose field volume is exactly volume^3 voxels at refine = 2
-  // (4 voxels per cell, cell = 4 dx at smoothing_ratio 2, so a voxel is one
-  // particle spacing): the grid's margin (walls + half a cell) puts the tank
-  // at 1.5 cells from its origin, and the volume covers the cells the tank
-  // overlaps, volume / 4 of them when the tank is volume / 4 - 1 cells wide.
+namespace {
+
+// A 1 m tank whose field volume is exactly volume^3 voxels at refine = 2
+// (4 voxels per cell, cell = 4 dx at smoothing_ratio 2, so a voxel is one
+// particle spacing): the grid's margin (walls + half a cell) puts the tank
+// at 1.5 cells from its origin, and the volume covers the cells the tank
+// overlaps, volume / 4 of them when the tank is volume / 4 - 1 cells wide.
+// The liquid is the block [0, fx] x [0, 1] x [0, fz] m.
+std::string bench_tank_scene(const std::string& name, const std::string& what, double dx, double fx, double fz) {
   const double tank = 1.0;
-  const double dx = tank / (double(volume) - 4.0);
-  // Column: full tank width in y, a x a in x and z, holding `particles`.
-  const double a = std::min(0.9 * tank, std::sqrt(double(particles) * dx * dx * dx / tank));
   std::ostringstream os;
   os.precision(10);
-  os << "{\"name\": \"bench_field_" << particles << "\",\n"
-     << " \"description\": \"dam-break column for sphray bench field\",\n"
+  os << "{\"name\": \"" << name << "\",\n"
+     << " \"description\": \"" << what << "\",\n"
      << " \"tank\": {\"min\": [0, 0, 0], \"max\": [" << tank << ", " << tank << ", " << tank << "]},\n"
-     << " \"fluid\": [{\"min\": [0, 0, 0], \"max\": [" << a << ", " << tank << ", " << a << "]}],\n"
+     << " \"fluid\": [{\"min\": [0, 0, 0], \"max\": [" << fx << ", " << tank << ", " << fz << "]}],\n"
      << " \"sph\": {\"spacing\": " << dx << "},\n"
      << " \"field\": {\"refine\": 2},\n"
      << " \"run\": {\"end_time\": 10}}\n";
   return os.str();
+}
+
+double bench_dx(int volume) { return 1.0 / (double(volume) - 4.0); }
+
+}  // namespace
+
+std::string bench_field_scene(size_t particles, int volume) {
+  // Column: full tank width in y, a x a in x and z, holding `particles`.
+  const double dx = bench_dx(volume);
+  const double a = std::min(0.9, std::sqrt(double(particles) * dx * dx * dx));
+  return bench_tank_scene("bench_field_" + std::to_string(particles), "dam-break column for sphray bench field", dx, a,
+                          a);
+}
+
+std::string bench_pool_scene(size_t particles, int volume) {
+  const double dx = bench_dx(volume);
+  return bench_tank_scene("bench_pool_" + std::to_string(particles), "still pool for sphray bench render", dx, 1.0,
+                          std::min(0.9, double(particles) * dx * dx * dx));
 }
 
 int default_bench_volume(size_t particles) { return particles <= 200000 ? 64 : 256; }

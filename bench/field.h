@@ -39,6 +39,9 @@ struct BenchFieldRow {
 
 // The generated scene of one size (JSON text), for the record and for tests.
 std::string bench_field_scene(size_t particles, int volume);
+// The same tank and spacing with the particles as a still pool over the
+// whole floor (for bench render).
+std::string bench_pool_scene(size_t particles, int volume);
 // The volume edge used when none is asked for: 64 up to 200k particles, else 256.
 int default_bench_volume(size_t particles);
 // Simulates the generated scene's column to T = t sqrt(2g/a) = collapse, the

@@ -1,5 +1,6 @@
 #include "frame.h"
 
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <filesystem>
@@ -10,6 +11,7 @@
 #include "sim.h"
 #include "field.h"
 #include "pipeline/pipeline.h"
+#include "render/image.h"
 #include "render/render.h"
 #include "io/scene.h"
 
@@ -38,7 +40,9 @@ std::vector<BenchFrameRow> bench_frame(Backend b, const BenchFrameOptions& opt, 
   for (size_t target : opt.sizes) {
     const ResolvedScene rs = resolve_scene(frame_scene(target, opt.width, opt.height, opt.interfaces, opt.overrides));
     const Scene& s = rs.scene;
-    const StageNeeds needs{kind == FieldKind::Presence ? PresenceMode::AtUntil : PresenceMode::Off, true};
+    const bool with_field = method_needs_field(s.render.method);  // screen_space draws the particles
+    const bool presence = with_field && kind == FieldKind::Presence;
+    const StageNeeds needs{presence ? PresenceMode::AtUntil : PresenceMode::Off, true};
     auto solver = make_solver(rs, b, needs);
     auto field = make_field_builder(b, make_field_setup(rs), kind);
     auto renderer = make_renderer(b);
@@ -53,12 +57,13 @@ std::vector<BenchFrameRow> bench_frame(Backend b, const BenchFrameOptions& opt, 
       const uint64_t steps_before = solver->steps();
       const double sim_ms =
           opt.realtime ? advance_to(*solver, playback_target(t_before, prev_wall_s, opt.max_sim_per_frame, 1e30),
-                                    kind == FieldKind::Presence, opt.max_sim_per_frame)
+                                    presence, opt.max_sim_per_frame)
                              .ms
-                       : advance_frame(*solver, opt.substeps, kind == FieldKind::Presence, 1e30);
+                       : advance_frame(*solver, opt.substeps, presence, 1e30);
       const ParticleView pv = solver->view();
-      field->build(pv);
-      renderer->render(field->data(), field->setup(), cam, env, s.render);
+      if (with_field) field->build(pv);
+      renderer->render(RenderInput{with_field ? field->data() : nullptr, &field->setup(), pv, s.sph.spacing}, cam, env,
+                       s.render);
       const double w = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
       prev_wall_s = 1e-3 * w;
       if (f < opt.warmup) continue;
@@ -66,9 +71,10 @@ std::vector<BenchFrameRow> bench_frame(Backend b, const BenchFrameOptions& opt, 
       sim_advanced += solver->time() - t_before;
       wall_sum_s += 1e-3 * w;
       sim.push_back(sim_ms);
-      fld.push_back(field->last_ms());
+      const double field_ms = with_field ? field->last_ms() : 0.0;
+      fld.push_back(field_ms);
       ren.push_back(renderer->last_ms());
-      tot.push_back(sim_ms + field->last_ms() + renderer->last_ms());
+      tot.push_back(sim_ms + field_ms + renderer->last_ms());
       wall.push_back(w);
     }
     BenchFrameRow r;
@@ -130,93 +136,183 @@ void print_table(const std::vector<BenchFrameRow>& rows, std::ostream& out) {
 }
 
 std::vector<BenchRenderRow> bench_render(Backend b, const BenchRenderOptions& opt, std::ostream& log) {
-  const ResolvedScene rs = resolve_scene(frame_scene(opt.particles, opt.width, opt.height, 8, opt.overrides));
+  for (const auto& m : opt.methods) parse_render_method(m);  // an unknown one fails before any work
+  if (opt.scene != "dam_break" && opt.scene != "pool")
+    throw std::invalid_argument("--scene '" + opt.scene + "': dam_break or pool");
+  const bool pool = opt.scene == "pool";
+  const int volume = default_bench_volume(opt.particles);
+  std::vector<std::string> sets = opt.overrides;
+  sets.insert(sets.begin(), {"render.width=" + std::to_string(opt.width), "render.height=" + std::to_string(opt.height)});
+  const ResolvedScene rs = resolve_scene(parse_scene(
+      pool ? bench_pool_scene(opt.particles, volume) : bench_field_scene(opt.particles, volume), "bench_render", sets));
   const Scene& s = rs.scene;
   const StageNeeds needs{PresenceMode::AtUntil, true};
   auto solver = make_solver(rs, b, needs);
   const FieldSetup fs = make_field_setup(rs);
   auto field = make_field_builder(b, fs, FieldKind::Naive);
   auto renderer = make_renderer(b);
-  simulate_collapse(s, *solver, opt.collapse, log);
+  if (pool) {
+    log << "  " << solver->num_fluid() << " particles: a still pool (the start lattice)\n";
+    solver->set_presence(PresenceMode::AtUntil);
+    solver->step(solver->time() + 1e-5);  // one short step: presence, as the frames of a run have it
+  } else {
+    simulate_collapse(s, *solver, opt.collapse, log);
+  }
   const ParticleView pv = solver->view();
   const Camera cam = make_camera(s.tank, s.render);
-  const Environment env = make_environment(s.tank, field->setup().geom, cam);
+  const Environment env = make_environment(s.tank, fs.geom, cam);
+  const double spacing = s.sph.spacing;
 
   // Every branch to 8 interfaces: at most 255 interfaces per pixel, no weight cut.
   RenderSettings ref = s.render;
+  ref.method = RenderMethod::Raycast;
   ref.step = float(opt.reference_step);
   ref.interfaces = 8;
   ref.reflections = true;
   ref.budget = 255;
   ref.min_weight = 0;
   field->build(pv);
-  renderer->render(field->data(), field->setup(), cam, env, ref);
+  renderer->render(field->data(), fs, cam, env, ref);
   const Image reference = renderer->download();
   log << "  reference: naive field, step " << ref.step << " voxels, every branch to 8 interfaces, "
       << renderer->last_ms() << " ms\n";
   if (!opt.png_dir.empty()) write_png(png_path(opt.png_dir, "render_reference.png"), reference);
 
+  // One setting: its median render time and stages, its image and error.
+  auto measure = [&](BenchRenderRow r, const RenderSettings& set, bool with_field, const std::string& png) {
+    std::vector<double> ms;
+    std::vector<std::vector<double>> stage_ms;
+    const RenderInput in{with_field ? field->data() : nullptr, &fs, pv, spacing};
+    for (int k = 0; k < opt.warmup + opt.frames; ++k) {
+      renderer->render(in, cam, env, set);
+      if (k < opt.warmup) continue;
+      ms.push_back(renderer->last_ms());
+      const auto st = renderer->last_stages();
+      stage_ms.resize(st.size());
+      for (size_t i = 0; i < st.size(); ++i) stage_ms[i].push_back(st[i].second);
+    }
+    const auto names = renderer->last_stages();
+    for (size_t i = 0; i < names.size(); ++i) r.stages_ms.emplace_back(names[i].first, median(stage_ms[i]));
+    const Image img = renderer->download();
+    r.render_ms = median(ms);
+    r.psnr_db = psnr(reference, img);
+    r.ssim = ssim(reference, img);
+    if (!opt.png_dir.empty() && !png.empty()) write_png(png_path(opt.png_dir, png), img);
+    log << "    " << r.method << (r.builder.empty() ? "" : " " + r.builder);
+    if (r.method == "raycast") log << " step " << r.step << " N " << r.interfaces << " budget " << r.budget;
+    if (r.method == "slices") log << " " << r.slices << " slices";
+    if (r.method == "screen_space") log << " filter " << set.filter_width << " x " << r.filter_iterations;
+    log << ": " << std::fixed << std::setprecision(3) << r.render_ms << " ms, PSNR " << std::setprecision(2)
+        << r.psnr_db << " dB, SSIM " << std::setprecision(4) << r.ssim << "\n" << std::defaultfloat;
+    return r;
+  };
+  auto has = [&](const char* m) { return std::find(opt.methods.begin(), opt.methods.end(), m) != opt.methods.end(); };
+
   std::vector<BenchRenderRow> rows;
   for (FieldKind kind : {FieldKind::Naive, FieldKind::Presence}) {
+    if (!has("raycast") && !(has("slices") && kind == FieldKind::Presence)) continue;
     if (field->kind() != kind) field = make_field_builder(b, fs, kind);
     std::vector<double> fms;
     for (int k = 0; k < opt.warmup + opt.frames; ++k) {
       field->build(pv);
       if (k >= opt.warmup) fms.push_back(field->last_ms());
     }
-    for (double step : opt.steps)
-      for (int n : opt.interfaces)
-        for (int budget : opt.budgets) {
-          RenderSettings rs = s.render;
-          rs.step = float(step);
-          rs.interfaces = n;
-          rs.reflections = budget > 0;
-          if (budget > 0) rs.budget = budget;
-          rs.min_weight = opt.min_weight;
-          std::vector<double> ms;
-          for (int k = 0; k < opt.warmup + opt.frames; ++k) {
-            renderer->render(field->data(), field->setup(), cam, env, rs);
-            if (k >= opt.warmup) ms.push_back(renderer->last_ms());
+    BenchRenderRow base;
+    base.builder = field_kind_name(kind);
+    base.field_ms = median(fms);
+    if (has("raycast"))
+      for (double step : opt.steps)
+        for (int n : opt.interfaces)
+          for (int budget : opt.budgets) {
+            RenderSettings set = s.render;
+            set.method = RenderMethod::Raycast;
+            set.step = float(step);
+            set.interfaces = n;
+            set.reflections = budget > 0;
+            if (budget > 0) set.budget = budget;
+            set.min_weight = opt.min_weight;
+            BenchRenderRow r = base;
+            r.method = "raycast";
+            r.step = step;
+            r.interfaces = n;
+            r.budget = budget;
+            // the default settings' image, and the same without reflections
+            const bool dflt = kind == FieldKind::Presence && step == 0.5 && n == 4;
+            const std::string png = !dflt ? ""
+                                    : budget == 0 ? "render_no_reflections.png"
+                                    : budget == s.render.budget ? "render_default.png"
+                                                                : "";
+            rows.push_back(measure(r, set, true, png));
           }
-          const Image img = renderer->download();
-          BenchRenderRow r{field_kind_name(kind), step, n, budget, median(ms), median(fms), psnr(reference, img)};
-          // the default settings' image, and the same without reflections
-          if (!opt.png_dir.empty() && kind == FieldKind::Presence && step == 0.5 && n == 4 &&
-              (budget == 0 || budget == s.render.budget))
-            write_png(png_path(opt.png_dir, budget == 0 ? "render_no_reflections.png" : "render_default.png"), img);
-          log << "    " << r.builder << " step " << step << " N " << n << " budget " << budget << ": " << std::fixed
-              << std::setprecision(3) << r.render_ms << " ms, PSNR " << std::setprecision(2) << r.psnr_db << " dB\n"
-              << std::defaultfloat;
-          rows.push_back(r);
-        }
+    if (has("slices") && kind == FieldKind::Presence)
+      for (int count : opt.slices) {
+        RenderSettings set = s.render;
+        set.method = RenderMethod::Slices;
+        set.slices = count;
+        BenchRenderRow r = base;
+        r.method = "slices";
+        r.interfaces = set.interfaces;
+        r.budget = set.reflections ? set.budget : 0;
+        r.slices = count;
+        rows.push_back(measure(r, set, true, count == s.render.slices ? "render_slices.png" : ""));
+      }
   }
+  if (has("screen_space"))
+    for (int it : opt.filter_iterations) {
+      RenderSettings set = s.render;
+      set.method = RenderMethod::ScreenSpace;
+      set.filter_iterations = it;
+      BenchRenderRow r;
+      r.method = "screen_space";
+      r.interfaces = 2;
+      r.filter_iterations = it;
+      rows.push_back(measure(r, set, false, it == s.render.filter_iterations ? "render_screen_space.png" : ""));
+    }
   return rows;
 }
 
 nlohmann::json to_json(const std::vector<BenchRenderRow>& rows, Backend b, const BenchRenderOptions& opt) {
-  nlohmann::json j = bench_json("render", b, "median ms (device events); PSNR over R, G, B in dB", opt.overrides);
+  nlohmann::json j = bench_json("render", b,
+                                "median ms (device events); PSNR over R, G, B in dB and SSIM of the luma, against "
+                                "the reference",
+                                opt.overrides);
   j["particles"] = opt.particles;
+  j["scene"] = opt.scene;
   j["image"] = {opt.width, opt.height};
-  j["reference"] = {{"builder", "naive"}, {"step_voxels", opt.reference_step}, {"interfaces", 8},
-                    {"branches", "all (budget 255, no weight cut)"}};
+  j["reference"] = {{"method", "raycast"}, {"builder", "naive"}, {"step_voxels", opt.reference_step},
+                    {"interfaces", 8}, {"branches", "all (budget 255, no weight cut)"}};
   j["min_weight"] = opt.min_weight;
   j["warmup_renders"] = opt.warmup;
   j["measured_renders"] = opt.frames;
+  if (opt.scene == "dam_break") j["collapse_T"] = opt.collapse;
   j["rows"] = nlohmann::json::array();
-  for (const auto& r : rows)
-    j["rows"].push_back({{"builder", r.builder}, {"step_voxels", r.step}, {"interfaces", r.interfaces},
-                         {"budget", r.budget}, {"render_ms", r.render_ms}, {"field_ms", r.field_ms},
-                         {"psnr_db", std::isinf(r.psnr_db) ? nlohmann::json("inf") : nlohmann::json(r.psnr_db)}});
+  for (const auto& r : rows) {
+    nlohmann::json stages = nlohmann::json::object();
+    for (const auto& st : r.stages_ms) stages[st.first] = st.second;
+    j["rows"].push_back({{"method", r.method}, {"builder", r.builder}, {"step_voxels", r.step},
+                         {"interfaces", r.interfaces}, {"budget", r.budget},
+                         {"filter_iterations", r.filter_iterations}, {"slices", r.slices},
+                         {"render_ms", r.render_ms}, {"stages_ms", stages}, {"field_ms", r.field_ms},
+                         {"psnr_db", std::isinf(r.psnr_db) ? nlohmann::json("inf") : nlohmann::json(r.psnr_db)},
+                         {"ssim", r.ssim}});
+  }
   return j;
 }
 
 void print_table(const std::vector<BenchRenderRow>& rows, std::ostream& out) {
-  out << std::setw(10) << "builder" << std::setw(8) << "step" << std::setw(5) << "N" << std::setw(8) << "budget"
-      << std::setw(10) << "field ms" << std::setw(11) << "render ms" << std::setw(10) << "PSNR dB\n";
-  for (const auto& r : rows)
-    out << std::setw(10) << r.builder << std::setw(8) << r.step << std::setw(5) << r.interfaces << std::setw(8)
-        << r.budget << std::fixed << std::setprecision(3) << std::setw(10) << r.field_ms << std::setw(11) << r.render_ms
-        << std::setprecision(2) << std::setw(10) << r.psnr_db << "\n" << std::defaultfloat;
+  out << std::setw(13) << "method" << std::setw(10) << "builder" << std::setw(18) << "setting" << std::setw(10)
+      << "field ms" << std::setw(11) << "render ms" << std::setw(10) << "PSNR dB" << std::setw(8) << "SSIM\n";
+  for (const auto& r : rows) {
+    std::string setting;
+    if (r.method == "raycast")
+      setting = "step " + std::to_string(r.step).substr(0, 4) + " N" + std::to_string(r.interfaces) + " b" +
+                std::to_string(r.budget);
+    else if (r.method == "slices") setting = std::to_string(r.slices) + " slices";
+    else setting = std::to_string(r.filter_iterations) + " passes";
+    out << std::setw(13) << r.method << std::setw(10) << r.builder << std::setw(18) << setting << std::fixed
+        << std::setprecision(3) << std::setw(10) << r.field_ms << std::setw(11) << r.render_ms << std::setprecision(2)
+        << std::setw(10) << r.psnr_db << std::setprecision(4) << std::setw(8) << r.ssim << "\n" << std::defaultfloat;
+  }
 }
 
 }  // namespace sphray

@@ -22,11 +22,11 @@ std::ofstream open_output(const std::string& flag, const std::string& path) {
 }
 
 void PngSink::open(const Scene& scene, Backend b, const FieldSetup& fs) {
-  frames_ = std::make_unique<FrameRenderer>(scene.render, scene.tank, b, fs, dir_, flag_);
+  frames_ = std::make_unique<FrameRenderer>(scene.render, scene.tank, scene.sph.spacing, b, fs, dir_, flag_);
 }
 
-void PngSink::write(const Solver&, const FieldBuilder* field, int frame) {
-  if (frame % every_ == 0) frames_->write_frame(*field, frame);
+void PngSink::write(const Solver& s, const FieldBuilder* field, int frame) {
+  if (frame % every_ == 0) frames_->write_frame(s.view(), field_ ? field : nullptr, frame);
 }
 
 FrameNeeds ExportSink::needs(int frame) const { return frame % every_ == 0 ? needs_ever() : FrameNeeds{}; }

@@ -16,20 +16,22 @@ namespace sphray {
 
 // PNG frames into a directory, every `every`-th output frame
 // (render.frames_every). Its renderer is made by open(), once the field's
-// volume is known; the directory is checked then, before the run.
+// volume is known; the directory is checked then, before the run. It needs
+// the field where the scene's render.method draws one.
 class PngSink final : public OutputSink {
  public:
-  PngSink(std::string dir, int every, std::string flag = "--frames-dir")
-      : dir_(std::move(dir)), flag_(std::move(flag)), every_(every) {}
+  PngSink(std::string dir, const RenderSettings& rs, std::string flag = "--frames-dir")
+      : dir_(std::move(dir)), flag_(std::move(flag)), every_(rs.frames_every), field_(method_needs_field(rs.method)) {}
   void open(const Scene& scene, Backend b, const FieldSetup& fs);
   FrameRenderer& frames() { return *frames_; }
-  FrameNeeds needs(int frame) const override { return {frame % every_ == 0, false}; }
-  FrameNeeds needs_ever() const override { return {true, false}; }
+  FrameNeeds needs(int frame) const override { return {field_ && frame % every_ == 0, false}; }
+  FrameNeeds needs_ever() const override { return {field_, false}; }
   void write(const Solver& s, const FieldBuilder* field, int frame) override;
 
  private:
   std::string dir_, flag_;
   int every_;
+  bool field_;
   std::unique_ptr<FrameRenderer> frames_;
 };
 

@@ -1,5 +1,6 @@
 // The PNG sink of `run --frames-dir` and `render`: renders a solver's current
-// particles from the field built for them and writes the image.
+// particles (screen_space) or the field built from them (raycast, slices)
+// and writes the image.
 #pragma once
 
 #include <memory>
@@ -15,14 +16,16 @@ class FrameRenderer {
   // `dir` (may be empty when only render_to is used) is created; a directory
   // that cannot be written is an error here, before any simulation, naming
   // the option that gave it (`flag`).
-  FrameRenderer(const RenderSettings& rs, const Box& tank, Backend b, const FieldSetup& fs, const std::string& dir,
-                const std::string& flag = "--frames-dir");
+  // `spacing`: the particle spacing [m] (the screen-space spheres' unit).
+  FrameRenderer(const RenderSettings& rs, const Box& tank, double spacing, Backend b, const FieldSetup& fs,
+                const std::string& dir, const std::string& flag = "--frames-dir");
   ~FrameRenderer();  // writes what is queued; a failure is reported by finish()
   // Renders dir/frame_NNNNNN.png; the PNG is encoded and written on a
   // background thread (BackgroundQueue), so the run does not wait for it.
   // Throws std::runtime_error if an earlier write failed.
-  void write_frame(const FieldBuilder& field, int frame);
-  void render_to(const FieldBuilder& field, const std::string& png_path);  // written at once
+  // `field` may be null where the method needs none (method_needs_field).
+  void write_frame(const ParticleView& particles, const FieldBuilder* field, int frame);
+  void render_to(const ParticleView& particles, const FieldBuilder* field, const std::string& png_path);  // at once
   // Waits for the queued PNGs; throws std::runtime_error naming a failed write.
   void finish();
   int frames_written() const { return written_ + int(png_ ? png_->done() : 0); }
@@ -30,10 +33,12 @@ class FrameRenderer {
   const std::string& dir() const { return dir_; }
 
  private:
-  Image render(const FieldBuilder& field);  // the image, its time counted
+  Image render(const ParticleView& particles, const FieldBuilder* field);  // the image, its time counted
 
   std::unique_ptr<Renderer> renderer_;
   RenderSettings rs_;
+  FieldSetup fs_;
+  double spacing_;
   Camera cam_;
   Environment env_;
   std::string dir_, flag_;  // flag_: the option that named dir_, for messages

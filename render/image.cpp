@@ -98,4 +98,43 @@ double psnr(const Image& a, const Image& b) {
   return 10.0 * std::log10(255.0 * 255.0 / mse);
 }
 
+double ssim(const Image& a, const Image& b) {
+  check_same_size(a, b, "ssim");
+  const int w = a.width, h = a.height, r = 5;  // window 2r + 1
+  if (w < 2 * r + 1 || h < 2 * r + 1) throw std::invalid_argument("ssim: images smaller than the 11 x 11 window");
+  double g[2 * r + 1], gs = 0;
+  for (int k = -r; k <= r; ++k) gs += g[k + r] = std::exp(-double(k * k) / (2.0 * 1.5 * 1.5));
+  for (double& v : g) v /= gs;
+  auto luma = [](uint32_t px) { return 0.299 * channel(px, 0) + 0.587 * channel(px, 1) + 0.114 * channel(px, 2); };
+  // The five moments x, y, x^2, y^2, xy, filtered along rows then columns
+  // (valid region only).
+  const int ow = w - 2 * r, oh = h - 2 * r;
+  std::vector<double> rows(size_t(5) * size_t(ow) * size_t(h));
+  for (int y = 0; y < h; ++y)
+    for (int x = 0; x < ow; ++x) {
+      double m[5] = {0, 0, 0, 0, 0};
+      for (int k = 0; k <= 2 * r; ++k) {
+        const size_t q = size_t(y) * size_t(w) + size_t(x + k);
+        const double u = luma(a.rgba[q]), v = luma(b.rgba[q]);
+        m[0] += g[k] * u;
+        m[1] += g[k] * v;
+        m[2] += g[k] * u * u;
+        m[3] += g[k] * v * v;
+        m[4] += g[k] * u * v;
+      }
+      for (int c = 0; c < 5; ++c) rows[(size_t(c) * size_t(h) + size_t(y)) * size_t(ow) + size_t(x)] = m[c];
+    }
+  const double c1 = (0.01 * 255) * (0.01 * 255), c2 = (0.03 * 255) * (0.03 * 255);
+  double sum = 0;
+  for (int y = 0; y < oh; ++y)
+    for (int x = 0; x < ow; ++x) {
+      double m[5] = {0, 0, 0, 0, 0};
+      for (int c = 0; c < 5; ++c)
+        for (int k = 0; k <= 2 * r; ++k) m[c] += g[k] * rows[(size_t(c) * size_t(h) + size_t(y + k)) * size_t(ow) + size_t(x)];
+      const double va = m[2] - m[0] * m[0], vb = m[3] - m[1] * m[1], cov = m[4] - m[0] * m[1];
+      sum += (2 * m[0] * m[1] + c1) * (2 * cov + c2) / ((m[0] * m[0] + m[1] * m[1] + c1) * (va + vb + c2));
+    }
+  return sum / (double(ow) * double(oh));
+}
+
 }  // namespace sphray

@@ -1,4 +1,4 @@
-// An RGBA image on the host, PNG files through stb, and image error (PSNR).
+// An RGBA image on the host, PNG files through stb, and image error (PSNR, SSIM).
 #pragma once
 
 #include <cstddef>
@@ -20,5 +20,10 @@ Image read_png(const std::string& path);
 size_t pixels_differing(const Image& a, const Image& b, int levels);
 // Peak signal-to-noise ratio over R, G, B (8-bit), in dB; +inf for equal images.
 double psnr(const Image& a, const Image& b);
+// Mean structural similarity (Wang, Bovik, Sheikh & Simoncelli 2004) of the
+// luma (Rec. 601 weights, 8-bit scale): Gaussian window 11 x 11, sigma 1.5,
+// K1 = 0.01, K2 = 0.03, over the windows that lie inside the image (at least
+// 11 x 11 pixels). 1 for equal images.
+double ssim(const Image& a, const Image& b);
 
 }  // namespace sphray

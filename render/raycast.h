@@ -130,6 +130,25 @@ struct BuildOccupancy {
   }
 };
 
+// The slice method (Mishima et al.): the camera's rays sample the field
+// where they cross planes normal to the view direction, `spacing` voxels
+// apart (at depths z0 + k spacing from the eye), and take the crossing from
+// the linear interpolation between two slices. Spacing 0: the ray march.
+struct SlicePlanes {
+  float spacing = 0.0f;
+  Vec3f eye{0, 0, 0}, forward{0, 0, 1};  // voxel frame
+  float z0 = 0.0f;
+
+  // Along unit d from p (a camera ray: dot(d, forward) > 0): the distance
+  // between two planes, and from p to the next plane, in (0, step].
+  SPHRAY_HD SPHRAY_FORCEINLINE void along(Vec3f p, Vec3f d, float& first, float& step) const {
+    const float c = dot(d, forward);
+    step = spacing / c;
+    const float z = dot(p - eye, forward);
+    first = (z0 + (std::floor((z - z0) / spacing) + 1.0f) * spacing - z) / c;
+  }
+};
+
 struct TraceSettings {
   float iso;
   float step;        // march step [voxels], at most 0.5
@@ -146,6 +165,7 @@ struct TraceSettings {
   int budget = 8;
   float min_weight = 0.0f;
   Rgb tint{0, 0, 0};  // what the liquid scatters toward the eye where it absorbs (deep water's colour)
+  SlicePlanes slices{};  // spacing > 0: camera rays sample on these planes (then step = spacing, no secant)
 };
 
 // What a test may watch (the renderer passes NoTrace: compiled away).
@@ -168,20 +188,30 @@ struct Tracer {
   // March from o along d for at most t_max, looking for f crossing iso in
   // the direction that leaves the current side (inside: f >= iso). Returns
   // the refined distance, or -1 when no crossing comes before t_max.
-  SPHRAY_HD float find_crossing(Vec3f o, Vec3f d, float t_max, bool inside) const {
+  // `camera`: o + t d is a camera ray (samples on the slice planes, if any).
+  SPHRAY_HD float find_crossing(Vec3f o, Vec3f d, float t_max, bool inside, bool camera = false) const {
     const float iso = ts.iso;
     float t = 0.0f;
     float g = field(o) - iso;
+    // On slices the samples lie at t = phase + j step (the planes); the march
+    // samples t = j step.
+    float phase = 0.0f, step = ts.step, plane = -1.0f;  // the plane sampled last (-1: the start, before plane 0)
+    const bool planes = camera && ts.slices.spacing > 0.0f;
+    if (planes) ts.slices.along(o, d, phase, step);
     // `inside` is what the last interface decided, not the sign of g here: a
     // ray that starts on the surface looks for the next crossing out of its state.
     while (t < t_max) {
       if (occupancy.skip_at(o + d * t, inside)) {
         t += occupancy.cell_exit(o + d * t, d) + 1e-3f;
+        if (planes) {  // on to the next slice
+          plane = std::ceil((t - phase) / step);
+          t = phase + plane * step;
+        }
         if (t >= t_max) return -1.0f;
         g = field(o + d * t) - iso;
         continue;
       }
-      float tn = t + ts.step;
+      float tn = planes ? phase + (plane + 1.0f) * step : t + step;
       if (tn > t_max) tn = t_max;
       const float gn = field(o + d * tn) - iso;
       const bool crossed = inside ? gn < 0.0f : gn >= 0.0f;
@@ -204,6 +234,7 @@ struct Tracer {
       }
       t = tn;
       g = gn;
+      plane += 1.0f;
     }
     return -1.0f;
   }
@@ -293,7 +324,7 @@ struct Tracer {
       }
       float t_max = t_wall < t_box ? t_wall : t_box;
       t_max = t_glass < t_max ? t_glass : t_max;
-      const float th = find_crossing(p, d, t_max, b.inside);
+      const float th = find_crossing(p, d, t_max, b.inside, b.k == 0);
       const float len = th >= 0.0f ? th : t_max;
       watch.segment(p, p + d * len, b.inside);
       if (b.inside) absorb(b.w, len, colour, watch);

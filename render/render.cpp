@@ -1,5 +1,6 @@
 #include "render.h"
 
+#include <algorithm>
 #include <cmath>
 
 
@@ -62,18 +63,43 @@ Environment make_environment(const Box& tank, const VolumeGeom& vol, const Camer
   return e;
 }
 
-TraceSettings make_trace_settings(const RenderSettings& r, const FieldSetup& fs) {
+namespace {
+
+// Planes normal to the view across the volume box's depth range, `slices` of them.
+SlicePlanes slice_planes(const Camera& cam, const VolumeGeom& vol, int slices) {
+  SlicePlanes p;
+  p.eye = vol.to_voxels(cam.eye);
+  p.forward = cam.forward;
+  float lo = 1e30f, hi = -1e30f;
+  for (int c = 0; c < 8; ++c) {
+    const Vec3f corner{c & 1 ? float(vol.nx) : 0.0f, c & 2 ? float(vol.ny) : 0.0f, c & 4 ? float(vol.nz) : 0.0f};
+    const float z = dot(corner - p.eye, p.forward);
+    lo = std::min(lo, z);
+    hi = std::max(hi, z);
+  }
+  lo = std::max(lo, 0.0f);
+  p.z0 = lo;
+  p.spacing = std::max(hi - lo, 1e-3f) / float(slices);
+  return p;
+}
+
+}  // namespace
+
+TraceSettings make_trace_settings(const RenderSettings& r, const FieldSetup& fs, const Camera& cam) {
   const double v = fs.geom.voxel;
+  const bool slices = r.method == RenderMethod::Slices;
+  const SlicePlanes planes = slices ? slice_planes(cam, fs.geom, r.slices) : SlicePlanes{};
   return TraceSettings{fs.shape.iso,
-                       r.step,
+                       slices ? planes.spacing : r.step,
                        r.interfaces,
                        r.ior,
                        Rgb{float(r.absorption.x * v), float(r.absorption.y * v), float(r.absorption.z * v)},
-                       r.secant_steps,
+                       slices ? 0 : r.secant_steps,
                        r.reflections,
                        r.budget,
                        float(r.min_weight),
-                       Rgb{float(r.tint.x), float(r.tint.y), float(r.tint.z)}};
+                       Rgb{float(r.tint.x), float(r.tint.y), float(r.tint.z)},
+                       planes};
 }
 
 std::unique_ptr<Renderer> make_renderer(Backend b) {

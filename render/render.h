@@ -6,6 +6,7 @@
 #include <cstdint>
 #include <memory>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "image.h"
@@ -27,16 +28,34 @@ Camera make_camera(const Box& tank, const RenderSettings& r);
 // the camera are clear glass, the others tiled.
 Environment make_environment(const Box& tank, const VolumeGeom& vol, const Camera& cam);
 
+// What a renderer draws from, in its backend's memory: the density field
+// (raycast, slices) or the particles (screen_space). The field's setup is
+// always given: its volume is the environment's frame.
+struct RenderInput {
+  const float* field = nullptr;       // null: not built (screen_space needs none)
+  const FieldSetup* setup = nullptr;  // the volume's layout and iso
+  ParticleView particles{};           // screen_space: the fluid particles
+  double spacing = 0;                 // screen_space: the particle spacing [m] (sphere radius unit)
+};
+
 class Renderer {
  public:
   virtual ~Renderer() = default;
   virtual Backend backend() const = 0;
-  // Renders `field` (the backend's memory, layout and iso of `fs`) into the
-  // renderer's image; with settings.skip_empty, after classifying the
-  // field's bricks for the march to skip (raycast.h, Occupancy).
-  virtual void render(const float* field, const FieldSetup& fs, const Camera& cam, const Environment& env,
-                      const RenderSettings& rs) = 0;
+  // Renders by settings.method into the renderer's image. raycast and
+  // slices: with settings.skip_empty, after classifying the field's bricks
+  // for the march to skip (raycast.h, Occupancy); screen_space: the three
+  // passes of screen_space.h. A method without its input is a logic_error.
+  virtual void render(const RenderInput& in, const Camera& cam, const Environment& env, const RenderSettings& rs) = 0;
+  // A field alone (raycast, slices).
+  void render(const float* field, const FieldSetup& fs, const Camera& cam, const Environment& env,
+              const RenderSettings& rs) {
+    render(RenderInput{field, &fs, {}, 0}, cam, env, rs);
+  }
   virtual double last_ms() const = 0;               // device time of the last render (occupancy included)
+  // The last render's stages and their device ms (screen_space: depth,
+  // filter, shade; the others: occupancy, trace).
+  virtual std::vector<std::pair<std::string, double>> last_stages() const = 0;
   virtual const uint32_t* pixels() const = 0;       // the image in the backend's memory
   virtual Image download() const = 0;
   // The viewer's interop target: the next renders write here instead (device
@@ -48,7 +67,8 @@ std::unique_ptr<Renderer> make_cpu_renderer();
 std::unique_ptr<Renderer> make_cuda_renderer();  // throws if CUDA is unavailable
 std::unique_ptr<Renderer> make_renderer(Backend b);
 
-// The tracer's settings in voxel units for a volume (iso from the field shape).
-TraceSettings make_trace_settings(const RenderSettings& r, const FieldSetup& fs);
+// The tracer's settings in voxel units for a volume (iso from the field
+// shape); with the slices method, the camera's planes across the volume.
+TraceSettings make_trace_settings(const RenderSettings& r, const FieldSetup& fs, const Camera& cam);
 
 }  // namespace sphray

@@ -1,9 +1,12 @@
 // CPU build of the renderer: the shared implementation on the OpenMP backend.
 #include "core/launch_cpu.h"
 #include "render.h"
+#include "screen_space.h"
 
 #include <cmath>
 #include <stdexcept>
+#include <utility>
+#include <vector>
 
 #define SPHRAY_BK cpu_backend
 namespace sphray::cpu_backend {

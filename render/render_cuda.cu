@@ -1,9 +1,12 @@
 // CUDA build of the renderer: the shared implementation on the CUDA backend.
 #include "core/launch_cuda.cuh"
 #include "render.h"
+#include "screen_space.h"
 
 #include <cmath>
 #include <stdexcept>
+#include <utility>
+#include <vector>
 
 #define SPHRAY_BK cuda_backend
 namespace sphray::cuda_backend {

@@ -18,18 +18,45 @@ class RendererImpl final : public Renderer {
     return img;
   }
 
-  void render(const float* field, const FieldSetup& fs, const Camera& cam, const Environment& env,
-              const RenderSettings& rs) override {
+  using Renderer::render;
+  void render(const RenderInput& in, const Camera& cam, const Environment& env, const RenderSettings& rs) override {
     if (cam.width <= 0 || cam.height <= 0) throw std::invalid_argument("renderer: empty image");
+    if (!in.setup) throw std::logic_error("renderer: no field setup");
     width_ = cam.width;
     height_ = cam.height;
     const uint32_t n_pix = uint32_t(width_) * uint32_t(height_);
     if (!target_ && image_.size() < n_pix) image_.resize(n_pix);
+    uint32_t* out = target_ ? target_ : raw(image_);
+    clock_.start();
+    if (rs.method == RenderMethod::ScreenSpace) {
+      screen_space(in, cam, env, rs, out);
+    } else {
+      if (!in.field) throw std::logic_error("renderer: the raycast and slices methods need the field");
+      march(in.field, *in.setup, cam, env, rs, out);
+    }
+    clock_.finish();
+    stages_.clear();
+    for (const char* s : stage_names_) stages_.emplace_back(s, clock_.ms(s));
+    ms_ = 0;
+    for (const auto& s : stages_) ms_ += s.second;
+  }
+
+  std::vector<std::pair<std::string, double>> last_stages() const override { return stages_; }
+
+ private:
+  void mark(const char* stage) {
+    clock_.end_of(stage);
+    stage_names_.push_back(stage);
+  }
+
+  // raycast and slices: the tracer through the field.
+  void march(const float* field, const FieldSetup& fs, const Camera& cam, const Environment& env,
+             const RenderSettings& rs, uint32_t* out) {
+    stage_names_.clear();
     const VolumeGeom& vol = fs.geom;
     const int brick = 1 << vol.refine;  // bricks as wide as the SPH cells: 1 voxel at refine 0, 4 at refine 2
     Occupancy occ{nullptr, (vol.nx + brick - 1) / brick, (vol.ny + brick - 1) / brick, (vol.nz + brick - 1) / brick,
                   brick};
-    clock_.start();
     if (rs.skip_empty) {
       const uint32_t bricks = uint32_t(occ.cx) * uint32_t(occ.cy) * uint32_t(occ.cz);
       if (occupancy_.size() < bricks) occupancy_.resize(bricks);
@@ -37,19 +64,69 @@ class RendererImpl final : public Renderer {
                    BuildOccupancy{field, vol.nx, vol.ny, vol.nz, brick, fs.shape.iso, raw(occupancy_)});
       occ.occ = raw(occupancy_);
     }
+    mark("occupancy");
     Tracer<TrilinearField> tracer{TrilinearField{field, vol.nx, vol.ny, vol.nz}, occ,
                                   Vec3f{float(vol.nx), float(vol.ny), float(vol.nz)}, env,
-                                  make_trace_settings(rs, fs)};
-    parallel_for("render_raycast", PixelTiles{width_, height_}.items(), RaycastPixels<TrilinearField>{cam, tracer, vol.origin, 1.0f / vol.voxel,
-                                                      target_ ? target_ : raw(image_)});
-    clock_.end_of("render");
-    clock_.finish();
-    ms_ = clock_.ms("render");
+                                  make_trace_settings(rs, fs, cam)};
+    parallel_for(rs.method == RenderMethod::Slices ? "render_slices" : "render_raycast",
+                 PixelTiles{width_, height_}.items(),
+                 RaycastPixels<TrilinearField>{cam, tracer, vol.origin, 1.0f / vol.voxel, out});
+    mark("trace");
   }
 
- private:
+  // screen_space: depth of the spheres, bilateral filter, two-sided shading.
+  void screen_space(const RenderInput& in, const Camera& cam, const Environment& env, const RenderSettings& rs,
+                    uint32_t* out) {
+    stage_names_.clear();
+    if (in.particles.n > 0 && !in.particles.pos) throw std::logic_error("renderer: screen_space needs the particles");
+    if (!(in.spacing > 0)) throw std::logic_error("renderer: screen_space needs the particle spacing");
+    const uint32_t n_pix = uint32_t(width_) * uint32_t(height_);
+    for (auto* v : {&front_, &back_, &front2_, &back2_})
+      if (v->size() < n_pix) v->resize(n_pix);
+    const float r = float(rs.sphere_radius * in.spacing);
+    const ViewFrame view{cam};
+    parallel_for("screen_clear", n_pix, ClearDepth{raw(front_), raw(back_)});
+    if (in.particles.n > 0)
+      parallel_for("screen_depth", in.particles.n, SplatSpheres{view, in.particles.pos, r, raw(front_), raw(back_)});
+    mark("depth");
+    BilateralDepth f{};
+    f.width = width_;
+    f.height = height_;
+    f.w = rs.filter_width;
+    const float s1 = float(rs.filter_width) / (2.0f * std::sqrt(2.0f)), s2 = 2.0f * std::sqrt(2.0f) * r;
+    for (int m = 0; m <= BilateralDepth::kMaxWidth; ++m) f.spatial[m] = std::exp(-float(m * m) / (2.0f * s1 * s1));
+    f.inv_2s2 = 1.0f / (2.0f * s2 * s2);
+    uint32_t *fa = raw(front_), *ba = raw(back_), *fb = raw(front2_), *bb = raw(back2_);
+    for (int it = 0; it < rs.filter_iterations; ++it) {
+      f.in_front = fa;
+      f.in_back = ba;
+      f.out_front = fb;
+      f.out_back = bb;
+      parallel_for("screen_filter", n_pix, f);
+      std::swap(fa, fb);
+      std::swap(ba, bb);
+    }
+    mark("filter");
+    const ShadeTwoSided shade{view,
+                              env,
+                              in.setup->geom,
+                              fa,
+                              ba,
+                              r,
+                              rs.ior,
+                              Rgb{float(rs.absorption.x), float(rs.absorption.y), float(rs.absorption.z)},
+                              Rgb{float(rs.tint.x), float(rs.tint.y), float(rs.tint.z)},
+                              rs.secant_steps,
+                              out};
+    parallel_for("screen_shade", PixelTiles{width_, height_}.items(), shade);
+    mark("shade");
+  }
+
   Vector<uint32_t> image_;
   Vector<uint8_t> occupancy_;
+  Vector<uint32_t> front_, back_, front2_, back2_;  // screen_space depth maps (float bits), ping-pong
+  std::vector<const char*> stage_names_;
+  std::vector<std::pair<std::string, double>> stages_;
   uint32_t* target_ = nullptr;
   int width_ = 0, height_ = 0;
   StageClock clock_;

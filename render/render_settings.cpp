@@ -1,13 +1,29 @@
 #include "render_settings.h"
 
 #include <algorithm>
+#include <stdexcept>
 
 namespace sphray {
 
+const char* render_method_name(RenderMethod m) {
+  switch (m) {
+    case RenderMethod::ScreenSpace: return "screen_space";
+    case RenderMethod::Slices: return "slices";
+    default: return "raycast";
+  }
+}
+
+RenderMethod parse_render_method(const std::string& name) {
+  for (RenderMethod m : {RenderMethod::Raycast, RenderMethod::ScreenSpace, RenderMethod::Slices})
+    if (name == render_method_name(m)) return m;
+  throw std::invalid_argument("unknown render method '" + name + "' (raycast, screen_space or slices)");
+}
+
 RenderSettings read_render_settings(const ConfigReader& r) {
-  r.only({"width", "height", "interfaces", "step", "secant_steps", "ior", "absorption", "tint", "reflections",
-          "budget", "min_weight", "skip_empty", "eye", "target", "fov", "frames_every"});
+  r.only({"method", "width", "height", "interfaces", "step", "secant_steps", "ior", "absorption", "tint", "reflections",
+          "budget", "min_weight", "skip_empty", "eye", "target", "fov", "frames_every", "sphere_radius", "filter_width", "filter_iterations", "slices"});
   RenderSettings R;
+  R.method = parse_render_method(r.string("method", "raycast", {"raycast", "screen_space", "slices"}));
   R.width = r.integer("width", R.width, 16, 8192);
   R.height = r.integer("height", R.height, 16, 8192);
   R.interfaces = r.integer("interfaces", R.interfaces, 1, 8);
@@ -26,6 +42,10 @@ RenderSettings read_render_settings(const ConfigReader& r) {
   R.budget = r.integer("budget", R.budget, 1, 64);
   R.min_weight = r.number("min_weight", R.min_weight, 0.0, 1.0);
   R.skip_empty = r.boolean("skip_empty", R.skip_empty);
+  R.sphere_radius = r.number("sphere_radius", R.sphere_radius, 0.0, 4.0, false, true);
+  R.filter_width = r.integer("filter_width", R.filter_width, 1, 16);
+  R.filter_iterations = r.integer("filter_iterations", R.filter_iterations, 0, 64);
+  R.slices = r.integer("slices", R.slices, 8, 4096);
   R.eye = r.vec3("eye", R.eye);
   R.target = r.vec3("target", R.target);
   if (r.has("eye") != r.has("target"))

@@ -345,6 +345,37 @@ TEST_CASE("sphray run --frames-dir and sphray render write PNGs of the liquid; r
   CHECK(has(r.output, "rendered 5 frames"));
 }
 
+TEST_CASE("each render method writes frames; screen_space builds no field", "[cli][render]") {
+  const std::string scene = sphray::test::source_path("scenes/dam_break.json");
+  const std::string small = " --backend cpu --set sph.spacing=0.04 --size 96x54 --quiet --set run.end_time=0.02 "
+                            "--set run.output_interval=0.01 ";
+  const std::string raycast = tmp + "/sphray_method_raycast";
+  std::system(("rm -rf " + tmp + "/sphray_method_*").c_str());
+  Result r = run_cli("run " + scene + small + "--frames-dir " + raycast);
+  REQUIRE(r.code == 0);
+  CHECK(has(r.output, "3 builds"));
+  for (const char* m : {"screen_space", "slices"}) {
+    const std::string dir = tmp + "/sphray_method_" + m;
+    r = run_cli("run " + scene + small + "--frames-dir " + dir + " --set render.method=\"" + m + "\"");
+    INFO(m << ": " << r.output);
+    REQUIRE(r.code == 0);
+    CHECK(has(r.output, "3 PNGs (96x54"));
+    CHECK(has(r.output, "3 builds") == (std::string(m) == "slices"));  // screen_space draws the particles
+    // the same liquid in the picture as the raycaster's
+    const sphray::Image a = sphray::read_png(raycast + "/frame_000002.png");
+    const sphray::Image b = sphray::read_png(dir + "/frame_000002.png");
+    CHECK(sphray::psnr(a, b) > 20.0);
+  }
+  const std::string one = " --backend cpu --set sph.spacing=0.04 --size 96x54 --time 0 --out " + tmp;
+  r = run_cli("render " + scene + one + "/sphray_method_one.png --set render.method=\"screen_space\"");
+  CHECK(r.code == 0);
+  CHECK(std::ifstream(tmp + "/sphray_method_one.png").good());
+  r = run_cli("render " + scene + one + "/sphray_method_bad.png --set render.method=\"phong\"");
+  CHECK(r.code == 2);
+  CHECK(has(r.output, "render.method"));
+  CHECK(has(r.output, "\"raycast\", \"screen_space\", \"slices\""));
+}
+
 TEST_CASE("sphray render and --frames-dir report bad input with exit code 2", "[cli][render]") {
   const std::string scene = sphray::test::source_path("scenes/stress/one_cell.json");
   Result r = run_cli("run " + scene + " --backend cpu --frames-dir " + tmp + "/sphray_f --size 100by50");

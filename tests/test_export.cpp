@@ -616,18 +616,18 @@ TEST_CASE("PNG frames are written in the background; a failed write is reported 
   const std::string dir = tmp + "/sphray_bg_frames";
   std::filesystem::remove_all(dir);
   {
-    FrameRenderer fr(s.render, s.tank, Backend::Cpu, field->setup(), dir);
+    FrameRenderer fr(s.render, s.tank, s.sph.spacing, Backend::Cpu, field->setup(), dir);
     field->build(solver->view());
-    for (int f = 0; f < 3; ++f) fr.write_frame(*field, f);
+    for (int f = 0; f < 3; ++f) fr.write_frame(solver->view(), field.get(), f);
     fr.finish();
     CHECK(fr.frames_written() == 3);
     for (int f = 0; f < 3; ++f) CHECK(std::filesystem::exists(dir + "/frame_00000" + std::to_string(f) + ".png"));
   }
-  FrameRenderer fr(s.render, s.tank, Backend::Cpu, field->setup(), dir);
+  FrameRenderer fr(s.render, s.tank, s.sph.spacing, Backend::Cpu, field->setup(), dir);
   std::filesystem::remove_all(dir);  // the directory goes away under the run
   std::string msg;
   try {
-    for (int f = 0; f < 20; ++f) fr.write_frame(*field, f);
+    for (int f = 0; f < 20; ++f) fr.write_frame(solver->view(), field.get(), f);
     fr.finish();
   } catch (const std::runtime_error& e) {
     msg = e.what();

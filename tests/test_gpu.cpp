@@ -387,7 +387,7 @@ TEST_CASE("cuda field builders agree with the cpu builders", "[gpu]") {
   }
 }
 
-TEST_CASE("cuda raycast agrees with the cpu raycast", "[gpu]") {
+TEST_CASE("cuda renders agree with the cpu renders: raycast, slices, screen space", "[gpu]") {
   const Scene s = load_scene(test::source_path("scenes/dam_break.json"),
                              {"sph.spacing=0.02", "run.end_time=1", "render.width=320", "render.height=180"});
   const SolverInput in = make_solver_input(resolve_scene(s), PresenceMode::Off);
@@ -404,14 +404,17 @@ TEST_CASE("cuda raycast agrees with the cpu raycast", "[gpu]") {
       RenderSettings rs = s.render;
       rs.interfaces = interfaces;
       rs.reflections = reflections;
-      const ParticleView vc = cpu->view(), vg = gpu->view();
-      rc->render(fc->data(), fs, cam, env, rs);
-      rg->render(fg->data(), fs, cam, env, rs);
-      const Image a = rc->download(), b = rg->download();
-      const size_t differ = pixels_differing(a, b, 3);
-      INFO(interfaces << " interfaces, reflections " << reflections << ": PSNR " << psnr(a, b) << " dB, " << differ
-                      << " pixels differ by more than 3 levels");
-      CHECK(psnr(a, b) > 40.0);
-      CHECK(differ < a.rgba.size() / 200);
+      for (RenderMethod m : {RenderMethod::Raycast, RenderMethod::Slices, RenderMethod::ScreenSpace}) {
+        if (m == RenderMethod::ScreenSpace && (interfaces != 4 || reflections)) continue;  // it takes neither
+        rs.method = m;
+        rc->render(RenderInput{fc->data(), &fs, cpu->view(), s.sph.spacing}, cam, env, rs);
+        rg->render(RenderInput{fg->data(), &fs, gpu->view(), s.sph.spacing}, cam, env, rs);
+        const Image a = rc->download(), b = rg->download();
+        const size_t differ = pixels_differing(a, b, 3);
+        INFO(render_method_name(m) << ", " << interfaces << " interfaces, reflections " << reflections << ": PSNR "
+                                   << psnr(a, b) << " dB, " << differ << " pixels differ by more than 3 levels");
+        CHECK(psnr(a, b) > 40.0);
+        CHECK(differ < a.rgba.size() / 200);
+      }
     }
 }

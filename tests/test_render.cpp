@@ -656,10 +656,25 @@ TEST_CASE("render settings are validated", "[render][scene]") {
   bad("render.eye=[0,-2,1]", "render.target");
   bad("render.fov=\"wide\"", "render.fov");
   bad("render.colour=1", "unknown key");
+  bad("render.method=\"phong\"", "render.method");
+  bad("render.method=\"phong\"", "\"raycast\", \"screen_space\", \"slices\"");
+  bad("render.sphere_radius=0", "render.sphere_radius");
+  bad("render.sphere_radius=5", "render.sphere_radius");
+  bad("render.filter_width=0", "render.filter_width");
+  bad("render.filter_width=17", "render.filter_width");
+  bad("render.filter_iterations=-1", "render.filter_iterations");
+  bad("render.filter_iterations=65", "render.filter_iterations");
+  bad("render.slices=4", "render.slices");
+  bad("render.slices=5000", "render.slices");
   const Scene ok = load_scene(base, {"render.interfaces=8", "render.step=0.25", "render.eye=[0,-2,1]",
                                      "render.target=[0.8,0.3,0.2]"});
   CHECK(ok.render.interfaces == 8);
   CHECK(ok.render.step == 0.25f);
+  CHECK(ok.render.method == RenderMethod::Raycast);
+  const Scene ss = load_scene(base, {"render.method=\"screen_space\"", "render.filter_iterations=20"});
+  CHECK(ss.render.method == RenderMethod::ScreenSpace);
+  CHECK(ss.render.filter_iterations == 20);
+  CHECK(load_scene(base, {"render.method=\"slices\""}).render.method == RenderMethod::Slices);
 }
 
 TEST_CASE("still water a few centimetres deep stands out from the tiles with the default look", "[render]") {

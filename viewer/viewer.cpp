@@ -18,6 +18,7 @@
 #include "pipeline/pipeline.h"
 #include "render/image.h"
 #include "render/render.h"
+#include "render/screen_space.h"
 #include "io/scene.h"
 #include "sphray_shaders.h"
 #if defined(SPHRAY_HAVE_CUDA)
@@ -221,14 +222,14 @@ class Display {
 #endif
   }
 
-  // Raycasts the field into the texture.
-  void render(Renderer& r, const FieldBuilder& field, const Camera& cam, const Environment& env,
+  // Renders the field or the particles (by rs.method) into the texture.
+  void render(Renderer& r, const RenderInput& in, const Camera& cam, const Environment& env,
               const RenderSettings& rs) {
     glBindTexture(GL_TEXTURE_2D, tex_);
 #if defined(SPHRAY_HAVE_CUDA)
     if (interop_) {  // the CUDA raycaster writes into the GL buffer; GL copies it into the texture on the device
       r.set_target(interop_->map());
-      r.render(field.data(), field.setup(), cam, env, rs);
+      r.render(in, cam, env, rs);
       interop_->unmap();
       glBindBuffer(GL_PIXEL_UNPACK_BUFFER, pbo_);
       glTexSubImage2D(GL_TEXTURE_2D, 0, 0, 0, w_, h_, GL_RGBA, GL_UNSIGNED_BYTE, nullptr);
@@ -237,7 +238,7 @@ class Display {
     }
 #endif
     // CPU: texture upload; CUDA without interop: the image through the host
-    r.render(field.data(), field.setup(), cam, env, rs);
+    r.render(in, cam, env, rs);
     if (backend_ == Backend::Cpu) {
       glTexSubImage2D(GL_TEXTURE_2D, 0, 0, 0, w_, h_, GL_RGBA, GL_UNSIGNED_BYTE, r.pixels());
     } else {
@@ -271,6 +272,7 @@ struct PanelState {
   int substeps = 2, builder_index = 1;
   FieldKind kind = FieldKind::Presence;
   bool anisotropic = false;  // the field's kernels: ellipsoids or spheres
+  bool draws_field = true;   // the render method draws the field (screen_space draws the particles)
   double sim_ms = 0, field_ms = 0, render_ms = 0, fps = 0;
   int steps = 0;                  // SPH steps in the last frame
   double frame_wall_s = 0;        // the last frame's wall time
@@ -290,12 +292,22 @@ void draw_panel(PanelState& s, RenderSettings& rs, const Solver& solver, Backend
   ImGui::Text("solver %s, %d steps this frame, x%.3f real time", solver_name(solver.kind()), s.steps, s.realtime_factor);
   ImGui::Checkbox("real-time playback", &s.realtime);
   if (!s.realtime) ImGui::SliderInt("substeps / frame", &s.substeps, 1, 20);
-  const char* builders[] = {"naive", "presence", "gather"};
-  if (ImGui::Combo("field builder", &s.builder_index, builders, 3)) s.kind = parse_field_kind(builders[s.builder_index]);
-  ImGui::Checkbox("anisotropic kernels", &s.anisotropic);
-  ImGui::SliderInt("interfaces", &rs.interfaces, 1, 8);
-  ImGui::Checkbox("reflections traced", &rs.reflections);
-  if (rs.reflections) ImGui::SliderInt("branch budget", &rs.budget, 1, 64);
+  const char* methods[] = {"raycast", "screen_space", "slices"};
+  int method = int(rs.method);
+  if (ImGui::Combo("render method", &method, methods, 3)) rs.method = RenderMethod(method);
+  if (rs.method == RenderMethod::ScreenSpace) {  // the particles' spheres: no field
+    ImGui::SliderInt("filter width", &rs.filter_width, 1, BilateralDepth::kMaxWidth);
+    ImGui::SliderInt("filter passes", &rs.filter_iterations, 0, 64);
+  } else {
+    const char* builders[] = {"naive", "presence", "gather"};
+    if (ImGui::Combo("field builder", &s.builder_index, builders, 3))
+      s.kind = parse_field_kind(builders[s.builder_index]);
+    ImGui::Checkbox("anisotropic kernels", &s.anisotropic);
+    if (rs.method == RenderMethod::Slices) ImGui::SliderInt("slices", &rs.slices, 8, 4096);
+    ImGui::SliderInt("interfaces", &rs.interfaces, 1, 8);
+    ImGui::Checkbox("reflections traced", &rs.reflections);
+    if (rs.reflections) ImGui::SliderInt("branch budget", &rs.budget, 1, 64);
+  }
   ImGui::Text("sim %.2f ms  field %.2f ms  render %.2f ms", s.sim_ms, s.field_ms, s.render_ms);
   ImGui::Text("%.1f fps (%dx%d)", s.fps, w, h);
   ImGui::Text("drag: orbit  wheel: zoom  space: pause  N: step  R: reset");
@@ -339,7 +351,7 @@ void simulate(Solver& solver, PanelState& s, Controls& ctl, double end_time, dou
   s.steps = 0;
   s.sim_advance_s = 0;
   if ((ctl.paused && !ctl.step_once) || solver.time() >= end_time) return;
-  const bool presence = s.kind == FieldKind::Presence;
+  const bool presence = s.kind == FieldKind::Presence && s.draws_field;
   const double t0 = solver.time();
   try {
     if (s.realtime && !ctl.step_once) {
@@ -423,15 +435,17 @@ int run_viewer(const ViewOptions& opt, std::ostream& log) {
       s.status.clear();
     }
     const double t_before = solver->time();
+    s.draws_field = method_needs_field(rs.method);
     simulate(*solver, s, ctl, scene.run.end_time, opt.max_sim_per_frame);
     s.sim_advance_s = solver->time() - t_before;
     const ParticleView pv = solver->view();
     if (field->kind() != s.kind || field->setup().aniso.on != s.anisotropic)  // switched in the panel
       field = switch_field(rscene, b, *field, s);
-    field->build(pv);
-    s.field_ms = field->last_ms();
+    if (s.draws_field) field->build(pv);
+    s.field_ms = s.draws_field ? field->last_ms() : 0.0;
     const Camera cam = look_at(ctl.orbit.eye(), ctl.orbit.target, rs.fov, W, H);
-    display.render(*renderer, *field, cam, make_environment(scene.tank, field->setup().geom, cam), rs);
+    display.render(*renderer, RenderInput{s.draws_field ? field->data() : nullptr, &field->setup(), pv, scene.sph.spacing},
+                   cam, make_environment(scene.tank, field->setup().geom, cam), rs);
     s.render_ms = renderer->last_ms();
     display.draw(fw, fh);
     draw_panel(s, rs, *solver, b, ctl.paused, W, H);
