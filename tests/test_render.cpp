@@ -13,6 +13,7 @@
 #include "catch.h"
 #include "helpers.h"
 #include "host_particles.h"
+#include "still_pool.h"
 #include "field/field.h"
 #include "render/render.h"
 
@@ -683,20 +684,11 @@ TEST_CASE("still water a few centimetres deep stands out from the tiles with the
   // found in double) the mean colour of the default render lies at least 12
   // levels of 255 (Euclidean over r, g, b) from that of the empty tank. A
   // mean, so that the tiles merely shifted by refraction do not count.
-  const Scene s = parse_scene(R"({"tank": {"min": [0,0,0], "max": [0.4,0.2,0.2]},
-    "fluid": [{"min": [0,0,0], "max": [0.4,0.2,0.03]}], "sph": {"spacing": 0.005}, "run": {"end_time": 1},
-    "render": {"width": 192, "height": 108}})",
-                              "pool.json");
-  const ResolvedScene rs = resolve_scene(s);
-  const FieldSetup fs = make_field_setup(rs);
-  const double dx = 0.005;
-  std::vector<Vec3f> pts;
-  for (int k = 0; k < 6; ++k)
-    for (int j = 0; j < 40; ++j)
-      for (int i = 0; i < 80; ++i) pts.push_back(Vec3f{float((i + 0.5) * dx), float((j + 0.5) * dx), float((k + 0.5) * dx)});
-  const HostParticleSet ps(measure_scene(s).grid, pts);
+  const test::StillPool pool;
+  const Scene& s = pool.scene;
+  const FieldSetup& fs = pool.fs;
   auto builder = make_cpu_field_builder(fs, FieldKind::Naive);
-  const ParticleView pv = ps.view();
+  const ParticleView pv = pool.particles.view();
   builder->build(pv);
   const Camera cam = make_camera(s.tank, s.render);
   const Environment env = make_environment(s.tank, fs.geom, cam);

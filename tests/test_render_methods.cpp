@@ -12,7 +12,7 @@
 
 #include "catch.h"
 #include "helpers.h"
-#include "host_particles.h"
+#include "still_pool.h"
 #include "field/field.h"
 #include "pipeline/setup.h"
 #include "render/render.h"
@@ -381,20 +381,11 @@ TEST_CASE("SSIM: 1 for equal images, the formula for flat ones, a direct window 
 }
 
 TEST_CASE("every render method draws a still pool close to a fine raycast of it", "[render]") {
-  // A 3 cm pool in a 0.4 x 0.2 m tank (as the look test), its particles on the lattice.
-  const Scene s = parse_scene(R"({"tank": {"min": [0,0,0], "max": [0.4,0.2,0.2]},
-    "fluid": [{"min": [0,0,0], "max": [0.4,0.2,0.03]}], "sph": {"spacing": 0.005}, "run": {"end_time": 1},
-    "render": {"width": 192, "height": 108}})",
-                              "pool.json");
-  const ResolvedScene rs = resolve_scene(s);
-  const FieldSetup fs = make_field_setup(rs);
-  const double dx = 0.005;
-  std::vector<Vec3f> pts;
-  for (int k = 0; k < 6; ++k)
-    for (int j = 0; j < 40; ++j)
-      for (int i = 0; i < 80; ++i) pts.push_back(Vec3f{float((i + 0.5) * dx), float((j + 0.5) * dx), float((k + 0.5) * dx)});
-  const HostParticleSet ps(measure_scene(s).grid, pts);
-  const ParticleView pv = ps.view();
+  const test::StillPool pool;  // as the look test's
+  const Scene& s = pool.scene;
+  const FieldSetup& fs = pool.fs;
+  const double dx = pool.dx;
+  const ParticleView pv = pool.particles.view();
   auto builder = make_cpu_field_builder(fs, FieldKind::Naive);
   builder->build(pv);
   const Camera cam = make_camera(s.tank, s.render);
