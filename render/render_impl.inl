@@ -89,13 +89,7 @@ class RendererImpl final : public Renderer {
     if (in.particles.n > 0)
       parallel_for("screen_depth", in.particles.n, SplatSpheres{view, in.particles.pos, r, raw(front_), raw(back_)});
     mark("depth");
-    BilateralDepth f{};
-    f.width = width_;
-    f.height = height_;
-    f.w = rs.filter_width;
-    const float s1 = float(rs.filter_width) / (2.0f * std::sqrt(2.0f)), s2 = 2.0f * std::sqrt(2.0f) * r;
-    for (int m = 0; m <= BilateralDepth::kMaxWidth; ++m) f.spatial[m] = std::exp(-float(m * m) / (2.0f * s1 * s1));
-    f.inv_2s2 = 1.0f / (2.0f * s2 * s2);
+    BilateralDepth f = BilateralDepth::weights(width_, height_, rs.filter_width, r);
     uint32_t *fa = raw(front_), *ba = raw(back_), *fb = raw(front2_), *bb = raw(back2_);
     for (int it = 0; it < rs.filter_iterations; ++it) {
       f.in_front = fa;

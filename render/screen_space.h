@@ -146,6 +146,19 @@ struct BilateralDepth {
   float spatial[kMaxWidth + 1];  // exp(-m^2 / (2 sigma_1^2)), m = 0 .. w
   float inv_2s2;                 // 1 / (2 sigma_2^2) [1/m^2]
 
+  // The paper's weights for half-width w pixels and spheres of radius r [m]
+  // (the maps still to be set).
+  static BilateralDepth weights(int width, int height, int w, float r) {
+    BilateralDepth f{};
+    f.width = width;
+    f.height = height;
+    f.w = w;
+    const float s1 = float(w) / (2.0f * std::sqrt(2.0f)), s2 = 2.0f * std::sqrt(2.0f) * r;
+    for (int m = 0; m <= kMaxWidth; ++m) f.spatial[m] = std::exp(-float(m * m) / (2.0f * s1 * s1));
+    f.inv_2s2 = 1.0f / (2.0f * s2 * s2);
+    return f;
+  }
+
   SPHRAY_HD void operator()(uint32_t k) const {
     const int x = int(k % uint32_t(width)), y = int(k / uint32_t(width));
     if (in_front[k] == kNoFront) {

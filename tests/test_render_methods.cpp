@@ -101,13 +101,7 @@ TEST_CASE("screen space: the bilateral filter keeps ramps and edges, smooths noi
   const int W = 64, H = 48, w = 4;
   const float radius = 0.02f;
   auto filter = [&](std::vector<uint32_t> f, std::vector<uint32_t> b, int passes) {
-    BilateralDepth bf{};
-    bf.width = W;
-    bf.height = H;
-    bf.w = w;
-    const float s1 = w / (2 * std::sqrt(2.0f)), s2 = 2 * std::sqrt(2.0f) * radius;
-    for (int m = 0; m <= BilateralDepth::kMaxWidth; ++m) bf.spatial[m] = std::exp(-float(m * m) / (2 * s1 * s1));
-    bf.inv_2s2 = 1 / (2 * s2 * s2);
+    BilateralDepth bf = BilateralDepth::weights(W, H, w, radius);
     std::vector<uint32_t> f2(f.size()), b2(b.size());
     for (int p = 0; p < passes; ++p) {
       bf.in_front = f.data();
