@@ -44,11 +44,12 @@ std::vector<BenchFrameRow> bench_frame(Backend b, const BenchFrameOptions& opt, 
     const bool presence = with_field && kind == FieldKind::Presence;
     const StageNeeds needs{presence ? PresenceMode::AtUntil : PresenceMode::Off, true};
     auto solver = make_solver(rs, b, needs);
-    auto field = make_field_builder(b, make_field_setup(rs), kind);
+    const FieldSetup fs = make_field_setup(rs);  // the environment's frame, with or without a field
+    auto field = with_field ? make_field_builder(b, fs, kind) : nullptr;
     auto renderer = make_renderer(b);
     simulate_collapse(s, *solver, opt.collapse, log);
     const Camera cam = make_camera(s.tank, s.render);
-    const Environment env = make_environment(s.tank, field->setup().geom, cam);
+    const Environment env = make_environment(s.tank, fs.geom, cam);
     std::vector<double> sim, fld, ren, tot, wall, steps;
     double prev_wall_s = 0, sim_advanced = 0, wall_sum_s = 0;
     for (int f = 0; f < opt.warmup + opt.frames; ++f) {
@@ -62,8 +63,7 @@ std::vector<BenchFrameRow> bench_frame(Backend b, const BenchFrameOptions& opt, 
                        : advance_frame(*solver, opt.substeps, presence, 1e30);
       const ParticleView pv = solver->view();
       if (with_field) field->build(pv);
-      renderer->render(RenderInput{with_field ? field->data() : nullptr, &field->setup(), pv, s.sph.spacing}, cam, env,
-                       s.render);
+      renderer->render(RenderInput{with_field ? field->data() : nullptr, &fs, pv, s.sph.spacing}, cam, env, s.render);
       const double w = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
       prev_wall_s = 1e-3 * w;
       if (f < opt.warmup) continue;
@@ -79,7 +79,7 @@ std::vector<BenchFrameRow> bench_frame(Backend b, const BenchFrameOptions& opt, 
     }
     BenchFrameRow r;
     r.particles = solver->num_fluid();
-    r.nx = field->setup().geom.nx; r.ny = field->setup().geom.ny; r.nz = field->setup().geom.nz;
+    r.nx = fs.geom.nx; r.ny = fs.geom.ny; r.nz = fs.geom.nz;
     r.width = opt.width; r.height = opt.height; r.interfaces = opt.interfaces; r.substeps = opt.substeps;
     r.builder = opt.builder;
     r.sim_ms = median(sim); r.field_ms = median(fld); r.render_ms = median(ren);
