@@ -35,7 +35,7 @@ struct RenderSettings {
   bool skip_empty = true;   // the march jumps over bricks the surface cannot cross
   // screen_space: sphere radius [particle spacings]; the bilateral filter's
   // half-width w [pixels] and passes over both depth maps
-  double sphere_radius = 1.0;
+  double sphere_radius = 1.5;
   int filter_width = 4;
   int filter_iterations = 4;
   int slices = 256;         // slices: view-aligned planes across the volume's depth

@@ -419,14 +419,14 @@ TEST_CASE("every render method draws a still pool close to a fine raycast of it"
     ss.method = RenderMethod::ScreenSpace;
     const Image img_slices = render(slices, builder->data()), img_ss = render(ss, nullptr);
     const double pool = mean_shift(ref, empty), sl = mean_shift(ref, img_slices), sc = mean_shift(ref, img_ss);
-    // (measured: the pool shifts the mean by 19.8 levels; slices 0.002 from the raycast, screen space 2.5;
-    // nearly opaque: screen space 2.2)
+    // (measured: the pool shifts the mean by 19.8 levels; slices 0.002 from the raycast, screen space 4.5
+    // with the default spheres of 1.5 spacings, 2.5 with 1.0; nearly opaque: screen space 4.1, 2.2)
     INFO("absorption " << absorption << ": the empty tank lies " << pool << " levels (mean over the pool) from the "
                        << "fine raycast, slices " << sl << ", screen_space " << sc << "; PSNR slices "
                        << psnr(ref, img_slices) << " dB, screen_space " << psnr(ref, img_ss) << " dB");
     CHECK(pool > 15.0);
     CHECK(sl < 1.0);
-    CHECK(sc < (absorption > 0 ? 4.0 : 0.25 * pool));
+    CHECK(sc < (absorption > 0 ? 5.0 : 0.25 * pool));
     CHECK(psnr(ref, img_slices) > 40.0);
   }
   RenderSettings slices = s.render, ss = s.render;
