@@ -1,6 +1,6 @@
 // Screen-space two-sided refraction (Imai, Kanamori, Fukui & Mitani,
-// "Real-Time Screen-Space Liquid Rendering with Two-Sided Refractions", 2015;
-// docs/rendering.md), once for both backends. It draws the particles, not the
+// "Real-Time Screen-Space Liquid Rendering with Two-Sided Refractions";
+// docs/rendering.md, docs/references.md), once for both backends. It draws the particles, not the
 // density field:
 //  1. depth: every particle is a sphere of radius r; per pixel the nearest
 //     entry (front) and the farthest exit (back) of the camera ray through any
