@@ -3,6 +3,8 @@
 #include "render.h"
 #include "screen_space.h"
 
+#include <thrust/scan.h>
+
 #include <cmath>
 #include <stdexcept>
 #include <utility>

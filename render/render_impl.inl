@@ -86,8 +86,15 @@ class RendererImpl final : public Renderer {
     const float r = float(rs.sphere_radius * in.spacing);
     const ViewFrame view{cam};
     parallel_for("screen_clear", n_pix, ClearDepth{raw(front_), raw(back_)});
-    if (in.particles.n > 0)
-      parallel_for("screen_depth", in.particles.n, SplatSpheres{view, in.particles.pos, r, raw(front_), raw(back_)});
+    const uint32_t n = in.particles.n;
+    if (n > 0) {
+      const SplatSpheres splat{view, in.particles.pos, r, raw(front_), raw(back_)};
+      if (tiles_.size() < n) tiles_.resize(n);
+      parallel_for("screen_count", n, CountSphereTiles{splat, raw(tiles_)});
+      thrust::inclusive_scan(policy(), tiles_.begin(), tiles_.begin() + n, tiles_.begin());
+      const uint32_t total = tiles_[n - 1];
+      if (total > 0) parallel_for("screen_depth", total, SplatSphereTiles{splat, raw(tiles_), n});
+    }
     mark("depth");
     BilateralDepth f = BilateralDepth::weights(width_, height_, rs.filter_width, r);
     uint32_t *fa = raw(front_), *ba = raw(back_), *fb = raw(front2_), *bb = raw(back2_);
@@ -119,6 +126,7 @@ class RendererImpl final : public Renderer {
   Vector<uint32_t> image_;
   Vector<uint8_t> occupancy_;
   Vector<uint32_t> front_, back_, front2_, back2_;  // screen_space depth maps (float bits), ping-pong
+  Vector<uint32_t> tiles_;                          // screen_space: each sphere's tiles, scanned
   std::vector<const char*> stage_names_;
   std::vector<std::pair<std::string, double>> stages_;
   uint32_t* target_ = nullptr;

@@ -5,7 +5,7 @@
 //  1. depth: every particle is a sphere of radius r; per pixel the nearest
 //     entry (front) and the farthest exit (back) of the camera ray through any
 //     sphere, as view depths (the two layers of their dual depth peeling, here
-//     by an atomic min and max);
+//     by an atomic min and max), one thread per 8 x 8 pixel tile of a sphere;
 //  2. filter: both maps smoothed together by `iterations` passes of a
 //     bilateral filter of half-width w pixels (their eq. 1-2: sigma_1 =
 //     w / (2 sqrt 2), sigma_2 = 2 sqrt 2 r); empty pixels stay empty and do
@@ -93,31 +93,47 @@ struct ClearDepth {
   }
 };
 
-// One thread per particle: the pixels whose centre ray meets its sphere.
+// The depth of spheres: the pixels whose centre ray meets a particle's
+// sphere. A sphere's projected box is cut into tiles of 8 x 8 pixels, and the
+// depth pass runs one thread per (particle, tile) (CountSphereTiles, a scan,
+// SplatSphereTiles): a sphere that covers many pixels is drawn by many threads.
 struct SplatSpheres {
+  static constexpr int kTile = 8;
   ViewFrame view;
   const Float4* pos;
   float r;  // sphere radius [m]
   uint32_t* front;
   uint32_t* back;
 
-  SPHRAY_HD void operator()(uint32_t i) const {
+  // The pixels [x0, x1] x [y0, y1] that particle i's sphere may cover; false
+  // when none (off the image, or reaching the eye's plane: not drawn).
+  SPHRAY_HD bool box(uint32_t i, int& x0, int& x1, int& y0, int& y1) const {
     const Camera& cam = view.cam;
-    const Vec3f c = xyz(load(pos + i));
-    const Vec3f v = c - cam.eye;
-    const Vec3f w = view.view(c);
-    if (w.z - r <= 1e-6f) return;  // reaches the eye's plane: not drawn
+    const Vec3f w = view.view(xyz(load(pos + i)));
+    if (w.z - r <= 1e-6f) return false;
     // The sphere lies in the box w +- r; so does its projection within the
     // box's: the extreme tangents over the box's near and far depth.
     const float zn = w.z - r, zf = w.z + r;
     const float sx0 = (w.x - r) / (w.x - r < 0.0f ? zn : zf), sx1 = (w.x + r) / (w.x + r > 0.0f ? zn : zf);
     const float sy0 = (w.y - r) / (w.y - r < 0.0f ? zn : zf), sy1 = (w.y + r) / (w.y + r > 0.0f ? zn : zf);
-    int x0 = int(std::ceil(view.px(sx0) - 0.5f)), x1 = int(std::floor(view.px(sx1) - 0.5f));
-    int y0 = int(std::ceil(view.py(sy1) - 0.5f)), y1 = int(std::floor(view.py(sy0) - 0.5f));
-    x0 = x0 < 0 ? 0 : x0;
-    y0 = y0 < 0 ? 0 : y0;
-    x1 = x1 > cam.width - 1 ? cam.width - 1 : x1;
-    y1 = y1 > cam.height - 1 ? cam.height - 1 : y1;
+    const float px0 = view.px(sx0) - 0.5f, px1 = view.px(sx1) - 0.5f;
+    const float py0 = view.py(sy1) - 0.5f, py1 = view.py(sy0) - 0.5f;
+    if (!(px1 >= 0.0f && py1 >= 0.0f && px0 <= float(cam.width - 1) && py0 <= float(cam.height - 1))) return false;
+    x0 = px0 > 0.0f ? int(std::ceil(px0)) : 0;
+    y0 = py0 > 0.0f ? int(std::ceil(py0)) : 0;
+    x1 = px1 < float(cam.width - 1) ? int(std::floor(px1)) : cam.width - 1;
+    y1 = py1 < float(cam.height - 1) ? int(std::floor(py1)) : cam.height - 1;
+    return x0 <= x1 && y0 <= y1;
+  }
+  SPHRAY_HD uint32_t tiles(uint32_t i) const {
+    int x0, x1, y0, y1;
+    if (!box(i, x0, x1, y0, y1)) return 0;
+    return uint32_t((x1 - x0) / kTile + 1) * uint32_t((y1 - y0) / kTile + 1);
+  }
+  // Particle i's sphere over the pixels [x0, x1] x [y0, y1].
+  SPHRAY_HD void draw(uint32_t i, int x0, int x1, int y0, int y1) const {
+    const Camera& cam = view.cam;
+    const Vec3f v = xyz(load(pos + i)) - cam.eye;
     const float r2 = r * r;
     for (int y = y0; y <= y1; ++y)
       for (int x = x0; x <= x1; ++x) {
@@ -132,6 +148,35 @@ struct SplatSpheres {
         if (zf_bits < front[k]) atomic_min(front + k, zf_bits);  // a plain read first: most spheres lie behind
         if (zb_bits > back[k]) atomic_max(back + k, zb_bits);
       }
+  }
+};
+
+struct CountSphereTiles {
+  SplatSpheres s;
+  uint32_t* count;
+  SPHRAY_HD void operator()(uint32_t i) const { count[i] = s.tiles(i); }
+};
+
+// One thread per (particle, tile); `end`: the inclusive scan of the counts.
+struct SplatSphereTiles {
+  SplatSpheres s;
+  const uint32_t* end;
+  uint32_t n;
+
+  SPHRAY_HD void operator()(uint32_t k) const {
+    uint32_t lo = 0, hi = n;  // the first particle whose tiles end after k
+    while (lo < hi) {
+      const uint32_t mid = (lo + hi) / 2;
+      if (end[mid] <= k) lo = mid + 1;
+      else hi = mid;
+    }
+    const uint32_t i = lo, tile = k - (i > 0 ? end[i - 1] : 0u);
+    int x0, x1, y0, y1;
+    if (i >= n || !s.box(i, x0, x1, y0, y1)) return;
+    const uint32_t across = uint32_t((x1 - x0) / SplatSpheres::kTile + 1);
+    const int tx = x0 + int(tile % across) * SplatSpheres::kTile, ty = y0 + int(tile / across) * SplatSpheres::kTile;
+    const int tx1 = tx + SplatSpheres::kTile - 1, ty1 = ty + SplatSpheres::kTile - 1;
+    s.draw(i, tx, tx1 < x1 ? tx1 : x1, ty, ty1 < y1 ? ty1 : y1);
   }
 };
 
