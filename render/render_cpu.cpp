@@ -3,8 +3,6 @@
 #include "render.h"
 #include "screen_space.h"
 
-#include <thrust/scan.h>
-
 #include <cmath>
 #include <stdexcept>
 #include <utility>

@@ -88,12 +88,14 @@ class RendererImpl final : public Renderer {
     parallel_for("screen_clear", n_pix, ClearDepth{raw(front_), raw(back_)});
     const uint32_t n = in.particles.n;
     if (n > 0) {
-      const SplatSpheres splat{view, in.particles.pos, r, raw(front_), raw(back_)};
-      if (tiles_.size() < n) tiles_.resize(n);
-      parallel_for("screen_count", n, CountSphereTiles{splat, raw(tiles_)});
-      thrust::inclusive_scan(policy(), tiles_.begin(), tiles_.begin() + n, tiles_.begin());
-      const uint32_t total = tiles_[n - 1];
-      if (total > 0) parallel_for("screen_depth", total, SplatSphereTiles{splat, raw(tiles_), n});
+      // Threads per sphere: about its tiles on screen at the volume's centre (1 to 32).
+      const VolumeGeom& g = in.setup->geom;
+      const Vec3f centre = g.origin + Vec3f{float(g.nx), float(g.ny), float(g.nz)} * (0.5f * g.voxel);
+      const float depth = std::max(dot(centre - cam.eye, cam.forward), 1e-3f);
+      const float across = std::floor(r / (depth * cam.tan_half_fov) * float(height_) / SplatSpheres::kTile) + 1.0f;
+      const uint32_t slots = uint32_t(std::min(std::max(across * across, 1.0f), 32.0f));
+      parallel_for("screen_depth", n * slots,
+                   SplatSphereSlots{SplatSpheres{view, in.particles.pos, r, raw(front_), raw(back_)}, slots});
     }
     mark("depth");
     BilateralDepth f = BilateralDepth::weights(width_, height_, rs.filter_width, r);
@@ -126,7 +128,6 @@ class RendererImpl final : public Renderer {
   Vector<uint32_t> image_;
   Vector<uint8_t> occupancy_;
   Vector<uint32_t> front_, back_, front2_, back2_;  // screen_space depth maps (float bits), ping-pong
-  Vector<uint32_t> tiles_;                          // screen_space: each sphere's tiles, scanned
   std::vector<const char*> stage_names_;
   std::vector<std::pair<std::string, double>> stages_;
   uint32_t* target_ = nullptr;

@@ -5,7 +5,7 @@
 //  1. depth: every particle is a sphere of radius r; per pixel the nearest
 //     entry (front) and the farthest exit (back) of the camera ray through any
 //     sphere, as view depths (the two layers of their dual depth peeling, here
-//     by an atomic min and max), one thread per 8 x 8 pixel tile of a sphere;
+//     by an atomic min and max), in 8 x 8 pixel tiles of each sphere;
 //  2. filter: both maps smoothed together by `iterations` passes of a
 //     bilateral filter of half-width w pixels (their eq. 1-2: sigma_1 =
 //     w / (2 sqrt 2), sigma_2 = 2 sqrt 2 r); empty pixels stay empty and do
@@ -94,9 +94,9 @@ struct ClearDepth {
 };
 
 // The depth of spheres: the pixels whose centre ray meets a particle's
-// sphere. A sphere's projected box is cut into tiles of 8 x 8 pixels, and the
-// depth pass runs one thread per (particle, tile) (CountSphereTiles, a scan,
-// SplatSphereTiles): a sphere that covers many pixels is drawn by many threads.
+// sphere, drawn in tiles of 8 x 8 pixels of its projected box
+// (SplatSphereSlots: a sphere that covers many tiles is drawn by several
+// threads).
 struct SplatSpheres {
   static constexpr int kTile = 8;
   ViewFrame view;
@@ -125,11 +125,6 @@ struct SplatSpheres {
     y1 = py1 < float(cam.height - 1) ? int(std::floor(py1)) : cam.height - 1;
     return x0 <= x1 && y0 <= y1;
   }
-  SPHRAY_HD uint32_t tiles(uint32_t i) const {
-    int x0, x1, y0, y1;
-    if (!box(i, x0, x1, y0, y1)) return 0;
-    return uint32_t((x1 - x0) / kTile + 1) * uint32_t((y1 - y0) / kTile + 1);
-  }
   // Particle i's sphere over the pixels [x0, x1] x [y0, y1].
   SPHRAY_HD void draw(uint32_t i, int x0, int x1, int y0, int y1) const {
     const Camera& cam = view.cam;
@@ -151,32 +146,25 @@ struct SplatSpheres {
   }
 };
 
-struct CountSphereTiles {
+// `slots` threads per particle, thread (i, s) drawing tiles s, s + slots, ...
+// of particle i's box: one thread per sphere where spheres are small, more
+// where each covers many tiles (the renderer picks the count from the
+// spheres' size on screen).
+struct SplatSphereSlots {
   SplatSpheres s;
-  uint32_t* count;
-  SPHRAY_HD void operator()(uint32_t i) const { count[i] = s.tiles(i); }
-};
-
-// One thread per (particle, tile); `end`: the inclusive scan of the counts.
-struct SplatSphereTiles {
-  SplatSpheres s;
-  const uint32_t* end;
-  uint32_t n;
+  uint32_t slots;
 
   SPHRAY_HD void operator()(uint32_t k) const {
-    uint32_t lo = 0, hi = n;  // the first particle whose tiles end after k
-    while (lo < hi) {
-      const uint32_t mid = (lo + hi) / 2;
-      if (end[mid] <= k) lo = mid + 1;
-      else hi = mid;
-    }
-    const uint32_t i = lo, tile = k - (i > 0 ? end[i - 1] : 0u);
+    const uint32_t i = k / slots, slot = k % slots;
     int x0, x1, y0, y1;
-    if (i >= n || !s.box(i, x0, x1, y0, y1)) return;
+    if (!s.box(i, x0, x1, y0, y1)) return;
     const uint32_t across = uint32_t((x1 - x0) / SplatSpheres::kTile + 1);
-    const int tx = x0 + int(tile % across) * SplatSpheres::kTile, ty = y0 + int(tile / across) * SplatSpheres::kTile;
-    const int tx1 = tx + SplatSpheres::kTile - 1, ty1 = ty + SplatSpheres::kTile - 1;
-    s.draw(i, tx, tx1 < x1 ? tx1 : x1, ty, ty1 < y1 ? ty1 : y1);
+    const uint32_t tiles = across * uint32_t((y1 - y0) / SplatSpheres::kTile + 1);
+    for (uint32_t t = slot; t < tiles; t += slots) {
+      const int tx = x0 + int(t % across) * SplatSpheres::kTile, ty = y0 + int(t / across) * SplatSpheres::kTile;
+      const int tx1 = tx + SplatSpheres::kTile - 1, ty1 = ty + SplatSpheres::kTile - 1;
+      s.draw(i, tx, tx1 < x1 ? tx1 : x1, ty, ty1 < y1 ? ty1 : y1);
+    }
   }
 };
 
