@@ -86,17 +86,8 @@ class RendererImpl final : public Renderer {
     const float r = float(rs.sphere_radius * in.spacing);
     const ViewFrame view{cam};
     parallel_for("screen_clear", n_pix, ClearDepth{raw(front_), raw(back_)});
-    const uint32_t n = in.particles.n;
-    if (n > 0) {
-      // Threads per sphere: about its tiles on screen at the volume's centre (1 to 32).
-      const VolumeGeom& g = in.setup->geom;
-      const Vec3f centre = g.origin + Vec3f{float(g.nx), float(g.ny), float(g.nz)} * (0.5f * g.voxel);
-      const float depth = std::max(dot(centre - cam.eye, cam.forward), 1e-3f);
-      const float across = std::floor(r / (depth * cam.tan_half_fov) * float(height_) / SplatSpheres::kTile) + 1.0f;
-      const uint32_t slots = uint32_t(std::min(std::max(across * across, 1.0f), 32.0f));
-      parallel_for("screen_depth", n * slots,
-                   SplatSphereSlots{SplatSpheres{view, in.particles.pos, r, raw(front_), raw(back_)}, slots});
-    }
+    if (in.particles.n > 0)
+      parallel_for("screen_depth", in.particles.n, SplatSpheres{view, in.particles.pos, r, raw(front_), raw(back_)});
     mark("depth");
     BilateralDepth f = BilateralDepth::weights(width_, height_, rs.filter_width, r);
     uint32_t *fa = raw(front_), *ba = raw(back_), *fb = raw(front2_), *bb = raw(back2_);

@@ -5,7 +5,7 @@
 //  1. depth: every particle is a sphere of radius r; per pixel the nearest
 //     entry (front) and the farthest exit (back) of the camera ray through any
 //     sphere, as view depths (the two layers of their dual depth peeling, here
-//     by an atomic min and max), in 8 x 8 pixel tiles of each sphere;
+//     by an atomic min and max);
 //  2. filter: both maps smoothed together by `iterations` passes of a
 //     bilateral filter of half-width w pixels (their eq. 1-2: sigma_1 =
 //     w / (2 sqrt 2), sigma_2 = 2 sqrt 2 r); empty pixels stay empty and do
@@ -93,42 +93,31 @@ struct ClearDepth {
   }
 };
 
-// The depth of spheres: the pixels whose centre ray meets a particle's
-// sphere, drawn in tiles of 8 x 8 pixels of its projected box
-// (SplatSphereSlots: a sphere that covers many tiles is drawn by several
-// threads).
+// One thread per particle: the pixels whose centre ray meets its sphere.
 struct SplatSpheres {
-  static constexpr int kTile = 8;
   ViewFrame view;
   const Float4* pos;
   float r;  // sphere radius [m]
   uint32_t* front;
   uint32_t* back;
 
-  // The pixels [x0, x1] x [y0, y1] that particle i's sphere may cover; false
-  // when none (off the image, or reaching the eye's plane: not drawn).
-  SPHRAY_HD bool box(uint32_t i, int& x0, int& x1, int& y0, int& y1) const {
+  SPHRAY_HD void operator()(uint32_t i) const {
     const Camera& cam = view.cam;
-    const Vec3f w = view.view(xyz(load(pos + i)));
-    if (w.z - r <= 1e-6f) return false;
+    const Vec3f c = xyz(load(pos + i));
+    const Vec3f v = c - cam.eye;
+    const Vec3f w = view.view(c);
+    if (w.z - r <= 1e-6f) return;  // reaches the eye's plane: not drawn
     // The sphere lies in the box w +- r; so does its projection within the
     // box's: the extreme tangents over the box's near and far depth.
     const float zn = w.z - r, zf = w.z + r;
     const float sx0 = (w.x - r) / (w.x - r < 0.0f ? zn : zf), sx1 = (w.x + r) / (w.x + r > 0.0f ? zn : zf);
     const float sy0 = (w.y - r) / (w.y - r < 0.0f ? zn : zf), sy1 = (w.y + r) / (w.y + r > 0.0f ? zn : zf);
-    const float px0 = view.px(sx0) - 0.5f, px1 = view.px(sx1) - 0.5f;
-    const float py0 = view.py(sy1) - 0.5f, py1 = view.py(sy0) - 0.5f;
-    if (!(px1 >= 0.0f && py1 >= 0.0f && px0 <= float(cam.width - 1) && py0 <= float(cam.height - 1))) return false;
-    x0 = px0 > 0.0f ? int(std::ceil(px0)) : 0;
-    y0 = py0 > 0.0f ? int(std::ceil(py0)) : 0;
-    x1 = px1 < float(cam.width - 1) ? int(std::floor(px1)) : cam.width - 1;
-    y1 = py1 < float(cam.height - 1) ? int(std::floor(py1)) : cam.height - 1;
-    return x0 <= x1 && y0 <= y1;
-  }
-  // Particle i's sphere over the pixels [x0, x1] x [y0, y1].
-  SPHRAY_HD void draw(uint32_t i, int x0, int x1, int y0, int y1) const {
-    const Camera& cam = view.cam;
-    const Vec3f v = xyz(load(pos + i)) - cam.eye;
+    int x0 = int(std::ceil(view.px(sx0) - 0.5f)), x1 = int(std::floor(view.px(sx1) - 0.5f));
+    int y0 = int(std::ceil(view.py(sy1) - 0.5f)), y1 = int(std::floor(view.py(sy0) - 0.5f));
+    x0 = x0 < 0 ? 0 : x0;
+    y0 = y0 < 0 ? 0 : y0;
+    x1 = x1 > cam.width - 1 ? cam.width - 1 : x1;
+    y1 = y1 > cam.height - 1 ? cam.height - 1 : y1;
     const float r2 = r * r;
     for (int y = y0; y <= y1; ++y)
       for (int x = x0; x <= x1; ++x) {
@@ -143,28 +132,6 @@ struct SplatSpheres {
         if (zf_bits < front[k]) atomic_min(front + k, zf_bits);  // a plain read first: most spheres lie behind
         if (zb_bits > back[k]) atomic_max(back + k, zb_bits);
       }
-  }
-};
-
-// `slots` threads per particle, thread (i, s) drawing tiles s, s + slots, ...
-// of particle i's box: one thread per sphere where spheres are small, more
-// where each covers many tiles (the renderer picks the count from the
-// spheres' size on screen).
-struct SplatSphereSlots {
-  SplatSpheres s;
-  uint32_t slots;
-
-  SPHRAY_HD void operator()(uint32_t k) const {
-    const uint32_t i = k / slots, slot = k % slots;
-    int x0, x1, y0, y1;
-    if (!s.box(i, x0, x1, y0, y1)) return;
-    const uint32_t across = uint32_t((x1 - x0) / SplatSpheres::kTile + 1);
-    const uint32_t tiles = across * uint32_t((y1 - y0) / SplatSpheres::kTile + 1);
-    for (uint32_t t = slot; t < tiles; t += slots) {
-      const int tx = x0 + int(t % across) * SplatSpheres::kTile, ty = y0 + int(t / across) * SplatSpheres::kTile;
-      const int tx1 = tx + SplatSpheres::kTile - 1, ty1 = ty + SplatSpheres::kTile - 1;
-      s.draw(i, tx, tx1 < x1 ? tx1 : x1, ty, ty1 < y1 ? ty1 : y1);
-    }
   }
 };
 

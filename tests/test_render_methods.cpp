@@ -47,10 +47,8 @@ void splat(const Camera& cam, const std::vector<Sphere>& spheres, float r, std::
   for (size_t i = 0; i < n; ++i) ClearDepth{front.data(), back.data()}(uint32_t(i));
   std::vector<Float4> pos;
   for (const auto& s : spheres) pos.push_back(Float4{float(s.c.x), float(s.c.y), float(s.c.z), 1000.0f});
-  // as the renderer does, with one thread per sphere and with several sharing its tiles
   const SplatSpheres splat{ViewFrame{cam}, pos.data(), r, front.data(), back.data()};
-  for (uint32_t slots : {1u, 3u})
-    for (uint32_t k = 0; k < pos.size() * slots; ++k) SplatSphereSlots{splat, slots}(k);
+  for (uint32_t i = 0; i < pos.size(); ++i) splat(i);
 }
 
 }  // namespace
