@@ -129,8 +129,8 @@ struct SplatSpheres {
         const float s = std::sqrt(disc), cz = dot(d, cam.forward);
         const size_t k = size_t(y) * size_t(cam.width) + size_t(x);
         const uint32_t zf_bits = bits_of((b - s) * cz), zb_bits = bits_of((b + s) * cz);
-        if (zf_bits < front[k]) atomic_min(front + k, zf_bits);  // a plain read first: most spheres lie behind
-        if (zb_bits > back[k]) atomic_max(back + k, zb_bits);
+        atomic_min(front + k, zf_bits);
+        atomic_max(back + k, zb_bits);
       }
   }
 };
