@@ -28,6 +28,7 @@ class RendererImpl final : public Renderer {
     if (!target_ && image_.size() < n_pix) image_.resize(n_pix);
     uint32_t* out = target_ ? target_ : raw(image_);
     clock_.start();
+    stage_names_.clear();
     if (rs.method == RenderMethod::ScreenSpace) {
       screen_space(in, cam, env, rs, out);
     } else {
@@ -52,7 +53,6 @@ class RendererImpl final : public Renderer {
   // raycast and slices: the tracer through the field.
   void march(const float* field, const FieldSetup& fs, const Camera& cam, const Environment& env,
              const RenderSettings& rs, uint32_t* out) {
-    stage_names_.clear();
     const VolumeGeom& vol = fs.geom;
     const int brick = 1 << vol.refine;  // bricks as wide as the SPH cells: 1 voxel at refine 0, 4 at refine 2
     Occupancy occ{nullptr, (vol.nx + brick - 1) / brick, (vol.ny + brick - 1) / brick, (vol.nz + brick - 1) / brick,
@@ -77,7 +77,6 @@ class RendererImpl final : public Renderer {
   // screen_space: depth of the spheres, bilateral filter, two-sided shading.
   void screen_space(const RenderInput& in, const Camera& cam, const Environment& env, const RenderSettings& rs,
                     uint32_t* out) {
-    stage_names_.clear();
     if (in.particles.n > 0 && !in.particles.pos) throw std::logic_error("renderer: screen_space needs the particles");
     if (!(in.spacing > 0)) throw std::logic_error("renderer: screen_space needs the particle spacing");
     const uint32_t n_pix = uint32_t(width_) * uint32_t(height_);
