@@ -60,10 +60,11 @@ SPHRAY_HD SPHRAY_FORCEINLINE void atomic_add(float* p, float v) {
 // *p = min(*p, v) and max, on unsigned integers (non-negative floats compare
 // as their bit patterns do: the screen-space depth maps use that). Both read
 // *p first and skip the atomic where v cannot change it (the common case when
-// many writers race for one slot).
+// many writers race for one slot); on the GPU a plain load, which the L1
+// cache can serve (a volatile load would go to L2 every time).
 SPHRAY_HD SPHRAY_FORCEINLINE void atomic_min(uint32_t* p, uint32_t v) {
 #if defined(__CUDA_ARCH__)
-  if (v < *reinterpret_cast<volatile uint32_t*>(p)) atomicMin(reinterpret_cast<unsigned int*>(p), v);
+  if (v < *p) atomicMin(reinterpret_cast<unsigned int*>(p), v);
 #else
   uint32_t old = __atomic_load_n(p, __ATOMIC_RELAXED);
   while (v < old && !__atomic_compare_exchange_n(p, &old, v, true, __ATOMIC_RELAXED, __ATOMIC_RELAXED)) {
@@ -73,7 +74,7 @@ SPHRAY_HD SPHRAY_FORCEINLINE void atomic_min(uint32_t* p, uint32_t v) {
 
 SPHRAY_HD SPHRAY_FORCEINLINE void atomic_max(uint32_t* p, uint32_t v) {
 #if defined(__CUDA_ARCH__)
-  if (v > *reinterpret_cast<volatile uint32_t*>(p)) atomicMax(reinterpret_cast<unsigned int*>(p), v);
+  if (v > *p) atomicMax(reinterpret_cast<unsigned int*>(p), v);
 #else
   uint32_t old = __atomic_load_n(p, __ATOMIC_RELAXED);
   while (v > old && !__atomic_compare_exchange_n(p, &old, v, true, __ATOMIC_RELAXED, __ATOMIC_RELAXED)) {
