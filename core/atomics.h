@@ -82,4 +82,19 @@ SPHRAY_HD SPHRAY_FORCEINLINE void atomic_max(uint32_t* p, uint32_t v) {
 #endif
 }
 
+// ++*p, returning the value before, ordered after this thread's earlier
+// writes (a release fence first) and before its later reads: the bottom-up
+// passes (mesh/bvh_build.inl) let the second child to arrive read what the
+// first one wrote.
+SPHRAY_HD SPHRAY_FORCEINLINE uint32_t atomic_arrive(uint32_t* p) {
+#if defined(__CUDA_ARCH__)
+  __threadfence();
+  const uint32_t old = atomicAdd(reinterpret_cast<unsigned int*>(p), 1u);
+  __threadfence();
+  return old;
+#else
+  return __atomic_fetch_add(p, 1u, __ATOMIC_ACQ_REL);
+#endif
+}
+
 }  // namespace sphray

@@ -20,6 +20,7 @@ need catch2 "test -f /usr/include/catch2/catch.hpp || test -f /usr/include/catch
 # Thrust/CUB for the CPU backend come with the CUDA toolkit; without it, from Debian.
 need libthrust-dev "test -d /usr/local/cuda/include/cccl/thrust || test -f /usr/include/thrust/version.h"
 need libeigen3-dev "test -f /usr/include/eigen3/Eigen/Core"
+need libtinyobjloader-dev "test -f /usr/include/tiny_obj_loader.h"
 need libhdf5-dev "test -f /usr/include/hdf5/serial/hdf5.h || test -f /usr/include/hdf5.h"
 # stb (PNG): also found under a prefix in CMAKE_PREFIX_PATH (the GPU machine carries it: tools/gpu-check.sh, .devdeps)
 has_stb() {

@@ -1,0 +1,235 @@
+// A bounding-volume hierarchy of axis-aligned boxes over a triangle mesh (the
+// "AABB tree" of Mishima et al.), built on the device as a linear BVH
+// (Karras, "Maximizing Parallelism in the Construction of BVHs, Octrees, and
+// k-d Trees", HPG 2012: Morton codes, one sort, every internal node in
+// parallel, boxes bottom-up) and queried from host and device code alike:
+// the first triangle a segment or ray crosses (particle collision, the
+// raycaster), how many it crosses (inside tests), the nearest triangle to a
+// point (wall particles). bvh_build.inl builds it once per backend.
+#pragma once
+
+#include <cstdint>
+#include <memory>
+#include <vector>
+
+#include "core/device.h"
+#include "core/hd.h"
+#include "core/vec.h"
+
+namespace sphray {
+
+// An internal node holds the boxes of both children, so that traversal tests
+// a child before visiting it; a child reference with kLeafBit set is a
+// triangle (its slot in the sorted triangle array).
+struct alignas(16) BvhNode {
+  Vec3f lo[2];
+  Vec3f hi[2];
+  uint32_t child[2];
+  uint32_t pad[2];
+};
+constexpr uint32_t kLeafBit = 0x80000000u;
+
+// A triangle as v0 and its two edges (Moeller-Trumbore), w unused.
+struct alignas(16) BvhTriangle {
+  Float4 v0, e1, e2;
+};
+
+// What queries read; device pointers on CUDA, host pointers on the CPU.
+struct MeshView {
+  const BvhNode* nodes = nullptr;
+  const BvhTriangle* tris = nullptr;
+  uint32_t num_tris = 0;
+  uint32_t root = 0;  // 0 (the first internal node), or kLeafBit when the mesh is one triangle
+  Vec3f lo{}, hi{};   // the whole mesh's box
+};
+
+// A rigid placement: world = R body + t (R's rows in r). Identity by default.
+struct Frame {
+  Vec3f r[3] = {{1, 0, 0}, {0, 1, 0}, {0, 0, 1}};
+  Vec3f t{0, 0, 0};
+  SPHRAY_HD Vec3f to_body(Vec3f p) const {
+    const Vec3f q = p - t;
+    return r[0] * q.x + r[1] * q.y + r[2] * q.z;
+  }
+  SPHRAY_HD Vec3f dir_to_body(Vec3f d) const { return r[0] * d.x + r[1] * d.y + r[2] * d.z; }
+  SPHRAY_HD Vec3f dir_to_world(Vec3f d) const { return {dot(r[0], d), dot(r[1], d), dot(r[2], d)}; }
+  SPHRAY_HD Vec3f to_world(Vec3f p) const { return dir_to_world(p) + t; }
+};
+
+SPHRAY_HD SPHRAY_FORCEINLINE Vec3f triangle_normal(const BvhTriangle& t) {
+  const Vec3f n = cross(xyz(t.e1), xyz(t.e2));
+  return n * (1.0f / std::sqrt(dot(n, n)));
+}
+
+// o + s d against a triangle, both faces: true with s in (0, s_max).
+SPHRAY_HD SPHRAY_FORCEINLINE bool hit_triangle(const BvhTriangle& t, Vec3f o, Vec3f d, float s_max, float& s) {
+  const Vec3f e1 = xyz(t.e1), e2 = xyz(t.e2);
+  const Vec3f p = cross(d, e2);
+  const float det = dot(e1, p);
+  if (det == 0.0f) return false;
+  const float inv = 1.0f / det;
+  const Vec3f q = o - xyz(t.v0);
+  const float u = dot(q, p) * inv;
+  if (u < 0.0f || u > 1.0f) return false;
+  const Vec3f r = cross(q, e1);
+  const float v = dot(d, r) * inv;
+  if (v < 0.0f || u + v > 1.0f) return false;
+  s = dot(e2, r) * inv;
+  return s > 0.0f && s < s_max;
+}
+
+// The ray's entry into a box, with the ray's inverse direction precomputed.
+SPHRAY_HD SPHRAY_FORCEINLINE bool slab(Vec3f o, Vec3f inv, Vec3f lo, Vec3f hi, float s_max, float& s_in) {
+  const float tx0 = (lo.x - o.x) * inv.x, tx1 = (hi.x - o.x) * inv.x;
+  const float ty0 = (lo.y - o.y) * inv.y, ty1 = (hi.y - o.y) * inv.y;
+  const float tz0 = (lo.z - o.z) * inv.z, tz1 = (hi.z - o.z) * inv.z;
+  const float a = fmaxf(fmaxf(fminf(tx0, tx1), fminf(ty0, ty1)), fmaxf(fminf(tz0, tz1), 0.0f));
+  const float b = fminf(fminf(fmaxf(tx0, tx1), fmaxf(ty0, ty1)), fminf(fmaxf(tz0, tz1), s_max));
+  s_in = a;
+  return a <= b;
+}
+
+// Calls visit(slot, s) for every triangle the ray o + s d crosses with s in
+// (0, s_max), in no particular order; visit returns the new s_max (prune
+// farther boxes) or s_max itself to see them all.
+template <class Visit>
+SPHRAY_HD SPHRAY_FORCEINLINE void for_each_crossing(const MeshView& m, Vec3f o, Vec3f d, float s_max, Visit visit) {
+  if (m.num_tris == 0) return;
+  // A zero component would give 0 * inf = NaN at a box face through the
+  // origin: a tiny one instead (the same side, no NaN).
+  auto nz = [](float c) { return c != 0.0f ? c : 1e-30f; };
+  const Vec3f inv{1.0f / nz(d.x), 1.0f / nz(d.y), 1.0f / nz(d.z)};
+  float s_box;
+  if (!slab(o, inv, m.lo, m.hi, s_max, s_box)) return;
+  constexpr int kStack = 64;
+  uint32_t stack[kStack];
+  int top = 0;
+  stack[top++] = m.root;
+  while (top > 0) {
+    const uint32_t ref = stack[--top];
+    if (ref & kLeafBit) {
+      const uint32_t slot = ref & ~kLeafBit;
+      float s;
+      if (hit_triangle(m.tris[slot], o, d, s_max, s)) s_max = visit(slot, s);
+      continue;
+    }
+    const BvhNode& n = m.nodes[ref];
+    float s0, s1;
+    const bool h0 = slab(o, inv, n.lo[0], n.hi[0], s_max, s0), h1 = slab(o, inv, n.lo[1], n.hi[1], s_max, s1);
+    // The nearer child on top, so a first-hit search shrinks s_max early.
+    if (h0 && h1 && top + 2 <= kStack) {
+      if (s0 <= s1) { stack[top++] = n.child[1]; stack[top++] = n.child[0]; }
+      else { stack[top++] = n.child[0]; stack[top++] = n.child[1]; }
+    } else if (h0 && top < kStack) {
+      stack[top++] = n.child[0];
+    } else if (h1 && top < kStack) {
+      stack[top++] = n.child[1];
+    }
+  }
+}
+
+// The nearest crossing of o + s d with s in (0, s_max): its s and slot.
+SPHRAY_HD SPHRAY_FORCEINLINE bool first_hit(const MeshView& m, Vec3f o, Vec3f d, float s_max, float& s_hit,
+                                             uint32_t& slot_hit) {
+  bool any = false;
+  for_each_crossing(m, o, d, s_max, [&](uint32_t slot, float s) {
+    any = true;
+    s_hit = s;
+    slot_hit = slot;
+    return s;
+  });
+  return any;
+}
+
+// How many triangles the ray o + s d (s > 0) crosses.
+SPHRAY_HD SPHRAY_FORCEINLINE uint32_t count_crossings(const MeshView& m, Vec3f o, Vec3f d) {
+  uint32_t n = 0;
+  for_each_crossing(m, o, d, 3.0e38f, [&](uint32_t, float) {
+    ++n;
+    return 3.0e38f;
+  });
+  return n;
+}
+
+// The point of a triangle nearest to p (Ericson, Real-Time Collision
+// Detection, 2005, sec. 5.1.5).
+SPHRAY_HD inline Vec3f closest_on_triangle(const BvhTriangle& t, Vec3f p) {
+  const Vec3f a = xyz(t.v0), ab = xyz(t.e1), ac = xyz(t.e2);
+  const Vec3f ap = p - a;
+  const float d1 = dot(ab, ap), d2 = dot(ac, ap);
+  if (d1 <= 0 && d2 <= 0) return a;
+  const Vec3f bp = ap - ab;
+  const float d3 = dot(ab, bp), d4 = dot(ac, bp);
+  if (d3 >= 0 && d4 <= d3) return a + ab;
+  const float vc = d1 * d4 - d3 * d2;
+  if (vc <= 0 && d1 >= 0 && d3 <= 0) return a + ab * (d1 / (d1 - d3));
+  const Vec3f cp = ap - ac;
+  const float d5 = dot(ab, cp), d6 = dot(ac, cp);
+  if (d6 >= 0 && d5 <= d6) return a + ac;
+  const float vb = d5 * d2 - d1 * d6;
+  if (vb <= 0 && d2 >= 0 && d6 <= 0) return a + ac * (d2 / (d2 - d6));
+  const float va = d3 * d6 - d5 * d4;
+  if (va <= 0 && (d4 - d3) >= 0 && (d5 - d6) >= 0) return a + ab + (ac - ab) * ((d4 - d3) / ((d4 - d3) + (d5 - d6)));
+  const float denom = 1.0f / (va + vb + vc);
+  return a + ab * (vb * denom) + ac * (vc * denom);
+}
+
+SPHRAY_HD SPHRAY_FORCEINLINE float box_distance2(Vec3f p, Vec3f lo, Vec3f hi) {
+  const float dx = fmaxf(fmaxf(lo.x - p.x, p.x - hi.x), 0.0f), dy = fmaxf(fmaxf(lo.y - p.y, p.y - hi.y), 0.0f),
+              dz = fmaxf(fmaxf(lo.z - p.z, p.z - hi.z), 0.0f);
+  return dx * dx + dy * dy + dz * dz;
+}
+
+// The squared distance from p to the mesh if below r2_max (else r2_max), and
+// the nearest triangle's slot.
+SPHRAY_HD inline float nearest_distance2(const MeshView& m, Vec3f p, float r2_max, uint32_t& slot_near) {
+  if (m.num_tris == 0 || box_distance2(p, m.lo, m.hi) >= r2_max) return r2_max;
+  constexpr int kStack = 64;
+  uint32_t stack[kStack];
+  int top = 0;
+  stack[top++] = m.root;
+  float best = r2_max;
+  while (top > 0) {
+    const uint32_t ref = stack[--top];
+    if (ref & kLeafBit) {
+      const uint32_t slot = ref & ~kLeafBit;
+      const Vec3f q = closest_on_triangle(m.tris[slot], p) - p;
+      const float d2 = dot(q, q);
+      if (d2 < best) { best = d2; slot_near = slot; }
+      continue;
+    }
+    const BvhNode& n = m.nodes[ref];
+    const float a = box_distance2(p, n.lo[0], n.hi[0]), b = box_distance2(p, n.lo[1], n.hi[1]);
+    if (a < best && b < best && top + 2 <= kStack) {
+      if (a <= b) { stack[top++] = n.child[1]; stack[top++] = n.child[0]; }
+      else { stack[top++] = n.child[0]; stack[top++] = n.child[1]; }
+    } else if (a < best && top < kStack) {
+      stack[top++] = n.child[0];
+    } else if (b < best && top < kStack) {
+      stack[top++] = n.child[1];
+    }
+  }
+  return best;
+}
+
+// The tree on one backend. Built at construction from world vertices and
+// triangles; refit() takes new positions of the same vertices (a deforming
+// or moving mesh) and recomputes the boxes bottom-up, keeping the topology.
+class Bvh {
+ public:
+  virtual ~Bvh() = default;
+  virtual Backend backend() const = 0;
+  virtual MeshView view() const = 0;
+  virtual void refit(const std::vector<Vec3f>& vertices) = 0;
+  // Device milliseconds of the last build (Morton codes, sort, nodes, boxes)
+  // or refit (triangles, boxes), excluding the upload.
+  virtual double last_ms() const = 0;
+  // The triangle's index in the input of the triangle at a sorted slot.
+  virtual std::vector<uint32_t> input_order() const = 0;
+};
+
+std::unique_ptr<Bvh> make_cpu_bvh(const std::vector<Vec3f>& vertices, const std::vector<uint32_t>& indices);
+std::unique_ptr<Bvh> make_cuda_bvh(const std::vector<Vec3f>& vertices, const std::vector<uint32_t>& indices);
+std::unique_ptr<Bvh> make_bvh(Backend b, const std::vector<Vec3f>& vertices, const std::vector<uint32_t>& indices);
+
+}  // namespace sphray

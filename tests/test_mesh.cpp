@@ -1,0 +1,209 @@
+// Triangle meshes and their BVH: reading and checking meshes, and every BVH
+// query against a brute-force loop over all triangles in double precision.
+#include <cmath>
+#include <fstream>
+#include <random>
+#include <string>
+
+#include "catch.h"
+#include "helpers.h"
+#include "mesh/bvh.h"
+#include "mesh/mesh.h"
+
+using namespace sphray;
+
+namespace {
+
+std::vector<Vec3f> float_vertices(const TriangleMesh& m) {
+  std::vector<Vec3f> v;
+  for (const auto& p : m.vertices) v.push_back({float(p.x), float(p.y), float(p.z)});
+  return v;
+}
+std::vector<uint32_t> flat_indices(const TriangleMesh& m) {
+  std::vector<uint32_t> i;
+  for (const auto& t : m.triangles) i.insert(i.end(), t.begin(), t.end());
+  return i;
+}
+
+// Double-precision ray-triangle parameter, or -1.
+double ray_triangle(const TriangleMesh& m, size_t t, Vec3d o, Vec3d d) {
+  const Vec3d a = m.vertices[m.triangles[t][0]], b = m.vertices[m.triangles[t][1]], c = m.vertices[m.triangles[t][2]];
+  const Vec3d e1 = b - a, e2 = c - a, p = cross(d, e2);
+  const double det = dot(e1, p);
+  if (det == 0) return -1;
+  const Vec3d q = o - a;
+  const double u = dot(q, p) / det, v = dot(d, cross(q, e1)) / det;
+  if (u < 0 || v < 0 || u + v > 1) return -1;
+  const double s = dot(e2, cross(q, e1)) / det;
+  return s > 0 ? s : -1;
+}
+
+double point_triangle2(const TriangleMesh& m, size_t t, Vec3d p) {
+  // Dense barycentric sampling plus the edges, fine enough to compare at 1e-3 of the size.
+  const Vec3d a = m.vertices[m.triangles[t][0]], b = m.vertices[m.triangles[t][1]], c = m.vertices[m.triangles[t][2]];
+  const Vec3d n0 = cross(b - a, c - a);
+  const Vec3d n = n0 * (1.0 / length(n0));
+  const Vec3d q = p - n * dot(p - a, n);  // projection onto the plane
+  const Vec3d v0 = b - a, v1 = c - a, v2 = q - a;
+  const double d00 = dot(v0, v0), d01 = dot(v0, v1), d11 = dot(v1, v1), d20 = dot(v2, v0), d21 = dot(v2, v1);
+  const double den = d00 * d11 - d01 * d01;
+  const double v = (d11 * d20 - d01 * d21) / den, w = (d00 * d21 - d01 * d20) / den;
+  if (v >= 0 && w >= 0 && v + w <= 1) return length2(p - q);
+  auto seg = [&](Vec3d s0, Vec3d s1) {
+    const Vec3d e = s1 - s0;
+    const double u = std::clamp(dot(p - s0, e) / dot(e, e), 0.0, 1.0);
+    return length2(p - (s0 + e * u));
+  };
+  return std::min({seg(a, b), seg(b, c), seg(c, a)});
+}
+
+// Whether a message holds every piece.
+struct Has {
+  std::vector<std::string> parts;
+};
+Has has(const std::string& p) { return {{p}}; }
+Has operator&&(Has a, const Has& b) {
+  a.parts.insert(a.parts.end(), b.parts.begin(), b.parts.end());
+  return a;
+}
+bool holds(const std::string& msg, const Has& h) {
+  for (const auto& p : h.parts)
+    if (msg.find(p) == std::string::npos) return false;
+  return true;
+}
+#define CHECK_ALL(msg, h) \
+  do {                    \
+    const std::string m_ = (msg); \
+    INFO(m_);             \
+    CHECK(holds(m_, h));  \
+  } while (0)
+
+std::string write_text(const test::TempDir& dir, const std::string& name, const std::string& text) {
+  const std::string path = dir.path() + "/" + name;
+  std::ofstream(path) << text;
+  return path;
+}
+
+std::string mesh_error(const std::string& path) {
+  try {
+    check_mesh(read_obj(path), 1e-12);
+  } catch (const MeshError& e) {
+    return e.what();
+  }
+  return {};
+}
+
+}  // namespace
+
+TEST_CASE("built-in meshes are closed, with the volume and area of their shapes", "[mesh][cpu]") {
+  const TriangleMesh box = box_mesh({{0, 0, 0}, {1, 2, 3}});
+  check_mesh(box, 1e-12);
+  CHECK(signed_volume(box) == Approx(6.0));
+  CHECK(area(box) == Approx(22.0));
+  const TriangleMesh s = sphere_mesh({1, 1, 1}, 0.5, 4);
+  check_mesh(s, 1e-12);
+  // An inscribed polyhedron of 5120 faces: volume within 0.3% of the sphere's.
+  CHECK(signed_volume(s) == Approx(4.0 / 3.0 * M_PI * 0.125).epsilon(3e-3));
+  TriangleMesh f = box;
+  flip(f);
+  CHECK(signed_volume(f) == Approx(-6.0));
+}
+
+TEST_CASE("placing a mesh scales, rotates about x, y, z and translates", "[mesh][cpu]") {
+  const TriangleMesh box = box_mesh({{0, 0, 0}, {1, 1, 1}});
+  Placement p;
+  p.scale = {2, 1, 1};
+  p.rotate_deg = {0, 0, 90};
+  p.translate = {5, 0, 0};
+  const TriangleMesh m = placed(box, p);
+  // (2, 0, 0) scaled -> rotated 90 deg about z -> (0, 2, 0) -> translated (5, 2, 0).
+  const Box b = bounds(m);
+  CHECK(b.min.x == Approx(4.0));
+  CHECK(b.max.x == Approx(5.0));
+  CHECK(b.max.y == Approx(2.0));
+  CHECK(signed_volume(m) == Approx(2.0));
+  p.scale = {-1, 1, 1};  // a mirror keeps the volume positive (winding flipped)
+  CHECK(signed_volume(placed(box, p)) == Approx(1.0));
+}
+
+TEST_CASE("bad meshes are refused naming the file and the problem", "[mesh][cpu]") {
+  test::TempDir dir;
+  CHECK_ALL(mesh_error(dir.path() + "/none.obj"), has("none.obj") &&
+                                                      has("cannot open"));
+  CHECK_ALL(mesh_error(write_text(dir, "empty.obj", "# nothing\n")), has("no triangles"));
+  CHECK_ALL(mesh_error(write_text(dir, "nan.obj", "v 0 0 0\nv 1 0 nan\nv 0 1 0\nf 1 2 3\n")),
+             has("nan.obj") && has("not finite"));
+  CHECK_ALL(mesh_error(write_text(dir, "open.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n")),
+             has("not closed"));
+  CHECK_ALL(mesh_error(write_text(dir, "flat.obj", "v 0 0 0\nv 1 0 0\nv 2 0 0\nv 0 1 0\nf 1 2 3\nf 1 2 4\n")),
+             has("degenerate"));
+  // A mesh written and read back is the same mesh.
+  const std::string path = dir.path() + "/s.obj";
+  write_obj(sphere_mesh({0, 0, 0}, 1, 1), path);
+  const TriangleMesh back = read_obj(path);
+  CHECK(back.size() == 80);
+  check_mesh(back, 1e-12);
+}
+
+TEST_CASE("BVH queries match a brute-force loop over every triangle", "[mesh][cpu]") {
+  // A sphere and a box together: overlapping, many equal Morton codes on the box's faces.
+  TriangleMesh m = sphere_mesh({0.5, 0.5, 0.5}, 0.4, 3);
+  const TriangleMesh b = box_mesh({{0.2, 0.3, 0.1}, {0.9, 0.35, 0.8}});
+  const uint32_t base = uint32_t(m.vertices.size());
+  m.vertices.insert(m.vertices.end(), b.vertices.begin(), b.vertices.end());
+  for (auto t : b.triangles) m.triangles.push_back({t[0] + base, t[1] + base, t[2] + base});
+  const auto bvh = make_cpu_bvh(float_vertices(m), flat_indices(m));
+  const MeshView v = bvh->view();
+  const std::vector<uint32_t> order = bvh->input_order();
+  REQUIRE(v.num_tris == m.size());
+  std::mt19937 rng(7);
+  std::uniform_real_distribution<double> u(-0.2, 1.2), dir(-1, 1);
+  int hits = 0;
+  for (int k = 0; k < 2000; ++k) {
+    const Vec3d o{u(rng), u(rng), u(rng)};
+    Vec3d d{dir(rng), dir(rng), dir(rng)};
+    d = d * (1.0 / length(d));
+    double best = 1e30;
+    size_t best_t = 0;
+    int crossings = 0;
+    for (size_t t = 0; t < m.size(); ++t) {
+      const double s = ray_triangle(m, t, o, d);
+      if (s > 0) { ++crossings; if (s < best) { best = s; best_t = t; } }
+    }
+    float s = 0;
+    uint32_t slot = 0;
+    const bool hit = first_hit(v, {float(o.x), float(o.y), float(o.z)}, {float(d.x), float(d.y), float(d.z)}, 10.0f, s, slot);
+    CHECK(hit == (best < 10));
+    if (hit && best < 10) {
+      ++hits;
+      CHECK(s == Approx(best).margin(1e-5));
+      if (std::abs(s - best) > 1e-4) CHECK(order[slot] == best_t);
+    }
+    CHECK(int(count_crossings(v, {float(o.x), float(o.y), float(o.z)}, {float(d.x), float(d.y), float(d.z)})) == crossings);
+    // Nearest point, within a radius that sometimes holds nothing.
+    double near2 = 1e30;
+    for (size_t t = 0; t < m.size(); ++t) near2 = std::min(near2, point_triangle2(m, t, o));
+    uint32_t near_slot = 0;
+    const float r2 = 0.04f;
+    const float got = nearest_distance2(v, {float(o.x), float(o.y), float(o.z)}, r2, near_slot);
+    if (near2 < r2 * 0.999) CHECK(std::sqrt(got) == Approx(std::sqrt(near2)).margin(2e-6));
+    else if (near2 > r2 * 1.001) CHECK(got == r2);
+  }
+  CHECK(hits > 300);
+}
+
+TEST_CASE("a refit BVH answers for the moved vertices", "[mesh][cpu]") {
+  const TriangleMesh m = sphere_mesh({0, 0, 0}, 1, 2);
+  auto verts = float_vertices(m);
+  const auto bvh = make_cpu_bvh(verts, flat_indices(m));
+  for (auto& p : verts) p = p * 2.0f + Vec3f{3, 0, 0};  // scaled and moved
+  bvh->refit(verts);
+  float s = 0;
+  uint32_t slot = 0;
+  REQUIRE(first_hit(bvh->view(), {0, 0, 0}, {1, 0, 0}, 100.0f, s, slot));
+  CHECK(s == Approx(1.0).margin(0.02));  // the near side of the sphere of radius 2 at x = 3
+  CHECK(count_crossings(bvh->view(), {3, 0.01f, 0.02f}, {0.3f, 0.5f, 0.8f}) == 1);  // from inside: once
+  const MeshView v = bvh->view();
+  CHECK(v.lo.x == Approx(1.0f));
+  CHECK(v.hi.x == Approx(5.0f));
+}
