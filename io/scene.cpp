@@ -8,6 +8,8 @@
 #include <set>
 #include <sstream>
 
+#include "sph/obstacles.h"
+
 namespace sphray {
 
 namespace {
@@ -184,6 +186,58 @@ void read_fluid(const ConfigReader& root, Scene& s) {
   }
 }
 
+// "obstacles": meshes read, placed and checked here, so that every problem
+// is reported with the key and file before anything runs.
+void read_obstacles(const ConfigReader& root, Scene& s) {
+  if (!root.has("obstacles")) return;
+  const json& list = root.at("obstacles");
+  if (!list.is_array())
+    root.fail("obstacles", list, "must be an array of obstacles {\"mesh\": \"file.obj\", \"scale\", \"rotate\", \"translate\"}");
+  if (list.size() > kMaxObstacles)
+    root.fail("obstacles", json(list.size()), "at most " + std::to_string(kMaxObstacles) + " obstacles (merge meshes into one file)");
+  const std::filesystem::path folder = std::filesystem::path(root.file()).parent_path();
+  for (size_t k = 0; k < list.size(); ++k) {
+    const ConfigReader o(list[k], root.file(), "obstacles." + std::to_string(k));
+    o.only({"mesh", "scale", "rotate", "translate"});
+    if (!o.has("mesh") || !o.at("mesh").is_string() || o.at("mesh").get<std::string>().empty())
+      o.fail("mesh", o.has("mesh") ? o.at("mesh") : json(), "is required: the path of an OBJ file (relative to the scene file)");
+    Obstacle ob;
+    const std::filesystem::path given = o.at("mesh").get<std::string>();
+    ob.path = given.is_absolute() || folder.empty() ? given.string() : (folder / given).string();
+    Placement& pl = ob.placement;
+    if (o.has("scale") && o.at("scale").is_number()) {
+      const double f = o.number("scale", 1.0, 0.0, 1e6, false, true);
+      pl.scale = {f, f, f};
+    } else {
+      pl.scale = o.vec3("scale", pl.scale);
+      if (!(pl.scale.x > 0 && pl.scale.y > 0 && pl.scale.z > 0))
+        o.fail("scale", o.at("scale"), "every factor must be > 0 (a mesh cannot be mirrored or flattened)");
+    }
+    pl.rotate_deg = o.vec3("rotate", pl.rotate_deg);
+    pl.translate = o.vec3("translate", pl.translate);
+    try {
+      ob.mesh = placed(read_obj(ob.path), pl);
+      const Box b = bounds(ob.mesh);
+      const double diag = length(b.max - b.min);
+      check_mesh(ob.mesh, 1e-12 * diag * diag);
+    } catch (const MeshError& e) {
+      throw SceneError(root.file() + ": obstacles." + std::to_string(k) + ".mesh: " + e.what());
+    }
+    if (signed_volume(ob.mesh) < 0) flip(ob.mesh);  // inward-facing triangles: turned outward
+    const Box b = bounds(ob.mesh);
+    const double eps = 1e-9 * std::max(1.0, length(s.tank.max - s.tank.min));
+    if (b.min.x < s.tank.min.x - eps || b.min.y < s.tank.min.y - eps || b.min.z < s.tank.min.z - eps ||
+        b.max.x > s.tank.max.x + eps || b.max.y > s.tank.max.y + eps || (!s.open_top && b.max.z > s.tank.max.z + eps)) {
+      std::ostringstream os;
+      os << ob.path << " crosses the tank walls: placed, it spans [" << b.min.x << ", " << b.max.x << "] x [" << b.min.y
+         << ", " << b.max.y << "] x [" << b.min.z << ", " << b.max.z << "], the tank " << root.at("tank").dump()
+         << " (check scale, rotate and translate)";
+      o.fail("mesh", o.at("mesh"), os.str());
+    }
+    s.obstacles.push_back(std::move(ob));
+  }
+}
+
 // A weakly compressible fluid is meaningful only well below its speed of
 // sound (density varies as Mach^2): a c0 under the flow speed the scene can
 // be expected to reach would make the run supersonic, and at c0 -> 0 the
@@ -225,7 +279,7 @@ Scene parse_scene(const std::string& text, const std::string& file, const std::v
   s.file = file;
   s.json = scene_json(text, file, overrides);
   const ConfigReader root(s.json, file, "");
-  root.only({"name", "description", "tank", "fluid", "gravity", "sph", "pbf", "dfsph", "field", "render", "export",
+  root.only({"name", "description", "tank", "fluid", "obstacles", "gravity", "sph", "pbf", "dfsph", "field", "render", "export",
              "run"});
   s.name = root.has("name") && root.at("name").is_string() ? root.at("name").get<std::string>() : "scene";
   if (root.has("name") && !root.at("name").is_string()) root.fail("name", root.at("name"), "must be a string");
@@ -255,6 +309,7 @@ Scene parse_scene(const std::string& text, const std::string& file, const std::v
   read_run(root.child("run"), s.run, s.sph.solver);
   check_tank(root.child("tank"), s);
   read_fluid(root, s);
+  read_obstacles(root, s);
   if (s.sph.solver == SolverKind::Wcsph) check_speed_of_sound(root.child("sph"), s);
   return s;
 }

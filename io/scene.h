@@ -14,6 +14,7 @@
 #include "core/config_reader.h"
 #include "core/vec.h"
 #include "field/config.h"
+#include "mesh/mesh.h"
 #include "render/render_settings.h"
 #include "sph/config.h"
 #include "sph/eos.h"
@@ -24,6 +25,15 @@ namespace sphray {
 struct FluidBlock {
   Box box;
   Vec3d velocity{0, 0, 0};
+};
+
+// A triangle mesh in the tank (static): the liquid flows around it
+// (sph/obstacles.h; WCSPH's wall particles fill its skin), the raycaster
+// draws it.
+struct Obstacle {
+  std::string path;     // the mesh file, resolved against the scene's folder
+  Placement placement;  // as given
+  TriangleMesh mesh;    // placed: world coordinates, outward winding
 };
 
 struct Scene {
@@ -37,6 +47,7 @@ struct Scene {
   // (e.g. the side walls of a quasi-2D slab). Other walls are viscous.
   bool free_slip[6] = {false, false, false, false, false, false};
   std::vector<FluidBlock> fluid;
+  std::vector<Obstacle> obstacles;  // "obstacles": [{"mesh", "scale", "rotate", "translate"}]
   Vec3d gravity{0, 0, -kStandardGravity};
 
   SphConfig sph;        // the "sph" section, and "pbf" or "dfsph" when it runs that solver (sph/config.h)

@@ -43,25 +43,17 @@ struct MeshView {
   Vec3f lo{}, hi{};   // the whole mesh's box
 };
 
-// A rigid placement: world = R body + t (R's rows in r). Identity by default.
-struct Frame {
-  Vec3f r[3] = {{1, 0, 0}, {0, 1, 0}, {0, 0, 1}};
-  Vec3f t{0, 0, 0};
-  SPHRAY_HD Vec3f to_body(Vec3f p) const {
-    const Vec3f q = p - t;
-    return r[0] * q.x + r[1] * q.y + r[2] * q.z;
-  }
-  SPHRAY_HD Vec3f dir_to_body(Vec3f d) const { return r[0] * d.x + r[1] * d.y + r[2] * d.z; }
-  SPHRAY_HD Vec3f dir_to_world(Vec3f d) const { return {dot(r[0], d), dot(r[1], d), dot(r[2], d)}; }
-  SPHRAY_HD Vec3f to_world(Vec3f p) const { return dir_to_world(p) + t; }
-};
-
 SPHRAY_HD SPHRAY_FORCEINLINE Vec3f triangle_normal(const BvhTriangle& t) {
   const Vec3f n = cross(xyz(t.e1), xyz(t.e2));
   return n * (1.0f / std::sqrt(dot(n, n)));
 }
 
-// o + s d against a triangle, both faces: true with s in (0, s_max).
+// o + s d against a triangle, both faces: true with s in (0, s_max). The
+// edges are widened by kEdgeSlack of the triangle (in barycentric terms), so
+// that a path through a shared edge or a vertex hits at least one of the
+// triangles there whatever the rounding (a particle sliding on the tank's
+// floor into the bottom edge of a box standing on it, say).
+constexpr float kEdgeSlack = 1e-5f;
 SPHRAY_HD SPHRAY_FORCEINLINE bool hit_triangle(const BvhTriangle& t, Vec3f o, Vec3f d, float s_max, float& s) {
   const Vec3f e1 = xyz(t.e1), e2 = xyz(t.e2);
   const Vec3f p = cross(d, e2);
@@ -70,10 +62,10 @@ SPHRAY_HD SPHRAY_FORCEINLINE bool hit_triangle(const BvhTriangle& t, Vec3f o, Ve
   const float inv = 1.0f / det;
   const Vec3f q = o - xyz(t.v0);
   const float u = dot(q, p) * inv;
-  if (u < 0.0f || u > 1.0f) return false;
+  if (u < -kEdgeSlack || u > 1.0f + kEdgeSlack) return false;
   const Vec3f r = cross(q, e1);
   const float v = dot(d, r) * inv;
-  if (v < 0.0f || u + v > 1.0f) return false;
+  if (v < -kEdgeSlack || u + v > 1.0f + kEdgeSlack) return false;
   s = dot(e2, r) * inv;
   return s > 0.0f && s < s_max;
 }
@@ -89,18 +81,20 @@ SPHRAY_HD SPHRAY_FORCEINLINE bool slab(Vec3f o, Vec3f inv, Vec3f lo, Vec3f hi, f
   return a <= b;
 }
 
-// Calls visit(slot, s) for every triangle the ray o + s d crosses with s in
-// (0, s_max), in no particular order; visit returns the new s_max (prune
-// farther boxes) or s_max itself to see them all.
+// Calls visit(slot) for every triangle whose box, widened by `pad`, the ray
+// o + s d meets with s in [0, s_max], nearer boxes first; visit returns the
+// new s_max (prune farther boxes) or s_max itself to see them all.
 template <class Visit>
-SPHRAY_HD SPHRAY_FORCEINLINE void for_each_crossing(const MeshView& m, Vec3f o, Vec3f d, float s_max, Visit visit) {
+SPHRAY_HD SPHRAY_FORCEINLINE void for_each_leaf_along(const MeshView& m, Vec3f o, Vec3f d, float s_max, float pad,
+                                                      Visit visit) {
   if (m.num_tris == 0) return;
   // A zero component would give 0 * inf = NaN at a box face through the
   // origin: a tiny one instead (the same side, no NaN).
   auto nz = [](float c) { return c != 0.0f ? c : 1e-30f; };
   const Vec3f inv{1.0f / nz(d.x), 1.0f / nz(d.y), 1.0f / nz(d.z)};
+  const Vec3f grow{pad, pad, pad};
   float s_box;
-  if (!slab(o, inv, m.lo, m.hi, s_max, s_box)) return;
+  if (!slab(o, inv, m.lo - grow, m.hi + grow, s_max, s_box)) return;
   constexpr int kStack = 64;
   uint32_t stack[kStack];
   int top = 0;
@@ -108,14 +102,13 @@ SPHRAY_HD SPHRAY_FORCEINLINE void for_each_crossing(const MeshView& m, Vec3f o, 
   while (top > 0) {
     const uint32_t ref = stack[--top];
     if (ref & kLeafBit) {
-      const uint32_t slot = ref & ~kLeafBit;
-      float s;
-      if (hit_triangle(m.tris[slot], o, d, s_max, s)) s_max = visit(slot, s);
+      s_max = visit(ref & ~kLeafBit);
       continue;
     }
     const BvhNode& n = m.nodes[ref];
     float s0, s1;
-    const bool h0 = slab(o, inv, n.lo[0], n.hi[0], s_max, s0), h1 = slab(o, inv, n.lo[1], n.hi[1], s_max, s1);
+    const bool h0 = slab(o, inv, n.lo[0] - grow, n.hi[0] + grow, s_max, s0),
+               h1 = slab(o, inv, n.lo[1] - grow, n.hi[1] + grow, s_max, s1);
     // The nearer child on top, so a first-hit search shrinks s_max early.
     if (h0 && h1 && top + 2 <= kStack) {
       if (s0 <= s1) { stack[top++] = n.child[1]; stack[top++] = n.child[0]; }
@@ -126,6 +119,16 @@ SPHRAY_HD SPHRAY_FORCEINLINE void for_each_crossing(const MeshView& m, Vec3f o, 
       stack[top++] = n.child[1];
     }
   }
+}
+
+// Calls visit(slot, s) for every triangle the ray o + s d crosses with s in
+// (0, s_max), in no particular order; visit returns the new s_max.
+template <class Visit>
+SPHRAY_HD SPHRAY_FORCEINLINE void for_each_crossing(const MeshView& m, Vec3f o, Vec3f d, float s_max, Visit visit) {
+  for_each_leaf_along(m, o, d, s_max, 0.0f, [&](uint32_t slot) {
+    float s;
+    return hit_triangle(m.tris[slot], o, d, s_max, s) ? (s_max = visit(slot, s)) : s_max;
+  });
 }
 
 // The nearest crossing of o + s d with s in (0, s_max): its s and slot.

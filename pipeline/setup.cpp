@@ -6,9 +6,11 @@
 #include <cmath>
 #include <fstream>
 #include <limits>
+#include <memory>
 #include <sstream>
 #include <string>
 
+#include "mesh/bvh.h"
 #include "nsearch/pair_masks.h"
 #include "sph/eos.h"
 
@@ -79,6 +81,48 @@ AxisCoords axis_coords(double lo, double hi, double dx, int layers, bool upper_w
 
 bool is_wall(const AxisCoords& a, size_t k) { return k < a.wall_lo || k >= a.wall_lo + a.inner; }
 
+// An obstacle's mesh on the host, for the setup's point queries.
+struct ObstacleProbe {
+  std::unique_ptr<Bvh> tree;
+  Box box;
+  explicit ObstacleProbe(const TriangleMesh& m) : box(bounds(m)) {
+    const MeshInput in = mesh_input(m);
+    tree = make_cpu_bvh(in.vertices, in.indices);
+  }
+  // Inside the closed mesh: an odd count of crossings, by the majority of
+  // three rays (one grazing an edge or a vertex can count wrongly).
+  bool inside(Vec3d p) const {
+    if (p.x < box.min.x || p.y < box.min.y || p.z < box.min.z || p.x > box.max.x || p.y > box.max.y || p.z > box.max.z)
+      return false;
+    static const Vec3f dirs[3] = {{0.5773f, 0.5774f, 0.5775f}, {-0.6f, 0.64f, 0.48f}, {0.28f, -0.96f, 0.0f}};
+    const MeshView v = tree->view();
+    int odd = 0;
+    for (const Vec3f& d : dirs) odd += int(count_crossings(v, to_f(p), d) & 1u);
+    return odd >= 2;
+  }
+  // Distance to the surface when below r (else r).
+  double distance(Vec3d p, double r) const {
+    uint32_t slot = 0;
+    const float r2 = float(r * r), d2 = nearest_distance2(tree->view(), to_f(p), r2, slot);
+    return d2 < r2 ? std::sqrt(double(d2)) : r;
+  }
+};
+
+std::vector<ObstacleProbe> obstacle_probes(const Scene& s) {
+  std::vector<ObstacleProbe> out;
+  for (const Obstacle& o : s.obstacles) out.emplace_back(o.mesh);
+  return out;
+}
+
+// A fluid lattice point that an obstacle takes: inside it, or nearer its
+// surface than half a spacing (the fluid keeps from a mesh the distance it
+// keeps from the tank's faces; 0.49: a point half a spacing off stays).
+bool in_obstacle(const std::vector<ObstacleProbe>& probes, Vec3d p, double dx) {
+  for (const ObstacleProbe& o : probes)
+    if (o.inside(p) || o.distance(p, 0.49 * dx) < 0.49 * dx) return true;
+  return false;
+}
+
 // Calls f(x, y, z, r) for every other node (x, y, z) dx of a cubic lattice
 // of spacing dx within `support` of a node, r its distance.
 template <class F>
@@ -114,6 +158,15 @@ double depth_of(const Scene& s) {
 }
 
 }  // namespace
+
+MeshInput mesh_input(const TriangleMesh& m) {
+  MeshInput in;
+  in.vertices.reserve(m.vertices.size());
+  for (const Vec3d& v : m.vertices) in.vertices.push_back(to_f(v));
+  in.indices.reserve(3 * m.triangles.size());
+  for (const auto& t : m.triangles) in.indices.insert(in.indices.end(), t.begin(), t.end());
+  return in;
+}
 
 SphParams make_params(const Scene& s) {
   SphParams p{};
@@ -239,6 +292,10 @@ SceneSize measure_scene(const Scene& s) {
                in_z = std::max(1.0, double(std::lround(e.z / dx)));
   const double all = (in_x + 2 * L) * (in_y + 2 * L) * (in_z + (s.open_top ? 1 : 2) * L);
   z.boundary = L > 0 ? size_t(all - in_x * in_y * in_z) : 0;
+  // An obstacle's skin, L layers under its surface (an estimate from above:
+  // counting would mean generating it).
+  if (L > 0)
+    for (const Obstacle& o : s.obstacles) z.boundary += size_t(std::ceil(1.5 * area(o.mesh) * L / (dx * dx)));
 
   GridGeom& g = z.grid;
   g.cell_size = float(support);
@@ -330,6 +387,8 @@ SolverInput make_solver_input(const ResolvedScene& r, PresenceMode presence) {
 
   in.fluid_pos_rho.reserve(z.fluid);
   in.fluid_vel.reserve(z.fluid);
+  const std::vector<ObstacleProbe> probes = obstacle_probes(s);
+  for (const Obstacle& o : s.obstacles) in.obstacles.push_back(mesh_input(o.mesh));
   for (size_t b = 0; b < s.fluid.size(); ++b) {
     const FluidBlock& blk = s.fluid[b];
     const Vec3d e = blk.box.max - blk.box.min;
@@ -341,6 +400,7 @@ SolverInput make_solver_input(const ResolvedScene& r, PresenceMode presence) {
         for (int i = 0; i < n[0]; ++i) {
           const Vec3d p = start + Vec3d{i * dx, j * dx, k * dx};
           if (covered_before(s.fluid, b, p, dx)) continue;
+          if (!probes.empty() && in_obstacle(probes, p, dx)) continue;
           // Hydrostatic start (inverse Tait): no pressure wave from a fluid released at
           // uniform density. PBF and DFSPH compute their density from the positions.
           const double depth = std::max(0.0, surface_above(s.fluid, b, p, up, dx) - dot(p, up));
@@ -372,6 +432,33 @@ SolverInput make_solver_input(const ResolvedScene& r, PresenceMode presence) {
         in.boundary.push_back({float(ax.c[i]), float(ay.c[j]), float(az.c[k]), volume});
         in.boundary_alpha.push_back(viscous ? wall_alpha : 0.0f);
       }
+  // Each obstacle's skin: the points of the tank's inner lattice inside the
+  // mesh and within the wall's layers of its surface, viscous like the walls.
+  for (size_t o = 0; o < probes.size(); ++o) {
+    const ObstacleProbe& pr = probes[o];
+    const size_t before = in.boundary.size();
+    const double depth = L * dx;
+    for (size_t k = az.wall_lo; k < az.wall_lo + az.inner; ++k) {
+      if (az.c[k] < pr.box.min.z || az.c[k] > pr.box.max.z) continue;
+      for (size_t j = ay.wall_lo; j < ay.wall_lo + ay.inner; ++j) {
+        if (ay.c[j] < pr.box.min.y || ay.c[j] > pr.box.max.y) continue;
+        for (size_t i = ax.wall_lo; i < ax.wall_lo + ax.inner; ++i) {
+          if (ax.c[i] < pr.box.min.x || ax.c[i] > pr.box.max.x) continue;
+          const Vec3d p{ax.c[i], ay.c[j], az.c[k]};
+          if (pr.distance(p, depth) < depth && pr.inside(p)) {
+            in.boundary.push_back({float(p.x), float(p.y), float(p.z), volume});
+            in.boundary_alpha.push_back(wall_alpha);
+          }
+        }
+      }
+    }
+    if (in.boundary.size() == before) {
+      std::ostringstream os;
+      os << s.file << ": obstacles." << o << ".mesh: " << s.obstacles[o].path << " holds no point of the particle lattice "
+         << "(sph.spacing = " << dx << " m): it is thinner than the spacing. Make it at least one spacing thick.";
+      throw SceneError(os.str());
+    }
+  }
   return in;
 }
 

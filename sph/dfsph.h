@@ -44,6 +44,7 @@
 #include "dfsph_params.h"
 #include "flow_step.h"
 #include "mirror_walls.h"
+#include "obstacles.h"
 #include "params.h"
 #include "presence.h"
 
@@ -288,17 +289,19 @@ struct DfsphKick {
   Float4* warm;
   const Float4* pos;
   Float4* pos_out;
+  Obstacles obstacles;  // the advection is stopped at them (obstacles.h)
   SPHRAY_HD void operator()(uint32_t i) const {
     const float dt = float(control->limits.dt);
-    const Vec3f v = xyz(vel[i]) + dt * xyz(acc[i]);
+    Vec3f v = xyz(vel[i]) + dt * xyz(acc[i]);
+    Vec3f x{0.0f, 0.0f, 0.0f};
+    if (Advect) {
+      x = inside_tank(prm, xyz(pos[i]) + dt * v);
+      v = slide_along(v, stop_at_obstacles(obstacles, xyz(pos[i]), x));
+    }
     vel[i] = {v.x, v.y, v.z, 0.0f};
     if (Advect) warm[i].x = press[i] * dt * dt;
     else warm[i].y = press[i] * dt * dt;
-    if (Advect) {
-      const Float4 p = pos[i];
-      const Vec3f x = inside_tank(prm, xyz(p) + dt * v);
-      pos_out[i] = {x.x, x.y, x.z, p.w};
-    }
+    if (Advect) pos_out[i] = {x.x, x.y, x.z, pos[i].w};
   }
 };
 

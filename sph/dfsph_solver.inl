@@ -12,7 +12,7 @@ class DfsphSolverImpl final : public Solver {
  public:
   explicit DfsphSolverImpl(const SolverInput& in)
       : prm_(in.params), df_(in.dfsph), grid_(in.grid), cfl_(in.cfl), min_dt_(in.min_dt), max_dt_(in.max_dt),
-        n_(uint32_t(in.fluid_pos_rho.size())) {
+        n_(uint32_t(in.fluid_pos_rho.size())), obstacles_(make_obstacle_set(kBackend, in.obstacles, in.params.spacing)) {
     const size_t n = n_;
     upload(pos_, in.fluid_pos_rho);
     upload(vel_, in.fluid_vel);
@@ -232,7 +232,8 @@ class DfsphSolverImpl final : public Solver {
   void kick() {
     accel<false>();
     parallel_for(Advect ? "dfsph_advect" : "dfsph_kick", n_,
-                 DfsphKick<Advect>{prm_, raw(control_), raw(acc_), raw(press_), raw(vel_), raw(warm_), raw(pos_), raw(pos_tmp_)});
+                 DfsphKick<Advect>{prm_, raw(control_), raw(acc_), raw(press_), raw(vel_), raw(warm_), raw(pos_), raw(pos_tmp_),
+                                   obstacles_.view});
   }
 
   // Speed, density error and finiteness of the current state, into the
@@ -248,6 +249,7 @@ class DfsphSolverImpl final : public Solver {
   GridGeom grid_;
   double cfl_, min_dt_, max_dt_;
   uint32_t n_;
+  ObstacleSet obstacles_;  // meshes the particles' paths stop at (obstacles.h)
   PresenceMode presence_mode_ = PresenceMode::Off;
   bool presence_valid_ = false;
   double t_ = 0;

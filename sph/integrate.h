@@ -20,6 +20,7 @@
 #include <cmath>
 #include <cstdint>
 
+#include "obstacles.h"
 #include "params.h"
 #include "particles.h"
 
@@ -143,6 +144,7 @@ struct Advance {
   // dt a (the next loop's prediction of v''), p / rho'^2; status
   ParticleArrays state;
   PairIn pairs;  // a, R and G (interaction.h)
+  Obstacles obstacles;  // the path of each particle is stopped at them (obstacles.h)
 
   SPHRAY_HD static void keep_inside(float& x, float& v, float lo, float hi, bool clamp_hi, uint8_t& st) {
     if (x < lo) { x = lo; if (v < 0.0f) v = 0.0f; st = kStatusClamped; }
@@ -169,9 +171,21 @@ struct Advance {
     keep_inside(p.x, v.x, prm.tank.min.x, prm.tank.max.x, true, st);
     keep_inside(p.y, v.y, prm.tank.min.y, prm.tank.max.y, true, st);
     keep_inside(p.z, v.z, prm.tank.min.z, prm.tank.max.z, !prm.open_top, st);
+    Vec3f u = {v.x + dt * a.x, v.y + dt * a.y, v.z + dt * a.z};
+    if (obstacles.count > 0) {
+      Vec3f x = xyz(p);
+      const Vec3f n = stop_at_obstacles(obstacles, xyz(state.pos[i]), x);
+      if (n.x != 0.0f || n.y != 0.0f || n.z != 0.0f) {
+        const Vec3f w = slide_along(xyz(v), n);
+        v.x = w.x; v.y = w.y; v.z = w.z;
+        u = slide_along(u, n);
+        p.x = x.x; p.y = x.y; p.z = x.z;
+        st = kStatusClamped;
+      }
+    }
     state.pos[i] = p;
     state.vel[i] = v;
-    state.flow[i] = {v.x + dt * a.x, v.y + dt * a.y, v.z + dt * a.z, pressure_term(prm, p.w)};
+    state.flow[i] = {u.x, u.y, u.z, pressure_term(prm, p.w)};
     state.status[i] = st;
   }
 };

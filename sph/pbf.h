@@ -37,6 +37,7 @@
 
 #include "flow_step.h"
 #include "mirror_walls.h"
+#include "obstacles.h"
 #include "params.h"
 #include "pbf_params.h"
 #include "presence.h"
@@ -50,10 +51,12 @@ struct Predict {
   const Float4* pos;
   const Float4* vel;
   Float4* pred;
+  Obstacles obstacles;  // the path is stopped at them (obstacles.h)
   SPHRAY_HD void operator()(uint32_t i) const {
     const float dt = float(control->limits.dt);
     const Vec3f v = xyz(vel[i]) + dt * prm.gravity;
-    const Vec3f x = inside_tank(prm, xyz(pos[i]) + dt * v);
+    Vec3f x = inside_tank(prm, xyz(pos[i]) + dt * v);
+    stop_at_obstacles(obstacles, xyz(pos[i]), x);
     pred[i] = {x.x, x.y, x.z, 0.0f};
   }
 };
@@ -112,6 +115,7 @@ struct Correct {
   PairMask pairs;
   const Float4* pred;  // x*, lambda
   Float4* out;
+  Obstacles obstacles;  // the correction is stopped at them (obstacles.h)
   SPHRAY_HD void operator()(uint32_t i) const {
     const PbfKernel<float>& k = pbf.kernel;
     const float s2 = k.s * k.s;
@@ -140,7 +144,8 @@ struct Correct {
     const float len2 = length2(dx);
     if (pbf.max_correction > 0.0f && len2 > pbf.max_correction * pbf.max_correction)
       dx = (pbf.max_correction / std::sqrt(len2)) * dx;
-    const Vec3f x = inside_tank(prm, xi + dx);
+    Vec3f x = inside_tank(prm, xi + dx);
+    stop_at_obstacles(obstacles, xi, x);
     out[i] = {x.x, x.y, x.z, 0.0f};
   }
 };

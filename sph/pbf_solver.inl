@@ -13,7 +13,7 @@ class PbfSolverImpl final : public Solver {
  public:
   explicit PbfSolverImpl(const SolverInput& in)
       : prm_(in.params), pbf_(in.pbf), grid_(in.grid), cfl_(in.cfl), min_dt_(in.min_dt), max_dt_(in.max_dt),
-        n_(uint32_t(in.fluid_pos_rho.size())) {
+        n_(uint32_t(in.fluid_pos_rho.size())), obstacles_(make_obstacle_set(kBackend, in.obstacles, in.params.spacing)) {
     const size_t n = n_;
     upload(pos_, in.fluid_pos_rho);
     upload(vel_, in.fluid_vel);
@@ -82,7 +82,7 @@ class PbfSolverImpl final : public Solver {
     parallel_for("pbf_choose_step", 1,
                  ChooseFlowStep{cfl_ * prm_.spacing, double(pbf_.speed_floor), max_dt_, double(pbf_.max_dt_depth), min_dt_,
                                std::max(until - t_, 0.0), control});
-    parallel_for("pbf_predict", n_, Predict{prm_, control, raw(pos_), raw(vel_), raw(pred_)});
+    parallel_for("pbf_predict", n_, Predict{prm_, control, raw(pos_), raw(vel_), raw(pred_), obstacles_.view});
     sort_by(pred_);
     grid_current_ = false;
     build_masks();
@@ -157,7 +157,8 @@ class PbfSolverImpl final : public Solver {
         const double sum = thrust::reduce(policy(), error_.begin(), error_.begin() + n_, 0.0);
         if (n_ == 0 || sum / n_ <= pbf_.tolerance) return k;
       }
-      mirror_pass_launches<Correct>(kCorrectNames, n_, prm_, pbf_, grid_, raw(fine_offsets_), pairs(), raw(pred_), raw(pred_tmp_));
+      mirror_pass_launches<Correct>(kCorrectNames, n_, prm_, pbf_, grid_, raw(fine_offsets_), pairs(), raw(pred_), raw(pred_tmp_),
+                                    obstacles_.view);
       pred_.swap(pred_tmp_);
     }
     return pbf_.iterations;
@@ -210,6 +211,7 @@ class PbfSolverImpl final : public Solver {
   GridGeom grid_;
   double cfl_, min_dt_, max_dt_;
   uint32_t n_;
+  ObstacleSet obstacles_;  // meshes the particles' paths stop at (obstacles.h)
   PresenceMode presence_mode_ = PresenceMode::Off;
   bool presence_valid_ = false;
   bool grid_current_ = false;  // offsets_ match pos_ (else pred_, as sorted at the step's start)

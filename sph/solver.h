@@ -15,6 +15,7 @@
 #include "core/host_memory.h"
 #include "nsearch/grid.h"
 #include "integrate.h"  // StepLimits
+#include "obstacles.h"
 #include "params.h"
 #include "dfsph_params.h"
 #include "pbf_params.h"
@@ -42,6 +43,9 @@ struct SolverInput {
   std::vector<Float4> fluid_vel;      // vx, vy, vz, - (the solver keeps p / rho^2 in w)
   std::vector<Float4> boundary;       // x, y, z, volume (WCSPH; PBF's and DFSPH's walls are the tank's planes)
   std::vector<float> boundary_alpha;  // wall viscosity per boundary particle (0 = free slip)
+  // Triangle meshes the particles' paths stop at (obstacles.h), at most
+  // kMaxObstacles; WCSPH's wall particles inside them are in `boundary`.
+  std::vector<MeshInput> obstacles;
   // Step control, from the scene (sph.cfl, run.min_dt, run.max_dt; their
   // defaults are the scene's): WCSPH's CFL on h and the sound speed, PBF's
   // and DFSPH's on the spacing and the largest particle speed.

@@ -38,7 +38,7 @@ class SolverImpl final : public Solver {
  public:
   explicit SolverImpl(const SolverInput& in)
       : prm_(in.params), grid_(in.grid), cfl_(in.cfl), min_dt_(in.min_dt), max_dt_(in.max_dt),
-        n_(uint32_t(in.fluid_pos_rho.size())) {
+        n_(uint32_t(in.fluid_pos_rho.size())), obstacles_(make_obstacle_set(kBackend, in.obstacles, in.params.spacing)) {
     const size_t n = n_, cells = size_t(grid_.num_cells()) + 1, slabs = size_t(grid_.num_fine_cells()) + 1;
     upload(pos_, in.fluid_pos_rho);
     upload(vel_, in.fluid_vel);
@@ -136,7 +136,7 @@ class SolverImpl final : public Solver {
                           &control->stats);
     parallel_for("choose_step", 1,
                  ChooseStep{step_rule(), min_dt_, std::max(until - t_, 0.0), control, const_state(), pair_results()});
-    parallel_for("advance", n_, Advance{prm_, control, state(), pair_results()});
+    parallel_for("advance", n_, Advance{prm_, control, state(), pair_results(), obstacles_.view});
     control_read_.start(control);
     clock_.end_of("integrate");
     build_grid();
@@ -297,6 +297,7 @@ class SolverImpl final : public Solver {
   uint64_t steps_ = 0;
   size_t removed_ = 0;
   uint64_t clamped_total_ = 0;
+  ObstacleSet obstacles_;
   StepLimits limits_;
   StageTimes times_;
   StageClock clock_;

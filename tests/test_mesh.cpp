@@ -9,6 +9,7 @@
 #include "helpers.h"
 #include "mesh/bvh.h"
 #include "mesh/mesh.h"
+#include "sph/obstacles.h"
 
 using namespace sphray;
 
@@ -206,4 +207,48 @@ TEST_CASE("a refit BVH answers for the moved vertices", "[mesh][cpu]") {
   const MeshView v = bvh->view();
   CHECK(v.lo.x == Approx(1.0f));
   CHECK(v.hi.x == Approx(5.0f));
+}
+
+TEST_CASE("a particle's path is stopped outside a closed mesh, whatever it grazes", "[mesh][cpu]") {
+  const TriangleMesh m = sphere_mesh({0, 0, 0}, 0.1, 3);
+  const auto bvh = make_cpu_bvh(float_vertices(m), flat_indices(m));
+  Obstacles obs;
+  obs.mesh[0] = bvh->view();
+  obs.count = 1;
+  obs.offset = 1e-4f;
+  const auto box = box_mesh({{0.2, -0.05, -0.05}, {0.21, 0.05, 0.05}});  // a plate, faces on lattice planes
+  const auto plate = make_cpu_bvh(float_vertices(box), flat_indices(box));
+  obs.mesh[1] = plate->view();
+  obs.count = 2;
+  // The inscribed polyhedron lies within 0.1 of the centre and beyond 0.1 cos(edge angle).
+  const float r_in = 0.0985f;
+  std::mt19937 rng(3);
+  std::uniform_real_distribution<float> u(-0.15f, 0.15f);
+  int stopped = 0;
+  for (int k = 0; k < 20000; ++k) {
+    Vec3f from{u(rng), u(rng), u(rng)};
+    if (length(from) < 0.1001f) continue;  // start outside
+    Vec3f to{u(rng), u(rng), u(rng)};
+    const Vec3f n = stop_at_obstacles(obs, from, to);
+    stopped += n.x != 0 || n.y != 0 || n.z != 0;
+    CHECK(length(to) > r_in);
+  }
+  CHECK(stopped > 1000);
+  // Resting exactly on the plate's face (as rounding can leave it) and moving in: stopped.
+  Vec3f to{0.2005f, 0.01f, 0.0f};
+  Vec3f n = stop_at_obstacles(obs, {0.2f, 0.01f, 0.0f}, to);
+  CHECK(n.x == Approx(-1.0f));
+  CHECK(to.x < 0.2f);
+  // Through the edge shared by the face's two triangles (its diagonal), and through a corner.
+  to = {0.205f, 0.0f, 0.0f};
+  stop_at_obstacles(obs, {0.19f, 0.0f, 0.0f}, to);
+  CHECK(to.x < 0.2f);
+  to = {0.205f, 0.05f, 0.05f};
+  stop_at_obstacles(obs, {0.195f, 0.05f, 0.05f}, to);
+  CHECK(to.x < 0.2f);
+  // Along the face, outside: not stopped.
+  to = {0.1999f, 0.04f, 0.0f};
+  n = stop_at_obstacles(obs, {0.1999f, -0.04f, 0.0f}, to);
+  CHECK(to.y == 0.04f);
+  CHECK(n.x == 0.0f);
 }

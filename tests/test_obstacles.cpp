@@ -1,0 +1,135 @@
+// Triangle-mesh obstacles in scenes: bad meshes refused by key and file, the
+// setup's fluid and wall particles against the mesh, no particle through a
+// thin plate, and the buoyant force of the pressure on a submerged box.
+#include <cmath>
+#include <fstream>
+#include <string>
+
+#include "catch.h"
+#include "helpers.h"
+#include "io/metrics.h"
+#include "mesh/bvh.h"
+#include "pipeline/setup.h"
+
+using namespace sphray;
+using test::has;
+
+namespace {
+
+// A unit cube [0, 1]^3 as an OBJ file (placed by scale and translate).
+std::string unit_box_obj() {
+  const std::string path = test::tmp_dir() + "/unit_box.obj";
+  write_obj(box_mesh({{0, 0, 0}, {1, 1, 1}}), path);
+  return path;
+}
+
+std::string with_obstacle(const std::string& obstacle, const std::string& sph = R"({"spacing": 0.01})") {
+  return R"({"tank": {"min": [0, 0, 0], "max": [0.4, 0.1, 0.3]},
+    "fluid": [{"min": [0, 0, 0], "max": [0.15, 0.1, 0.25]}],
+    "obstacles": [)" + obstacle + R"(], "sph": )" + sph + R"(, "run": {"end_time": 0.3, "output_interval": 0.1}})";
+}
+
+std::string plate(const std::string& mesh, double dx) {
+  // One spacing thick, from wall to wall and floor to lid: it seals the column's side.
+  std::ostringstream os;
+  os << R"({"mesh": ")" << mesh << R"(", "scale": [)" << dx << R"(, 0.1, 0.3], "translate": [0.25, 0, 0]})";
+  return os.str();
+}
+
+}  // namespace
+
+TEST_CASE("bad obstacles are refused naming the key, the file and the problem", "[mesh][cpu]") {
+  const std::string box = unit_box_obj();
+  const std::string dir = test::tmp_dir();
+  std::ofstream(dir + "/nan.obj") << "v 0 0 0\nv 1 0 nan\nv 0 1 0\nv 0 0 1\nf 1 2 3\nf 1 2 4\nf 1 3 4\nf 2 3 4\n";
+  std::ofstream(dir + "/empty.obj") << "# no faces\nv 0 0 0\n";
+  std::ofstream(dir + "/open.obj") << "v 0 0 0\nv 0.1 0 0\nv 0 0.1 0\nf 1 2 3\n";
+  std::string e = test::scene_error(with_obstacle(R"({"mesh": ")" + dir + R"(/missing.obj"})"));
+  CHECK((has(e, "obstacles.0.mesh") && has(e, "missing.obj") && has(e, "cannot open")));
+  e = test::scene_error(with_obstacle(R"({"mesh": ")" + dir + R"(/nan.obj", "scale": 0.05})"));
+  CHECK((has(e, "nan.obj") && has(e, "not finite")));
+  e = test::scene_error(with_obstacle(R"({"mesh": ")" + dir + R"(/empty.obj"})"));
+  CHECK((has(e, "empty.obj") && has(e, "no triangles")));
+  e = test::scene_error(with_obstacle(R"({"mesh": ")" + dir + R"(/open.obj"})"));
+  CHECK((has(e, "open.obj") && has(e, "not closed")));
+  e = test::scene_error(with_obstacle(R"({"mesh": ")" + box + R"(", "scale": 0})"));
+  CHECK(has(e, "obstacles.0.scale"));
+  e = test::scene_error(with_obstacle(R"({"mesh": ")" + box + R"(", "scale": [0.1, -0.1, 0.1]})"));
+  CHECK((has(e, "obstacles.0.scale") && has(e, "> 0")));
+  e = test::scene_error(with_obstacle(R"({"mesh": ")" + box + R"(", "scale": 0.1, "translate": [0.35, 0, 0]})"));
+  CHECK((has(e, "unit_box.obj") && has(e, "crosses the tank walls")));
+  e = test::scene_error(with_obstacle(R"({"mesh": ")" + box + R"(", "scael": 0.1})"));
+  CHECK(has(e, "scael"));
+  e = test::scene_error(with_obstacle(R"({"scale": 0.1})"));
+  CHECK((has(e, "obstacles.0.mesh") && has(e, "required")));
+  // Too thin for the wall particles of WCSPH: said before the run.
+  const Scene thin = parse_scene(with_obstacle(plate(box, 0.004)), "t.json");
+  try {
+    make_solver_input(resolve_scene(thin), PresenceMode::Off);
+    FAIL("a plate thinner than the spacing was taken");
+  } catch (const SceneError& err) {
+    CHECK(has(err.what(), "thinner than the spacing"));
+  }
+}
+
+TEST_CASE("a bad mesh ends sphray run with exit code 2 and the file's name", "[mesh][cpu]") {
+  const std::string dir = test::tmp_dir();
+  std::ofstream(dir + "/obst_scene.json") << with_obstacle(R"({"mesh": "no_such_mesh.obj"})");
+  const auto r = test::run_cli("run " + dir + "/obst_scene.json --backend cpu --quiet");
+  CHECK(r.code == 2);
+  CHECK(has(r.output, dir + "/no_such_mesh.obj"));  // resolved against the scene's folder
+}
+
+TEST_CASE("the fluid keeps out of an obstacle and WCSPH's wall particles fill its skin", "[mesh][cpu]") {
+  // A 6 cm cube in the middle of a pool, its faces between lattice planes.
+  const std::string text = R"({"tank": {"min": [0, 0, 0], "max": [0.2, 0.2, 0.2]},
+    "fluid": [{"min": [0, 0, 0], "max": [0.2, 0.2, 0.16]}],
+    "obstacles": [{"mesh": ")" + unit_box_obj() + R"(", "scale": 0.06, "translate": [0.07, 0.07, 0.05]}],
+    "sph": {"spacing": 0.01}})";
+  const ResolvedScene r = resolve_scene(parse_scene(text, "t.json"));
+  const SolverInput in = make_solver_input(r, PresenceMode::Off);
+  REQUIRE(in.obstacles.size() == 1);
+  // 20 x 20 x 16 lattice points less the 6 x 6 x 6 inside the cube.
+  CHECK(in.fluid_pos_rho.size() == 20 * 20 * 16 - 6 * 6 * 6);
+  const Box cube{{0.07, 0.07, 0.05}, {0.13, 0.13, 0.11}};
+  size_t in_cube = 0;
+  for (const Float4& b : in.boundary) {
+    const bool inside = b.x > cube.min.x && b.x < cube.max.x && b.y > cube.min.y && b.y < cube.max.y &&
+                        b.z > cube.min.z && b.z < cube.max.z;
+    in_cube += inside;
+  }
+  // The cube is 6 points wide, the skin (sph.boundary_layers deep) reaches its middle: all 216.
+  CHECK(in_cube == 216);
+  for (const Float4& f : in.fluid_pos_rho) {
+    const bool near = f.x > cube.min.x - 0.004 && f.x < cube.max.x + 0.004 && f.y > cube.min.y - 0.004 &&
+                      f.y < cube.max.y + 0.004 && f.z > cube.min.z - 0.004 && f.z < cube.max.z + 0.004;
+    CHECK_FALSE(near);
+  }
+}
+
+TEST_CASE("no particle passes a plate one spacing thick, at three resolutions and under every solver", "[mesh][cpu]") {
+  const std::string box = unit_box_obj();
+  struct Case { double dx; const char* sph; };
+  const Case cases[] = {{0.02, R"({"spacing": 0.02})"}, {0.015, R"({"spacing": 0.015})"}, {0.01, R"({"spacing": 0.01})"},
+                        {0.01, R"({"spacing": 0.01, "solver": "pbf"})"}, {0.01, R"({"spacing": 0.01, "solver": "dfsph"})"}};
+  for (const Case& c : cases) {
+    INFO("sph " << c.sph);
+    const Scene s = parse_scene(with_obstacle(plate(box, c.dx), c.sph), "t.json");
+    const ResolvedScene r = resolve_scene(s);
+    auto solver = make_cpu_solver(make_solver_input(r, PresenceMode::Off));
+    const size_t n = solver->num_fluid();
+    size_t leaked = 0, steps_seen = 0;
+    double front = 0;
+    while (solver->time() < 0.3 - 1e-12) {
+      solver->step(0.3);
+      if (++steps_seen % 10 != 0) continue;
+      for (const Vec3f& p : solver->download().pos) {
+        leaked += p.x > 0.25;
+        front = std::max(front, double(p.x));
+      }
+    }
+    CHECK(solver->num_fluid() == n);
+    CHECK(leaked == 0);
+    CHECK(front > 0.24);  // the liquid did reach the plate
+  }
+}
