@@ -63,6 +63,73 @@ CurveError relative_error(const Curve& sim, const Curve& experiment) {
   return e;
 }
 
+ObstacleForce obstacle_force(const TriangleMesh& mesh, const HostParticles& p, const std::vector<float>& pressure,
+                             const SmoothingKernel<double>& kernel, Vec3d gravity, double spacing) {
+  ObstacleForce out;
+  if (p.pos.size() != pressure.size())
+    throw std::invalid_argument("obstacle_force: one pressure per particle expected");
+  const double support = kernel.support();
+  // The particles near the mesh, binned in cells one support wide.
+  Box box = bounds(mesh);
+  box.min = box.min - Vec3d{support, support, support};
+  box.max = box.max + Vec3d{support, support, support};
+  const int nx = std::max(1, int(std::ceil((box.max.x - box.min.x) / support))),
+            ny = std::max(1, int(std::ceil((box.max.y - box.min.y) / support))),
+            nz = std::max(1, int(std::ceil((box.max.z - box.min.z) / support)));
+  std::vector<std::vector<uint32_t>> cells(size_t(nx) * ny * nz);
+  auto cell_of = [&](Vec3d x, int& i, int& j, int& k) {
+    i = int(std::floor((x.x - box.min.x) / support));
+    j = int(std::floor((x.y - box.min.y) / support));
+    k = int(std::floor((x.z - box.min.z) / support));
+    return i >= 0 && j >= 0 && k >= 0 && i < nx && j < ny && k < nz;
+  };
+  for (size_t f = 0; f < p.pos.size(); ++f) {
+    int i, j, k;
+    const Vec3d x{p.pos[f].x, p.pos[f].y, p.pos[f].z};
+    if (cell_of(x, i, j, k)) cells[(size_t(k) * ny + j) * nx + i].push_back(uint32_t(f));
+  }
+  double area_all = 0, area_wet = 0;
+  for (const auto& t : mesh.triangles) {
+    const Vec3d a = mesh.vertices[t[0]], b = mesh.vertices[t[1]], c = mesh.vertices[t[2]];
+    const Vec3d nA = cross(b - a, c - a) * 0.5;  // area times the outward normal
+    const double longest = std::max({length(b - a), length(c - b), length(a - c)});
+    const int m = std::max(1, int(std::ceil(longest / (0.5 * spacing))));
+    // m^2 sub-triangles of equal area, sampled at their centroids.
+    const Vec3d du = (b - a) * (1.0 / m), dv = (c - a) * (1.0 / m);
+    for (int u = 0; u < m; ++u)
+      for (int v = 0; u + v < m; ++v)
+        for (int up = 0; up < (u + v + 1 < m ? 2 : 1); ++up) {
+          const Vec3d x = up == 0 ? a + du * (u + 1.0 / 3.0) + dv * (v + 1.0 / 3.0)
+                                  : a + du * (u + 2.0 / 3.0) + dv * (v + 2.0 / 3.0);
+          double sw = 0, spw = 0, sgr = 0;
+          int ci, cj, ck;
+          cell_of(x, ci, cj, ck);
+          for (int k = ck - 1; k <= ck + 1; ++k)
+            for (int j = cj - 1; j <= cj + 1; ++j)
+              for (int i = ci - 1; i <= ci + 1; ++i) {
+                if (i < 0 || j < 0 || k < 0 || i >= nx || j >= ny || k >= nz) continue;
+                for (const uint32_t f : cells[(size_t(k) * ny + j) * nx + i]) {
+                  const Vec3d xf{p.pos[f].x, p.pos[f].y, p.pos[f].z};
+                  const double r = length(x - xf);
+                  if (r >= support) continue;
+                  const double w = kernel.W(r);
+                  sw += w;
+                  spw += pressure[f] * w;
+                  sgr += p.density[f] * dot(gravity, x - xf) * w;
+                }
+              }
+          const double dA = 1.0 / (double(m) * m);  // share of the triangle
+          area_all += dA * length(nA);
+          if (sw <= 0) continue;
+          area_wet += dA * length(nA);
+          const double press = std::max(0.0, (spw + sgr) / sw);
+          out.force -= nA * (press * dA);
+        }
+  }
+  out.wetted = area_all > 0 ? area_wet / area_all : 0;
+  return out;
+}
+
 }  // namespace sphray
 
 namespace sphray {

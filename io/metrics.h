@@ -5,6 +5,7 @@
 #include <string>
 #include <vector>
 
+#include "mesh/mesh.h"
 #include "sph/solver.h"
 
 namespace sphray {
@@ -15,6 +16,22 @@ namespace sphray {
 double surge_front(const HostParticles& p, double back_wall_x, double spacing);
 
 double kinetic_energy(const HostParticles& p, double particle_mass);
+
+// The force of the liquid's pressure on an obstacle, -sum p A n over its
+// surface (n outward), and the share of that surface the liquid wets. The
+// pressure at a point of the surface is the kernel-weighted pressure of the
+// fluid particles around it plus their hydrostatic difference to it,
+//   p(x) = (sum_f p_f W + g . sum_f rho_f (x - x_f) W) / sum_f W,
+// the extrapolation that Adami et al. (2012) give the wall particles
+// (sph/boundary.h); the surface is sampled at points at most half a spacing
+// apart. `pressure` holds p_f per particle of `p` (WCSPH: tait_pressure of
+// its density; DFSPH: Solver::pressures()).
+struct ObstacleForce {
+  Vec3d force{0, 0, 0};  // [N]
+  double wetted = 0;     // share of the area with liquid within the kernel's support
+};
+ObstacleForce obstacle_force(const TriangleMesh& mesh, const HostParticles& p, const std::vector<float>& pressure,
+                             const SmoothingKernel<double>& kernel, Vec3d gravity, double spacing);
 
 struct Curve {
   std::vector<double> x, y;

@@ -133,3 +133,55 @@ TEST_CASE("no particle passes a plate one spacing thick, at three resolutions an
     CHECK(front > 0.24);  // the liquid did reach the plate
   }
 }
+
+namespace {
+
+// A 6 cm cube in the middle of a 16 cm deep pool (its faces between lattice
+// planes), WCSPH at rest from the hydrostatic start: the pressure integrated
+// over the cube's faces (obstacle_force), averaged over t = 0.1 .. 0.2 s.
+Vec3d buoyancy(Backend backend, double& archimedes) {
+  const std::string text = R"({"tank": {"min": [0, 0, 0], "max": [0.2, 0.2, 0.2]},
+    "fluid": [{"min": [0, 0, 0], "max": [0.2, 0.2, 0.16]}],
+    "obstacles": [{"mesh": ")" + unit_box_obj() + R"(", "scale": 0.06, "translate": [0.07, 0.07, 0.05]}],
+    "sph": {"spacing": 0.01}})";
+  const Scene s = parse_scene(text, "t.json");
+  const ResolvedScene r = resolve_scene(s);
+  const SolverInput in = make_solver_input(r, PresenceMode::Off);
+  auto solver = backend == Backend::Cuda ? make_cuda_solver(in) : make_cpu_solver(in);
+  const SphParams& prm = r.params;
+  const SmoothingKernel<double> k = SmoothingKernel<double>::make(prm.kernel.type, prm.kernel.h);
+  archimedes = 1000.0 * 9.81 * 0.06 * 0.06 * 0.06;
+  Vec3d mean{0, 0, 0};
+  int samples = 0;
+  for (double t = 0.1; t <= 0.2 + 1e-9; t += 0.01) {
+    test::run_until(*solver, t);
+    const HostParticles h = solver->download();
+    std::vector<float> p(h.density.size());
+    for (size_t i = 0; i < p.size(); ++i) p[i] = tait_pressure(prm, h.density[i]);
+    const ObstacleForce f = obstacle_force(s.obstacles[0].mesh, h, p, k, s.gravity, s.sph.spacing);
+    CHECK(f.wetted == Approx(1.0));
+    mean += f.force;
+    ++samples;
+  }
+  return mean * (1.0 / samples);
+}
+
+}  // namespace
+
+TEST_CASE("a box held under water feels the buoyant force rho g V through the wall pressure", "[mesh][cpu]") {
+  double archimedes = 0;
+  const Vec3d f = buoyancy(Backend::Cpu, archimedes);
+  INFO("force " << f.x << ", " << f.y << ", " << f.z << " N; rho g V = " << archimedes << " N");
+  CHECK(f.z == Approx(archimedes).epsilon(0.02));
+  CHECK(std::abs(f.x) < 0.02 * archimedes);
+  CHECK(std::abs(f.y) < 0.02 * archimedes);
+}
+
+TEST_CASE("cuda: a box held under water feels the buoyant force rho g V", "[gpu]") {
+  double archimedes = 0;
+  const Vec3d f = buoyancy(Backend::Cuda, archimedes);
+  INFO("force " << f.x << ", " << f.y << ", " << f.z << " N; rho g V = " << archimedes << " N");
+  CHECK(f.z == Approx(archimedes).epsilon(0.02));
+  CHECK(std::abs(f.x) < 0.02 * archimedes);
+  CHECK(std::abs(f.y) < 0.02 * archimedes);
+}
