@@ -109,6 +109,7 @@ int render_file(const RenderArgs& ra, const std::string& backend_arg, const std:
   const bool needs_field = method_needs_field(scene.render.method);
   auto field = needs_field ? make_field_builder(b, fs, scene.field.builder) : nullptr;
   FrameRenderer frames(scene.render, scene.tank, scene.sph.spacing, b, fs, single ? "" : ra.out, "--out");
+  frames.set_obstacles(obstacle_meshes(scene));
   const size_t first = ra.frame >= 0 ? size_t(ra.frame) : 0, end = ra.frame >= 0 ? first + 1 : n;
   for (size_t k = first; k < end; ++k) {
     const Frame f = reader.read(k);

@@ -47,6 +47,7 @@ std::vector<BenchFrameRow> bench_frame(Backend b, const BenchFrameOptions& opt, 
     const FieldSetup fs = make_field_setup(rs);  // the environment's frame, with or without a field
     auto field = with_field ? make_field_builder(b, fs, kind) : nullptr;
     auto renderer = make_renderer(b);
+    renderer->set_obstacles(obstacle_meshes(s));
     simulate_collapse(s, *solver, opt.collapse, log);
     const Camera cam = make_camera(s.tank, s.render);
     const Environment env = make_environment(s.tank, fs.geom, cam);

@@ -168,6 +168,12 @@ MeshInput mesh_input(const TriangleMesh& m) {
   return in;
 }
 
+std::vector<MeshInput> obstacle_meshes(const Scene& s) {
+  std::vector<MeshInput> out;
+  for (const Obstacle& o : s.obstacles) out.push_back(mesh_input(o.mesh));
+  return out;
+}
+
 SphParams make_params(const Scene& s) {
   SphParams p{};
   const double dx = s.sph.spacing;
@@ -388,7 +394,7 @@ SolverInput make_solver_input(const ResolvedScene& r, PresenceMode presence) {
   in.fluid_pos_rho.reserve(z.fluid);
   in.fluid_vel.reserve(z.fluid);
   const std::vector<ObstacleProbe> probes = obstacle_probes(s);
-  for (const Obstacle& o : s.obstacles) in.obstacles.push_back(mesh_input(o.mesh));
+  in.obstacles = obstacle_meshes(s);
   for (size_t b = 0; b < s.fluid.size(); ++b) {
     const FluidBlock& blk = s.fluid[b];
     const Vec3d e = blk.box.max - blk.box.min;

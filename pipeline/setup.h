@@ -32,6 +32,7 @@ ResolvedScene resolve_scene(const Scene& s);
 SphParams make_params(const Scene& s);
 // A placed mesh as the solver and the renderer take it.
 MeshInput mesh_input(const TriangleMesh& m);
+std::vector<MeshInput> obstacle_meshes(const Scene& s);  // every obstacle's
 // One presence lobe (sph/interaction.h) of a particle inside a full cubic
 // lattice of spacing dx: the value that presence is normalised by.
 double presence_lobe_on_lattice(const SmoothingKernel<double>& k, double dx);

@@ -23,6 +23,7 @@ std::ofstream open_output(const std::string& flag, const std::string& path) {
 
 void PngSink::open(const Scene& scene, Backend b, const FieldSetup& fs) {
   frames_ = std::make_unique<FrameRenderer>(scene.render, scene.tank, scene.sph.spacing, b, fs, dir_, flag_);
+  frames_->set_obstacles(obstacle_meshes(scene));
 }
 
 void PngSink::write(const Solver& s, const FieldBuilder* field, int frame) {

@@ -31,6 +31,8 @@ class FrameRenderer {
   int frames_written() const { return written_ + int(png_ ? png_->done() : 0); }
   double mean_render_ms() const { return renders_ ? render_ms_ / renders_ : 0.0; }
   const std::string& dir() const { return dir_; }
+  // The scene's obstacles, drawn in the frames that follow (Renderer::set_obstacles).
+  void set_obstacles(const std::vector<MeshInput>& meshes) { renderer_->set_obstacles(meshes); }
 
  private:
   Image render(const ParticleView& particles, const FieldBuilder* field);  // the image, its time counted

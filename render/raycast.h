@@ -18,7 +18,10 @@
 //     further interfaces per pixel;
 //  5. repeat up to `interfaces` interfaces along each path; Beer-Lambert
 //     absorption on every segment inside the liquid, the absorbed share
-//     replaced by the liquid's `tint`; a path's last ray takes the environment.
+//     replaced by the liquid's `tint`; a path's last ray takes the environment;
+//  6. an obstacle (MeshHits) that a segment meets before any interface ends
+//     the path there, opaque and matte: seen through the liquid, it is
+//     refracted and absorbed like the floor.
 // Every contribution is weight x colour (environment or tint), and the
 // weights of one pixel sum to exactly 1: tests check it.
 // The optics are in optics.h, the camera and the surroundings in environment.h.
@@ -32,6 +35,7 @@
 #include "environment.h"
 #include "field/volume.h"
 #include "optics.h"
+#include "sph/obstacles.h"
 
 namespace sphray {
 
@@ -168,6 +172,42 @@ struct TraceSettings {
   SlicePlanes slices{};  // spacing > 0: camera rays sample on these planes (then step = spacing, no secant)
 };
 
+// The scene's obstacles as the tracer meets them: opaque, matte surfaces lit
+// by the sun and the sky, hit through their BVHs (mesh/bvh.h) in world
+// coordinates (voxel u is world origin + u voxel).
+struct MeshHits {
+  Obstacles obstacles;  // count 0: none
+  Vec3f origin{0, 0, 0};
+  float voxel = 1.0f;
+  Rgb colour{0.72f, 0.70f, 0.66f};
+
+  // The nearest mesh along p + t d (voxel units) with t < t_max: its t, and
+  // the normal facing the ray; t_max when none.
+  SPHRAY_HD float hit(Vec3f p, Vec3f d, float t_max, Vec3f& n) const {
+    if (obstacles.count == 0) return t_max;
+    const Vec3f w = origin + p * voxel;
+    float best = t_max * voxel;
+    bool any = false;
+    for (uint32_t k = 0; k < obstacles.count; ++k) {
+      float s;
+      uint32_t slot;
+      if (first_hit(obstacles.mesh[k], w, d, best, s, slot)) {
+        best = s;
+        n = triangle_normal(obstacles.mesh[k].tris[slot]);
+        any = true;
+      }
+    }
+    if (!any) return t_max;
+    if (dot(n, d) > 0.0f) n = -n;
+    return best / voxel;
+  }
+  // Lambert under the sun, with the sky's light from above as the ambient part.
+  SPHRAY_HD Rgb shade(Vec3f n, Vec3f sun) const {
+    const float sunlit = dot(n, sun) > 0.0f ? dot(n, sun) : 0.0f;
+    return colour * (0.35f + 0.15f * (n.z > 0.0f ? n.z : 0.0f) + 0.55f * sunlit);
+  }
+};
+
 // What a test may watch (the renderer passes NoTrace: compiled away).
 struct NoTrace {
   SPHRAY_HD void segment(Vec3f, Vec3f, bool) const {}
@@ -184,6 +224,7 @@ struct Tracer {
   Vec3f box_hi;  // the volume box is [0, box_hi] in voxels
   Environment env;
   TraceSettings ts;
+  MeshHits meshes{};
 
   // March from o along d for at most t_max, looking for f crossing iso in
   // the direction that leaves the current side (inside: f >= iso). Returns
@@ -300,15 +341,17 @@ struct Tracer {
     }
   };
 
-  // Follow one branch to its end (the environment, the floor or a wall),
+  // Follow one branch to its end (the environment, the floor, a wall or an obstacle),
   // keeping the weaker branch of each interface in `pending`.
   template <class Watch>
   SPHRAY_HD void follow(Branch& b, Vec3f o, int& budget, Rgb& colour, Waiting& pending, const Watch& watch) const {
     Vec3f& p = b.p;
     const Vec3f& d = b.d;
     bool stopped = false;  // on the floor or an opaque wall (wall_face)
+    bool on_mesh = false;  // on an obstacle, whose normal is mesh_n
+    Vec3f mesh_n{0, 0, 1};
     int wall_face = 4;
-    for (; b.k < ts.interfaces && budget > 0 && !stopped;) {
+    for (; b.k < ts.interfaces && budget > 0 && !stopped && !on_mesh;) {
       float b0, b1;
       ray_box(p, d, Vec3f{0, 0, 0}, box_hi, b0, b1);
       const float t_box = b1 > 0.0f ? b1 : 0.0f;
@@ -324,11 +367,20 @@ struct Tracer {
       }
       float t_max = t_wall < t_box ? t_wall : t_box;
       t_max = t_glass < t_max ? t_glass : t_max;
+      // An obstacle before all of them ends the search there.
+      const float t_mesh = meshes.hit(p, d, t_max, mesh_n);
+      const bool mesh_first = t_mesh < t_max;
+      t_max = t_mesh;
       const float th = find_crossing(p, d, t_max, b.inside, b.k == 0);
       const float len = th >= 0.0f ? th : t_max;
       watch.segment(p, p + d * len, b.inside);
       if (b.inside) absorb(b.w, len, colour, watch);
       if (th < 0.0f) {
+        if (mesh_first) {
+          p = p + d * t_mesh;
+          on_mesh = true;
+          break;
+        }
         if (t_wall <= t_box && t_wall <= t_glass) {  // the tank stops the ray: the environment at the wall
           p = p + d * t_wall;
           wall_face = face;
@@ -357,7 +409,8 @@ struct Tracer {
     // A ray that met no interface looks at the environment from its own
     // origin o (the volume box reaches below the floor, where the ground
     // would otherwise be seen from underneath). Branches start at one.
-    if (stopped) colour = colour + b.w * env.surface(wall_face, p, d);
+    if (on_mesh) colour = colour + b.w * meshes.shade(mesh_n, env.sun);
+    else if (stopped) colour = colour + b.w * env.surface(wall_face, p, d);
     else colour = colour + b.w * env(b.k == 0 ? o : p, d);
   }
 

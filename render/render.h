@@ -58,6 +58,10 @@ class Renderer {
   virtual std::vector<std::pair<std::string, double>> last_stages() const = 0;
   virtual const uint32_t* pixels() const = 0;       // the image in the backend's memory
   virtual Image download() const = 0;
+  // The scene's obstacles (world coordinates), kept for the renders that
+  // follow: raycast and slices draw them (raycast.h, MeshHits); screen_space
+  // does not. Their BVHs are built here, once, on the renderer's backend.
+  virtual void set_obstacles(const std::vector<MeshInput>& meshes) = 0;
   // The viewer's interop target: the next renders write here instead (device
   // memory on CUDA, host memory on CPU), width x height pixels; null: own buffer.
   virtual void set_target(uint32_t* pixels) = 0;

@@ -8,6 +8,9 @@ class RendererImpl final : public Renderer {
   double last_ms() const override { return ms_; }
   const uint32_t* pixels() const override { return target_ ? target_ : raw(image_); }
   void set_target(uint32_t* p) override { target_ = p; }
+  void set_obstacles(const std::vector<MeshInput>& meshes) override {
+    obstacles_ = make_obstacle_set(kBackend, meshes, 0.0f);
+  }
 
   Image download() const override {
     Image img;
@@ -67,7 +70,7 @@ class RendererImpl final : public Renderer {
     mark("occupancy");
     Tracer<TrilinearField> tracer{TrilinearField{field, vol.nx, vol.ny, vol.nz}, occ,
                                   Vec3f{float(vol.nx), float(vol.ny), float(vol.nz)}, env,
-                                  make_trace_settings(rs, fs, cam)};
+                                  make_trace_settings(rs, fs, cam), MeshHits{obstacles_.view, vol.origin, vol.voxel}};
     parallel_for(rs.method == RenderMethod::Slices ? "render_slices" : "render_raycast",
                  PixelTiles{width_, height_}.items(),
                  RaycastPixels<TrilinearField>{cam, tracer, vol.origin, 1.0f / vol.voxel, out});
@@ -115,6 +118,7 @@ class RendererImpl final : public Renderer {
     mark("shade");
   }
 
+  ObstacleSet obstacles_;  // set_obstacles
   Vector<uint32_t> image_;
   Vector<uint8_t> occupancy_;
   Vector<uint32_t> front_, back_, front2_, back2_;  // screen_space depth maps (float bits), ping-pong

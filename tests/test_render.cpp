@@ -15,6 +15,8 @@
 #include "host_particles.h"
 #include "still_pool.h"
 #include "field/field.h"
+#include "mesh/bvh.h"
+#include "mesh/mesh.h"
 #include "render/render.h"
 
 using namespace sphray;
@@ -732,4 +734,53 @@ TEST_CASE("still water a few centimetres deep stands out from the tiles with the
   INFO("mean colour shift inside the pool: " << now << " levels (a clear film: " << glassy << ")");
   CHECK(now >= 12.0);
   CHECK(glassy < 10.0);
+}
+
+TEST_CASE("an obstacle ends a path on its surface, in air and seen through the liquid", "[render][cpu]") {
+  // A pier from the floor through the surface of a pool (half-space below z = 30).
+  const AnalyticVolume v(half_space);
+  const TriangleMesh pier = box_mesh({{20, 20, 0}, {28, 28, 40}});
+  std::vector<Vec3f> verts;
+  for (const auto& p : pier.vertices) verts.push_back({float(p.x), float(p.y), float(p.z)});
+  std::vector<uint32_t> idx;
+  for (const auto& t : pier.triangles) idx.insert(idx.end(), t.begin(), t.end());
+  const auto bvh = make_cpu_bvh(verts, idx);
+  auto tr = make_tracer(v, settings(4));
+  tr.meshes.obstacles.mesh[0] = bvh->view();
+  tr.meshes.obstacles.count = 1;  // world = voxel coordinates (origin 0, voxel 1)
+  std::vector<Event> events;
+  std::vector<Rgb> weights;
+  auto sum = [&] {
+    Rgb s{0, 0, 0};
+    for (const Rgb& w : weights) s = s + w;
+    return s;
+  };
+  // Straight down onto its top, above the water: the mesh's shade alone.
+  Rgb c = tr.trace({24, 24, 47}, {0, 0, -1}, Watch{&events, &weights});
+  const Rgb top = tr.meshes.shade({0, 0, 1}, tr.env.sun);
+  CHECK(events.empty());
+  CHECK(c.r == Approx(top.r).margin(1e-6));
+  CHECK(c.g == Approx(top.g).margin(1e-6));
+  CHECK(sum().r == Approx(1.0f));
+  // Through the surface onto its side under water (face x = 20): the
+  // reflected share takes the environment, the refracted share the pier.
+  events.clear();
+  weights.clear();
+  const Vec3f d = unit_f(Vec3f{0.5f, 0, -1});
+  c = tr.trace({10, 24, 40}, d, Watch{&events, &weights});
+  REQUIRE(events.size() == 1);
+  const Event& e = events[0];
+  CHECK(e.p.z == Approx(30.0f).margin(0.05));
+  // Snell in double: where the refracted ray meets x = 20, below the surface.
+  Vec3d r;
+  REQUIRE(refract_d(dbl(d), {0, 0, 1}, 1.0 / 1.33, r));
+  const double t = (20.0 - e.p.x) / r.x;
+  CHECK(e.p.z + t * r.z > 0.0);
+  CHECK(e.p.z + t * r.z < 30.0);
+  const Rgb side = tr.meshes.shade({-1, 0, 0}, tr.env.sun);
+  const Rgb expect = tr.env(e.p, reflect(d, Vec3f{0, 0, 1})) * e.F + side * (1.0f - e.F);
+  CHECK(c.r == Approx(expect.r).margin(2e-3));
+  CHECK(c.g == Approx(expect.g).margin(2e-3));
+  CHECK(c.b == Approx(expect.b).margin(2e-3));
+  CHECK(sum().g == Approx(1.0f));
 }

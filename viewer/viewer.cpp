@@ -414,6 +414,7 @@ int run_viewer(const ViewOptions& opt, std::ostream& log) {
   std::unique_ptr<Solver> solver = make_solver(rscene, b, needs);
   std::unique_ptr<FieldBuilder> field = make_field(rscene, b, needs);
   std::unique_ptr<Renderer> renderer = make_renderer(b);
+  renderer->set_obstacles(obstacle_meshes(scene));
   RenderSettings rs = scene.render;
   {
     Vec3d eye, target;
