@@ -47,8 +47,13 @@ void print_start(const ResolvedScene& rs, const std::string& scene_path, const S
   const SceneSize& size = rs.size;
   const SphParams& prm = rs.params;
   std::cout << "scene " << scene.name << " (" << scene_path << "): " << solver_name(solver.kind()) << ", "
-            << solver.num_fluid() << " fluid particles, " << size.boundary << " wall particles, grid " << size.grid.nx
-            << "x" << size.grid.ny << "x" << size.grid.nz;
+            << solver.num_fluid() << " fluid particles, " << solver.boundary_positions().size() << " wall particles, grid "
+            << size.grid.nx << "x" << size.grid.ny << "x" << size.grid.nz;
+  if (!scene.obstacles.empty()) {
+    size_t tris = 0;
+    for (const Obstacle& o : scene.obstacles) tris += o.mesh.size();
+    std::cout << ", " << scene.obstacles.size() << " obstacle(s) of " << tris << " triangles";
+  }
   if (solver.kind() == SolverKind::Pbf)
     std::cout << ", " << scene.sph.pbf.iterations << " iterations, walls: the tank's planes";
   else if (solver.kind() == SolverKind::Dfsph)

@@ -63,6 +63,26 @@ CurveError relative_error(const Curve& sim, const Curve& experiment) {
   return e;
 }
 
+double water_height(const HostParticles& p, double x, double y, const SmoothingKernel<double>& kernel, double volume,
+                    double z_floor, double z_top, double spacing) {
+  const double support = kernel.support();
+  std::vector<Vec3d> near;
+  for (const Vec3f& q : p.pos)
+    if (std::abs(q.x - x) < support && std::abs(q.y - y) < support) near.push_back({q.x, q.y, q.z});
+  if (near.empty()) return 0.0;
+  const double dz = 0.25 * spacing;
+  double height = 0.0;
+  for (double z = z_floor; z <= z_top + 1e-12; z += dz) {
+    double fill = 0.0;
+    for (const Vec3d& q : near) {
+      const double r = length(Vec3d{x, y, z} - q);
+      if (r < support) fill += volume * kernel.W(r);
+    }
+    if (fill >= 0.5) height = z - z_floor;
+  }
+  return height;
+}
+
 ObstacleForce obstacle_force(const TriangleMesh& mesh, const HostParticles& p, const std::vector<float>& pressure,
                              const SmoothingKernel<double>& kernel, Vec3d gravity, double spacing) {
   ObstacleForce out;

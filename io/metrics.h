@@ -33,6 +33,15 @@ struct ObstacleForce {
 ObstacleForce obstacle_force(const TriangleMesh& mesh, const HostParticles& p, const std::vector<float>& pressure,
                              const SmoothingKernel<double>& kernel, Vec3d gravity, double spacing);
 
+// The height of the liquid on the vertical line through (x, y), measured as
+// the highest point of that line, from the floor z_floor up, where the
+// kernel sum of the particles' volumes sum_f V W(|z - x_f|) (the share of
+// space the liquid fills; 1 inside, 1/2 at a resting surface) is at least
+// 1/2; sampled every quarter spacing. 0 where the line is dry. Splashes
+// above a gap count, as a gauge that is wetted there would.
+double water_height(const HostParticles& p, double x, double y, const SmoothingKernel<double>& kernel, double volume,
+                    double z_floor, double z_top, double spacing);
+
 struct Curve {
   std::vector<double> x, y;
 };

@@ -238,6 +238,30 @@ void read_obstacles(const ConfigReader& root, Scene& s) {
   }
 }
 
+void read_gauges(const ConfigReader& root, Scene& s) {
+  if (!root.has("gauges")) return;
+  const json& list = root.at("gauges");
+  if (!list.is_array()) root.fail("gauges", list, "must be an array of gauges {\"name\": \"H1\", \"at\": [x, y]}");
+  for (size_t k = 0; k < list.size(); ++k) {
+    const ConfigReader g(list[k], root.file(), "gauges." + std::to_string(k));
+    g.only({"name", "at"});
+    Gauge gauge;
+    gauge.name = g.has("name") && g.at("name").is_string() ? g.at("name").get<std::string>() : "";
+    if (gauge.name.empty() || gauge.name.find_first_of(",\"\n") != std::string::npos)
+      g.fail("name", g.has("name") ? g.at("name") : json(), "is required: a name for the CSV column, without commas or quotes");
+    for (const Gauge& other : s.gauges)
+      if (other.name == gauge.name) g.fail("name", g.at("name"), "is the name of an earlier gauge");
+    const json& at = g.has("at") ? g.at("at") : json();
+    if (!at.is_array() || at.size() != 2 || !at[0].is_number() || !at[1].is_number())
+      g.fail("at", at, "is required: [x, y], the gauge's vertical line [m]");
+    gauge.x = at[0].get<double>();
+    gauge.y = at[1].get<double>();
+    if (gauge.x < s.tank.min.x || gauge.x > s.tank.max.x || gauge.y < s.tank.min.y || gauge.y > s.tank.max.y)
+      g.fail("at", at, "lies outside the tank " + root.at("tank").dump());
+    s.gauges.push_back(gauge);
+  }
+}
+
 // A weakly compressible fluid is meaningful only well below its speed of
 // sound (density varies as Mach^2): a c0 under the flow speed the scene can
 // be expected to reach would make the run supersonic, and at c0 -> 0 the
@@ -279,7 +303,7 @@ Scene parse_scene(const std::string& text, const std::string& file, const std::v
   s.file = file;
   s.json = scene_json(text, file, overrides);
   const ConfigReader root(s.json, file, "");
-  root.only({"name", "description", "tank", "fluid", "obstacles", "gravity", "sph", "pbf", "dfsph", "field", "render", "export",
+  root.only({"name", "description", "tank", "fluid", "obstacles", "gauges", "gravity", "sph", "pbf", "dfsph", "field", "render", "export",
              "run"});
   s.name = root.has("name") && root.at("name").is_string() ? root.at("name").get<std::string>() : "scene";
   if (root.has("name") && !root.at("name").is_string()) root.fail("name", root.at("name"), "must be a string");
@@ -310,6 +334,7 @@ Scene parse_scene(const std::string& text, const std::string& file, const std::v
   check_tank(root.child("tank"), s);
   read_fluid(root, s);
   read_obstacles(root, s);
+  read_gauges(root, s);
   if (s.sph.solver == SolverKind::Wcsph) check_speed_of_sound(root.child("sph"), s);
   return s;
 }

@@ -36,6 +36,14 @@ struct Obstacle {
   TriangleMesh mesh;    // placed: world coordinates, outward winding
 };
 
+// A water-height gauge: the liquid's height above the tank floor on the
+// vertical line through (x, y), written per output frame to the metrics CSV
+// (io/metrics.h, water_height).
+struct Gauge {
+  std::string name;
+  double x = 0, y = 0;
+};
+
 struct Scene {
   std::string file;     // where it came from
   nlohmann::json json;  // the scene as it runs (after --set), for provenance
@@ -48,6 +56,7 @@ struct Scene {
   bool free_slip[6] = {false, false, false, false, false, false};
   std::vector<FluidBlock> fluid;
   std::vector<Obstacle> obstacles;  // "obstacles": [{"mesh", "scale", "rotate", "translate"}]
+  std::vector<Gauge> gauges;        // "gauges": [{"name", "at": [x, y]}]
   Vec3d gravity{0, 0, -kStandardGravity};
 
   SphConfig sph;        // the "sph" section, and "pbf" or "dfsph" when it runs that solver (sph/config.h)

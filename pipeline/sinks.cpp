@@ -40,9 +40,13 @@ void ExportSink::write(const Solver& s, const FieldBuilder* field, int frame) {
 // after the simulation (bad input).
 MetricsSink::MetricsSink(const std::string& path, const Scene& scene, const SphParams& prm, std::string flag)
     : path_(path), flag_(std::move(flag)), back_wall_x_(scene.tank.min.x), spacing_(scene.sph.spacing),
-      mass_(prm.particle_mass) {
+      mass_(prm.particle_mass), gauges_(scene.gauges), floor_(scene.tank.min.z), top_(scene.tank.max.z),
+      kernel_(SmoothingKernel<double>::make(prm.kernel.type, prm.kernel.h)),
+      volume_(double(prm.particle_mass) / double(prm.rest_density)) {
   csv_ = open_output(flag_, path);
-  csv_ << "time_s,steps,fluid_particles,front_m,kinetic_energy_J,max_speed_m_s\n" << std::setprecision(9);
+  csv_ << "time_s,steps,fluid_particles,front_m,kinetic_energy_J,max_speed_m_s";
+  for (const Gauge& g : gauges_) csv_ << "," << g.name << "_m";
+  csv_ << "\n" << std::setprecision(9);
 }
 
 // Flushed per row: a run followed live (tail -f) or killed leaves whole rows,
@@ -52,7 +56,9 @@ void MetricsSink::write(const Solver& s, const FieldBuilder*, int) {
   const HostParticles p = s.download();
   errno = 0;
   csv_ << s.time() << "," << s.steps() << "," << s.num_fluid() << "," << surge_front(p, back_wall_x_, spacing_) << ","
-       << kinetic_energy(p, mass_) << "," << s.last_limits().max_speed << "\n" << std::flush;
+       << kinetic_energy(p, mass_) << "," << s.last_limits().max_speed;
+  for (const Gauge& g : gauges_) csv_ << "," << water_height(p, g.x, g.y, kernel_, volume_, floor_, top_, spacing_);
+  csv_ << "\n" << std::flush;
   if (!csv_) throw OutputError(write_failure(flag_, path_));
 }
 

@@ -57,7 +57,8 @@ class ExportSink final : public OutputSink {
 };
 
 // The metrics CSV (--metrics-csv): time, steps, particles, surge front,
-// kinetic energy and the largest speed per output frame, flushed per row.
+// kinetic energy, the largest speed and the water height at each of the
+// scene's gauges per output frame, flushed per row.
 // `flag` names the option in messages.
 class MetricsSink final : public OutputSink {
  public:
@@ -72,6 +73,10 @@ class MetricsSink final : public OutputSink {
   std::ofstream csv_;
   std::string path_, flag_;
   double back_wall_x_, spacing_, mass_;
+  std::vector<Gauge> gauges_;
+  double floor_, top_;
+  SmoothingKernel<double> kernel_;
+  double volume_;
 };
 
 // "FLAG: cannot write 'PATH': reason", the reason from errno when a write set it.

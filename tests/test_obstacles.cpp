@@ -185,3 +185,29 @@ TEST_CASE("cuda: a box held under water feels the buoyant force rho g V", "[gpu]
   CHECK(std::abs(f.x) < 0.02 * archimedes);
   CHECK(std::abs(f.y) < 0.02 * archimedes);
 }
+
+TEST_CASE("a gauge reads the depth of a still pool and nothing where it is dry", "[mesh][cpu]") {
+  const std::string text = R"({"tank": {"min": [0, 0, 0], "max": [0.4, 0.2, 0.3]},
+    "fluid": [{"min": [0, 0, 0], "max": [0.2, 0.2, 0.12]}],
+    "gauges": [{"name": "wet", "at": [0.1, 0.1]}, {"name": "dry", "at": [0.3, 0.1]}],
+    "sph": {"spacing": 0.01}})";
+  const Scene s = parse_scene(text, "t.json");
+  REQUIRE(s.gauges.size() == 2);
+  const ResolvedScene r = resolve_scene(s);
+  const SolverInput in = make_solver_input(r, PresenceMode::Off);
+  HostParticles h;
+  for (const Float4& p : in.fluid_pos_rho) h.pos.push_back({p.x, p.y, p.z});
+  const SmoothingKernel<double> k = SmoothingKernel<double>::make(r.params.kernel.type, r.params.kernel.h);
+  const double V = 1e-6;
+  // The lattice's top layer sits half a spacing under 0.12 m: the kernel sum falls through 1/2 at the top.
+  CHECK(water_height(h, 0.1, 0.1, k, V, 0.0, 0.3, 0.01) == Approx(0.12).margin(0.0026));
+  CHECK(water_height(h, 0.3, 0.1, k, V, 0.0, 0.3, 0.01) == 0.0);
+  // Deeper water reads deeper, by the added depth.
+  const double two = water_height(h, 0.1, 0.1, k, V, 0.0, 0.3, 0.01);
+  for (auto& p : h.pos) p.z += 0.05f;  // the whole pool lifted
+  CHECK(water_height(h, 0.1, 0.1, k, V, 0.0, 0.3, 0.01) == Approx(two + 0.05).margin(0.0026));
+  // Bad gauges are refused by key.
+  CHECK(has(test::scene_error(text, {"gauges.1.at=[0.5, 0.1]"}), "gauges.1.at"));
+  CHECK(has(test::scene_error(text, {"gauges.1.name=wet"}), "earlier gauge"));
+  CHECK(has(test::scene_error(text, {"gauges.0.at=3"}), "gauges.0.at"));
+}
