@@ -1,9 +1,10 @@
-// `sphray bench sim|field|frame|render|surface`: the benchmarks (bench/), their
+// `sphray bench sim|field|frame|render|surface|mesh`: the benchmarks (bench/), their
 // tables on stdout and, with --json, their records.
 #include <iostream>
 
 #include "bench/field.h"
 #include "bench/frame.h"
+#include "bench/mesh.h"
 #include "bench/sim.h"
 #include "bench/surface.h"
 #include "cli.h"
@@ -66,6 +67,30 @@ void add_sim(CLI::App* bench, int& exit_code) {
       const auto rows = a->scene.empty() ? bench_sim(builtin::bench_dam_break, "scenes/bench/dam_break.json (built in)",
                                                      b, a->opt, std::cout)
                                          : bench_sim(read_scene_text(a->scene), a->scene, b, a->opt, std::cout);
+      print_table(rows, std::cout);
+      return to_json(rows, b, a->opt);
+    });
+    exit_code = 0;
+  });
+}
+
+void add_mesh(CLI::App* bench, int& exit_code) {
+  struct Args {
+    Common c;
+    BenchMeshOptions opt;
+  };
+  auto a = std::make_shared<Args>();
+  auto* m = bench->add_subcommand("mesh", "obstacle BVH build and refit, and the collision pass, by triangle count");
+  add_common(m, a->c, "");
+  m->add_option("--levels", a->opt.levels, "icosphere subdivisions (20 * 4^level triangles), e.g. 4,6,8")
+      ->delimiter(',')
+      ->check(CLI::Range(0, 9));
+  m->add_option("--particles", a->opt.particles, "particle paths per collision pass")->check(CLI::Range(1, 100000000));
+  m->add_option("--warmup", a->opt.warmup, "warm-up runs of each")->check(CLI::Range(0, 1000));
+  m->add_option("--frames", a->opt.frames, "measured runs of each")->check(CLI::Range(1, 10000));
+  m->callback([a, &exit_code] {
+    run_bench(a->c, [&](Backend b) {
+      const auto rows = bench_mesh(b, a->opt, std::cout);
       print_table(rows, std::cout);
       return to_json(rows, b, a->opt);
     });
@@ -222,6 +247,7 @@ CLI::App* add_bench_command(CLI::App& app, int& exit_code) {
   bench->require_subcommand(1);
   add_sim(bench, exit_code);
   add_field(bench, exit_code);
+  add_mesh(bench, exit_code);
   add_frame(bench, exit_code);
   add_render(bench, exit_code);
   add_surface(bench, exit_code);

@@ -457,6 +457,23 @@ TEST_CASE("bench frame --realtime advances each frame by the previous frame's wa
   CHECK(sim_ms <= 1000.0 / 30.0 + 2.0 * sim_ms / steps + 5.0);
 }
 
+TEST_CASE("bench mesh times the BVH and the collision pass and stops the paths that enter the mesh", "[cli][cpu]") {
+  const std::string json = tmp + "/sphray_bench_mesh.json";
+  const Result r = run_cli("bench mesh --backend cpu --levels 1,3 --particles 2000 --warmup 0 --frames 2 --json " + json);
+  INFO(r.output);
+  REQUIRE(r.code == 0);
+  const nlohmann::json j = nlohmann::json::parse(slurp(json));
+  REQUIRE(j["rows"].size() == 2);
+  CHECK(j["rows"][0]["triangles"] == 80);
+  CHECK(j["rows"][1]["triangles"] == 1280);
+  for (const auto& row : j["rows"]) {
+    CHECK(double(row["build_ms"]) > 0);
+    CHECK(double(row["stopped_near_share"]) > 0.0);  // paths near the ball, biased inward: some enter it
+    CHECK(double(row["stopped_near_share"]) < 0.9);
+  }
+  CHECK(run_cli("bench mesh --backend cpu --levels 12").code == 2);
+}
+
 TEST_CASE("sphray view opens a real window under Xvfb and shows the liquid", "[viewer]") {
   if (!SPHRAY_TEST_VIEWER) {
     WARN("this sphray was built without the viewer (GLFW/GLEW/Dear ImGui not found): not tested");
