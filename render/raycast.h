@@ -367,11 +367,16 @@ struct Tracer {
       }
       float t_max = t_wall < t_box ? t_wall : t_box;
       t_max = t_glass < t_max ? t_glass : t_max;
-      // An obstacle before all of them ends the search there.
-      const float t_mesh = meshes.hit(p, d, t_max, mesh_n);
-      const bool mesh_first = t_mesh < t_max;
-      t_max = t_mesh;
-      const float th = find_crossing(p, d, t_max, b.inside, b.k == 0);
+      float th = find_crossing(p, d, t_max, b.inside, b.k == 0);
+      // An obstacle before the crossing (or before the end) ends the path
+      // there; searched after the march, within what it found, so that most
+      // rays test a short segment against the obstacles' boxes.
+      const float t_mesh = meshes.hit(p, d, th >= 0.0f ? th : t_max, mesh_n);
+      const bool mesh_first = t_mesh < (th >= 0.0f ? th : t_max);
+      if (mesh_first) {
+        th = -1.0f;
+        t_max = t_mesh;
+      }
       const float len = th >= 0.0f ? th : t_max;
       watch.segment(p, p + d * len, b.inside);
       if (b.inside) absorb(b.w, len, colour, watch);
