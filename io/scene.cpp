@@ -204,6 +204,9 @@ void read_obstacles(const ConfigReader& root, Scene& s) {
     Obstacle ob;
     const std::filesystem::path given = o.at("mesh").get<std::string>();
     ob.path = given.is_absolute() || folder.empty() ? given.string() : (folder / given).string();
+    // The scene as it runs (exports carry it) names the file absolutely, so
+    // that `sphray render --from` finds it wherever the export goes.
+    s.json["obstacles"][k]["mesh"] = std::filesystem::absolute(ob.path).lexically_normal().string();
     Placement& pl = ob.placement;
     if (o.has("scale") && o.at("scale").is_number()) {
       const double f = o.number("scale", 1.0, 0.0, 1e6, false, true);

@@ -2,6 +2,7 @@
 // setup's fluid and wall particles against the mesh, no particle through a
 // thin plate, and the buoyant force of the pressure on a submerged box.
 #include <cmath>
+#include <filesystem>
 #include <fstream>
 #include <string>
 
@@ -78,6 +79,14 @@ TEST_CASE("a bad mesh ends sphray run with exit code 2 and the file's name", "[m
   const auto r = test::run_cli("run " + dir + "/obst_scene.json --backend cpu --quiet");
   CHECK(r.code == 2);
   CHECK(has(r.output, dir + "/no_such_mesh.obj"));  // resolved against the scene's folder
+  // The scene as it runs (what an export carries) names the mesh absolutely.
+  write_obj(box_mesh({{0, 0, 0}, {1, 1, 1}}), dir + "/here.obj");
+  std::ofstream(dir + "/rel_scene.json") << with_obstacle(R"({"mesh": "here.obj", "scale": 0.05})");
+  const Scene s = load_scene(dir + "/rel_scene.json");
+  CHECK(s.obstacles[0].path == dir + "/here.obj");
+  const std::string named = s.json["obstacles"][0]["mesh"];
+  CHECK(std::filesystem::path(named).is_absolute());
+  CHECK(std::filesystem::equivalent(named, dir + "/here.obj"));
 }
 
 TEST_CASE("the fluid keeps out of an obstacle and WCSPH's wall particles fill its skin", "[mesh][cpu]") {
