@@ -45,7 +45,7 @@ int render_scene(const RenderArgs& ra, const std::string& backend_arg, std::vect
   PngSink png(single ? "" : ra.out, scene.render, "--out");
   const int last = scene.run.end_time > 0 ? 1 : 0;
   const bool needs_field = method_needs_field(scene.render.method);
-  FunctionSink one([&](const Solver& s, const FieldBuilder* f, int) { png.frames().render_to(s.view(), f, ra.out); },
+  FunctionSink one([&](const Solver& s, const FieldBuilder* f, int) { png.frames().render_to(s.view(), f, ra.out, s.time()); },
                    FrameNeeds{needs_field, false}, [last](int f) { return f == last; });
   OutputSink* sink = single ? static_cast<OutputSink*>(&one) : &png;
   const StageNeeds needs = needs_of(scene, {sink});
@@ -125,8 +125,8 @@ int render_file(const RenderArgs& ra, const std::string& backend_arg, const std:
     // exported presence is in the file's order, not the grid's: the presence
     // builder uses full extents (its field then classifies as naive's)
     if (needs_field) field->build(solver->view());
-    if (single) frames.render_to(solver->view(), field.get(), ra.out);
-    else frames.write_frame(solver->view(), field.get(), int(k));
+    if (single) frames.render_to(solver->view(), field.get(), ra.out, f.time);
+    else frames.write_frame(solver->view(), field.get(), int(k), f.time);
     std::cout << "  frame " << k << " (t = " << f.time << " s, " << f.count() << " particles)";
     if (needs_field) std::cout << ": field " << field->last_ms() << " ms";
     std::cout << "\n";

@@ -64,7 +64,8 @@ std::vector<BenchFrameRow> bench_frame(Backend b, const BenchFrameOptions& opt, 
                        : advance_frame(*solver, opt.substeps, presence, 1e30);
       const ParticleView pv = solver->view();
       if (with_field) field->build(pv);
-      renderer->render(RenderInput{with_field ? field->data() : nullptr, &fs, pv, s.sph.spacing}, cam, env, s.render);
+      renderer->render(RenderInput{with_field ? field->data() : nullptr, &fs, pv, s.sph.spacing, solver->time()}, cam, env,
+                       s.render);
       const double w = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
       prev_wall_s = 1e-3 * w;
       if (f < opt.warmup) continue;

@@ -8,9 +8,9 @@ struct CollidePaths {
   uint32_t* stopped;
   SPHRAY_HD void operator()(uint32_t i) const {
     Vec3f x = xyz(to[i]);
-    const Vec3f n = stop_at_obstacles(obstacles, xyz(from[i]), x);
+    const Stop stop = stop_at_obstacles(obstacles, xyz(from[i]), x, 0.0f, 0.0f);
     out[i] = {x.x, x.y, x.z, 0.0f};
-    stopped[i] = (n.x != 0.0f || n.y != 0.0f || n.z != 0.0f) ? 1u : 0u;
+    stopped[i] = stop.hit() ? 1u : 0u;
   }
 };
 

@@ -186,6 +186,40 @@ void read_fluid(const ConfigReader& root, Scene& s) {
   }
 }
 
+// "obstacles.N.motion": a prescribed oscillation, checked to keep the mesh
+// inside the tank over a period (its vertices at 256 instants).
+void read_motion(const ConfigReader& o, Obstacle& ob, const Scene& s, const ConfigReader& root) {
+  const ConfigReader m = o.child("motion");
+  m.only({"period", "translate", "rotate", "pivot"});
+  const double period = m.number("period", 0, 0, 1e6, true, true);
+  const Vec3d tr = m.vec3("translate", {0, 0, 0}), rot = m.vec3("rotate", {0, 0, 0});
+  if (std::max({std::abs(rot.x), std::abs(rot.y), std::abs(rot.z)}) > 90)
+    m.fail("rotate", m.at("rotate"), "amplitudes must be at most 90 degrees");
+  const Box b = bounds(ob.mesh);
+  const Vec3d pivot = m.vec3("pivot", (b.min + b.max) * 0.5);
+  Motion& mo = ob.motion;
+  mo.omega = float(2.0 * M_PI / period);
+  mo.translate = {float(tr.x), float(tr.y), float(tr.z)};
+  const double k = M_PI / 180.0;
+  mo.rotate = {float(rot.x * k), float(rot.y * k), float(rot.z * k)};
+  mo.pivot = {float(pivot.x), float(pivot.y), float(pivot.z)};
+  const double eps = 1e-6 * std::max(1.0, length(s.tank.max - s.tank.min));
+  for (int j = 0; j < 256; ++j) {
+    const double t = period * j / 256.0;
+    const RigidFrame f = mo.at(float(t));
+    for (const Vec3d& v : ob.mesh.vertices) {
+      const Vec3f w = f.to_world({float(v.x), float(v.y), float(v.z)});
+      if (w.x < s.tank.min.x - eps || w.y < s.tank.min.y - eps || w.z < s.tank.min.z - eps ||
+          w.x > s.tank.max.x + eps || w.y > s.tank.max.y + eps || (!s.open_top && w.z > s.tank.max.z + eps)) {
+        std::ostringstream os;
+        os << "moves " << ob.path << " out of the tank " << root.at("tank").dump() << " (a vertex reaches (" << w.x
+           << ", " << w.y << ", " << w.z << ") at t = " << t << " s)";
+        o.fail("motion", o.at("motion"), os.str());
+      }
+    }
+  }
+}
+
 // "obstacles": meshes read, placed and checked here, so that every problem
 // is reported with the key and file before anything runs.
 void read_obstacles(const ConfigReader& root, Scene& s) {
@@ -198,7 +232,7 @@ void read_obstacles(const ConfigReader& root, Scene& s) {
   const std::filesystem::path folder = std::filesystem::path(root.file()).parent_path();
   for (size_t k = 0; k < list.size(); ++k) {
     const ConfigReader o(list[k], root.file(), "obstacles." + std::to_string(k));
-    o.only({"mesh", "scale", "rotate", "translate"});
+    o.only({"mesh", "scale", "rotate", "translate", "motion"});
     if (!o.has("mesh") || !o.at("mesh").is_string() || o.at("mesh").get<std::string>().empty())
       o.fail("mesh", o.has("mesh") ? o.at("mesh") : json(), "is required: the path of an OBJ file (relative to the scene file)");
     Obstacle ob;
@@ -237,6 +271,7 @@ void read_obstacles(const ConfigReader& root, Scene& s) {
          << " (check scale, rotate and translate)";
       o.fail("mesh", o.at("mesh"), os.str());
     }
+    if (o.has("motion")) read_motion(o, ob, s, root);
     s.obstacles.push_back(std::move(ob));
   }
 }

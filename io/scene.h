@@ -17,6 +17,7 @@
 #include "mesh/mesh.h"
 #include "render/render_settings.h"
 #include "sph/config.h"
+#include "sph/obstacles.h"
 #include "sph/eos.h"
 
 namespace sphray {
@@ -27,13 +28,14 @@ struct FluidBlock {
   Vec3d velocity{0, 0, 0};
 };
 
-// A triangle mesh in the tank (static): the liquid flows around it
-// (sph/obstacles.h; WCSPH's wall particles fill its skin), the raycaster
-// draws it.
+// A triangle mesh in the tank, static or in a prescribed oscillation: the
+// liquid flows around it (sph/obstacles.h; WCSPH's wall particles fill a
+// static one's skin), the raycaster draws it.
 struct Obstacle {
   std::string path;     // the mesh file, resolved against the scene's folder
   Placement placement;  // as given
-  TriangleMesh mesh;    // placed: world coordinates, outward winding
+  TriangleMesh mesh;    // placed: world coordinates at t = 0, outward winding
+  Motion motion;        // "motion"; omega 0: static
 };
 
 // A water-height gauge: the liquid's height above the tank floor on the

@@ -170,7 +170,10 @@ MeshInput mesh_input(const TriangleMesh& m) {
 
 std::vector<MeshInput> obstacle_meshes(const Scene& s) {
   std::vector<MeshInput> out;
-  for (const Obstacle& o : s.obstacles) out.push_back(mesh_input(o.mesh));
+  for (const Obstacle& o : s.obstacles) {
+    out.push_back(mesh_input(o.mesh));
+    out.back().motion = o.motion;
+  }
   return out;
 }
 
@@ -439,8 +442,15 @@ SolverInput make_solver_input(const ResolvedScene& r, PresenceMode presence) {
         in.boundary_alpha.push_back(viscous ? wall_alpha : 0.0f);
       }
   // Each obstacle's skin: the points of the tank's inner lattice inside the
-  // mesh and within the wall's layers of its surface, viscous like the walls.
+  // mesh and within the wall's layers of its surface, viscous like the walls
+  // where it stands still; a moving one's free-slip (the pair loop's wall
+  // viscosity takes walls at rest) and marked with its obstacle, whose
+  // motion then carries them (their positions here: the pose at t = 0).
+  bool any_moving = false;
+  for (const Obstacle& o : s.obstacles) any_moving = any_moving || o.motion.moves();
+  if (any_moving) in.boundary_obstacle.assign(in.boundary.size(), kStaticWall);
   for (size_t o = 0; o < probes.size(); ++o) {
+    const bool moves = s.obstacles[o].motion.moves();
     const ObstacleProbe& pr = probes[o];
     const size_t before = in.boundary.size();
     const double depth = L * dx;
@@ -453,7 +463,8 @@ SolverInput make_solver_input(const ResolvedScene& r, PresenceMode presence) {
           const Vec3d p{ax.c[i], ay.c[j], az.c[k]};
           if (pr.distance(p, depth) < depth && pr.inside(p)) {
             in.boundary.push_back({float(p.x), float(p.y), float(p.z), volume});
-            in.boundary_alpha.push_back(wall_alpha);
+            in.boundary_alpha.push_back(moves ? 0.0f : wall_alpha);
+            if (any_moving) in.boundary_obstacle.push_back(moves ? uint8_t(o) : kStaticWall);
           }
         }
       }

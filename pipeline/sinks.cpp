@@ -27,7 +27,7 @@ void PngSink::open(const Scene& scene, Backend b, const FieldSetup& fs) {
 }
 
 void PngSink::write(const Solver& s, const FieldBuilder* field, int frame) {
-  if (frame % every_ == 0) frames_->write_frame(s.view(), field, frame);
+  if (frame % every_ == 0) frames_->write_frame(s.view(), field, frame, s.time());
 }
 
 FrameNeeds ExportSink::needs(int frame) const { return frame % every_ == 0 ? needs_ever() : FrameNeeds{}; }

@@ -32,28 +32,29 @@ void FrameRenderer::finish() {
   if (png_ && !png_->finish()) throw OutputError(flag_ + ": " + png_->error());
 }
 
-Image FrameRenderer::render(const ParticleView& particles, const FieldBuilder* field) {
-  renderer_->render(RenderInput{field ? field->data() : nullptr, &fs_, particles, spacing_}, cam_, env_, rs_);
+Image FrameRenderer::render(const ParticleView& particles, const FieldBuilder* field, double time) {
+  renderer_->render(RenderInput{field ? field->data() : nullptr, &fs_, particles, spacing_, time}, cam_, env_, rs_);
   render_ms_ += renderer_->last_ms();
   ++renders_;
   return renderer_->download();
 }
 
-void FrameRenderer::render_to(const ParticleView& particles, const FieldBuilder* field, const std::string& png_path) {
+void FrameRenderer::render_to(const ParticleView& particles, const FieldBuilder* field, const std::string& png_path,
+                              double time) {
   try {
-    write_png(png_path, render(particles, field));
+    write_png(png_path, render(particles, field, time));
   } catch (const std::runtime_error& e) {  // after the run that made the image
     throw OutputError(e.what());
   }
   ++written_;
 }
 
-void FrameRenderer::write_frame(const ParticleView& particles, const FieldBuilder* field, int frame) {
+void FrameRenderer::write_frame(const ParticleView& particles, const FieldBuilder* field, int frame, double time) {
   if (!png_) throw std::logic_error("FrameRenderer::write_frame needs a directory");
   char name[32];
   std::snprintf(name, sizeof name, "frame_%06d.png", frame);
   // The image leaves the renderer now (the next render reuses its buffer); stb encodes it on the writer thread.
-  auto img = std::make_shared<Image>(render(particles, field));
+  auto img = std::make_shared<Image>(render(particles, field, time));
   const std::string path = (std::filesystem::path(dir_) / name).string();
   if (!png_->submit([img, path] { write_png(path, *img); })) throw OutputError(flag_ + ": " + png_->error());
 }

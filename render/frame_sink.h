@@ -24,8 +24,10 @@ class FrameRenderer {
   // background thread (BackgroundQueue), so the run does not wait for it.
   // Throws std::runtime_error if an earlier write failed.
   // `field` may be null where the method needs none (method_needs_field).
-  void write_frame(const ParticleView& particles, const FieldBuilder* field, int frame);
-  void render_to(const ParticleView& particles, const FieldBuilder* field, const std::string& png_path);  // at once
+  // `time`: the state's time [s] (the pose of moving obstacles).
+  void write_frame(const ParticleView& particles, const FieldBuilder* field, int frame, double time = 0);
+  void render_to(const ParticleView& particles, const FieldBuilder* field, const std::string& png_path,
+                 double time = 0);  // at once
   // Waits for the queued PNGs; throws std::runtime_error naming a failed write.
   void finish();
   int frames_written() const { return written_ + int(png_ ? png_->done() : 0); }
@@ -35,7 +37,7 @@ class FrameRenderer {
   void set_obstacles(const std::vector<MeshInput>& meshes) { renderer_->set_obstacles(meshes); }
 
  private:
-  Image render(const ParticleView& particles, const FieldBuilder* field);  // the image, its time counted
+  Image render(const ParticleView& particles, const FieldBuilder* field, double time);  // the image, its time counted
 
   std::unique_ptr<Renderer> renderer_;
   RenderSettings rs_;

@@ -174,12 +174,19 @@ struct TraceSettings {
 
 // The scene's obstacles as the tracer meets them: opaque, matte surfaces lit
 // by the sun and the sky, hit through their BVHs (mesh/bvh.h) in world
-// coordinates (voxel u is world origin + u voxel).
+// coordinates (voxel u is world origin + u voxel); a moving one in its pose
+// at the render's time (`pose`, from its Motion), the ray taken into its frame.
 struct MeshHits {
   Obstacles obstacles;  // count 0: none
   Vec3f origin{0, 0, 0};
   float voxel = 1.0f;
+  RigidFrame pose[kMaxObstacles];  // of the moving ones
   Rgb colour{0.72f, 0.70f, 0.66f};
+
+  // The poses at `time` [s].
+  void at_time(float time) {
+    for (uint32_t k = 0; k < obstacles.count; ++k) pose[k] = obstacles.motion[k].at(time);
+  }
 
   // The nearest mesh along p + t d (voxel units) with t < t_max: its t, and
   // the normal facing the ray; t_max when none.
@@ -189,11 +196,14 @@ struct MeshHits {
     float best = t_max * voxel;
     bool any = false;
     for (uint32_t k = 0; k < obstacles.count; ++k) {
+      const bool moves = obstacles.motion[k].moves();
       float s;
       uint32_t slot;
-      if (first_hit(obstacles.mesh[k], w, d, best, s, slot)) {
+      if (first_hit(obstacles.mesh[k], moves ? pose[k].to_body(w) : w, moves ? pose[k].dir_to_body(d) : d, best, s,
+                    slot)) {
         best = s;
         n = triangle_normal(obstacles.mesh[k].tris[slot]);
+        if (moves) n = pose[k].dir_to_world(n);
         any = true;
       }
     }

@@ -36,6 +36,7 @@ struct RenderInput {
   const FieldSetup* setup = nullptr;  // the volume's layout and iso
   ParticleView particles{};           // screen_space: the fluid particles
   double spacing = 0;                 // screen_space: the particle spacing [m] (sphere radius unit)
+  double time = 0;                    // [s] the state's time: the pose of moving obstacles
 };
 
 class Renderer {

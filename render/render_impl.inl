@@ -36,7 +36,7 @@ class RendererImpl final : public Renderer {
       screen_space(in, cam, env, rs, out);
     } else {
       if (!in.field) throw std::logic_error("renderer: the raycast and slices methods need the field");
-      march(in.field, *in.setup, cam, env, rs, out);
+      march(in.field, *in.setup, cam, env, rs, out, in.time);
     }
     clock_.finish();
     stages_.clear();
@@ -55,7 +55,7 @@ class RendererImpl final : public Renderer {
 
   // raycast and slices: the tracer through the field.
   void march(const float* field, const FieldSetup& fs, const Camera& cam, const Environment& env,
-             const RenderSettings& rs, uint32_t* out) {
+             const RenderSettings& rs, uint32_t* out, double time) {
     const VolumeGeom& vol = fs.geom;
     const int brick = 1 << vol.refine;  // bricks as wide as the SPH cells: 1 voxel at refine 0, 4 at refine 2
     Occupancy occ{nullptr, (vol.nx + brick - 1) / brick, (vol.ny + brick - 1) / brick, (vol.nz + brick - 1) / brick,
@@ -68,9 +68,14 @@ class RendererImpl final : public Renderer {
       occ.occ = raw(occupancy_);
     }
     mark("occupancy");
+    MeshHits meshes;
+    meshes.obstacles = obstacles_.view;
+    meshes.origin = vol.origin;
+    meshes.voxel = vol.voxel;
+    meshes.at_time(float(time));
     Tracer<TrilinearField> tracer{TrilinearField{field, vol.nx, vol.ny, vol.nz}, occ,
                                   Vec3f{float(vol.nx), float(vol.ny), float(vol.nz)}, env,
-                                  make_trace_settings(rs, fs, cam), MeshHits{obstacles_.view, vol.origin, vol.voxel}};
+                                  make_trace_settings(rs, fs, cam), meshes};
     parallel_for(rs.method == RenderMethod::Slices ? "render_slices" : "render_raycast",
                  PixelTiles{width_, height_}.items(),
                  RaycastPixels<TrilinearField>{cam, tracer, vol.origin, 1.0f / vol.voxel, out});

@@ -296,7 +296,7 @@ struct DfsphKick {
     Vec3f x{0.0f, 0.0f, 0.0f};
     if (Advect) {
       x = inside_tank(prm, xyz(pos[i]) + dt * v);
-      v = slide_along(v, stop_at_obstacles(obstacles, xyz(pos[i]), x));
+      v = velocity_after(v, stop_at_obstacles(obstacles, xyz(pos[i]), x, obstacles.time, obstacles.time + dt));
     }
     vel[i] = {v.x, v.y, v.z, 0.0f};
     if (Advect) warm[i].x = press[i] * dt * dt;

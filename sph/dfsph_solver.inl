@@ -76,6 +76,7 @@ class DfsphSolverImpl final : public Solver {
     const bool presence_now =
         presence_mode_ == PresenceMode::EveryStep ||
         (presence_mode_ == PresenceMode::AtUntil && t_ + ChooseFlowStep::kLandStretch * max_dt_ >= until - 1e-12);
+    obstacles_.view.time = float(t_);
     clock_.start();
     FlowControl* control = raw(control_);
     parallel_for("dfsph_choose_step", 1,

@@ -174,11 +174,11 @@ struct Advance {
     Vec3f u = {v.x + dt * a.x, v.y + dt * a.y, v.z + dt * a.z};
     if (obstacles.count > 0) {
       Vec3f x = xyz(p);
-      const Vec3f n = stop_at_obstacles(obstacles, xyz(state.pos[i]), x);
-      if (n.x != 0.0f || n.y != 0.0f || n.z != 0.0f) {
-        const Vec3f w = slide_along(xyz(v), n);
+      const Stop stop = stop_at_obstacles(obstacles, xyz(state.pos[i]), x, obstacles.time, obstacles.time + dt);
+      if (stop.hit()) {
+        const Vec3f w = velocity_after(xyz(v), stop);
         v.x = w.x; v.y = w.y; v.z = w.z;
-        u = slide_along(u, n);
+        u = velocity_after(u, stop);
         p.x = x.x; p.y = x.y; p.z = x.z;
         st = kStatusClamped;
       }

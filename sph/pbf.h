@@ -56,7 +56,7 @@ struct Predict {
     const float dt = float(control->limits.dt);
     const Vec3f v = xyz(vel[i]) + dt * prm.gravity;
     Vec3f x = inside_tank(prm, xyz(pos[i]) + dt * v);
-    stop_at_obstacles(obstacles, xyz(pos[i]), x);
+    stop_at_obstacles(obstacles, xyz(pos[i]), x, obstacles.time, obstacles.time + dt);
     pred[i] = {x.x, x.y, x.z, 0.0f};
   }
 };
@@ -115,7 +115,8 @@ struct Correct {
   PairMask pairs;
   const Float4* pred;  // x*, lambda
   Float4* out;
-  Obstacles obstacles;  // the correction is stopped at them (obstacles.h)
+  Obstacles obstacles;  // the correction is stopped at them (obstacles.h), in their pose at the step's end
+  const FlowControl* control = nullptr;  // the step's dt (with obstacles)
   SPHRAY_HD void operator()(uint32_t i) const {
     const PbfKernel<float>& k = pbf.kernel;
     const float s2 = k.s * k.s;
@@ -145,7 +146,10 @@ struct Correct {
     if (pbf.max_correction > 0.0f && len2 > pbf.max_correction * pbf.max_correction)
       dx = (pbf.max_correction / std::sqrt(len2)) * dx;
     Vec3f x = inside_tank(prm, xi + dx);
-    stop_at_obstacles(obstacles, xi, x);
+    if (obstacles.count > 0) {
+      const float t_end = obstacles.time + float(control->limits.dt);
+      stop_at_obstacles(obstacles, xi, x, t_end, t_end);
+    }
     out[i] = {x.x, x.y, x.z, 0.0f};
   }
 };

@@ -78,6 +78,7 @@ class PbfSolverImpl final : public Solver {
         presence_mode_ == PresenceMode::EveryStep ||
         (presence_mode_ == PresenceMode::AtUntil && t_ + ChooseFlowStep::kLandStretch * max_dt_ >= until - 1e-12);
     clock_.start();
+    obstacles_.view.time = float(t_);
     FlowControl* control = raw(control_);
     parallel_for("pbf_choose_step", 1,
                  ChooseFlowStep{cfl_ * prm_.spacing, double(pbf_.speed_floor), max_dt_, double(pbf_.max_dt_depth), min_dt_,
@@ -158,7 +159,7 @@ class PbfSolverImpl final : public Solver {
         if (n_ == 0 || sum / n_ <= pbf_.tolerance) return k;
       }
       mirror_pass_launches<Correct>(kCorrectNames, n_, prm_, pbf_, grid_, raw(fine_offsets_), pairs(), raw(pred_), raw(pred_tmp_),
-                                    obstacles_.view);
+                                    obstacles_.view, raw(control_));
       pred_.swap(pred_tmp_);
     }
     return pbf_.iterations;

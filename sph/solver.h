@@ -43,6 +43,10 @@ struct SolverInput {
   std::vector<Float4> fluid_vel;      // vx, vy, vz, - (the solver keeps p / rho^2 in w)
   std::vector<Float4> boundary;       // x, y, z, volume (WCSPH; PBF's and DFSPH's walls are the tank's planes)
   std::vector<float> boundary_alpha;  // wall viscosity per boundary particle (0 = free slip)
+  // Per boundary particle: the moving obstacle it belongs to (its index in
+  // `obstacles`), or kStaticWall. Empty: all static. A moving one's position
+  // above is its pose at t = 0; the solver moves it with the obstacle.
+  std::vector<uint8_t> boundary_obstacle;
   // Triangle meshes the particles' paths stop at (obstacles.h), at most
   // kMaxObstacles; WCSPH's wall particles inside them are in `boundary`.
   std::vector<MeshInput> obstacles;

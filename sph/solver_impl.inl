@@ -13,6 +13,24 @@
 #include "nsearch/sort.inl"
 #include "particle_copies.inl"
 
+// The wall particles of moving obstacles into their pose at the step's end
+// (the obstacles' Motion at time + dt, dt from the device's choice).
+struct MoveWalls {
+  Obstacles obstacles;
+  const StepControl* control;  // null: at obstacles.time itself
+  const Float4* body;          // each wall particle at t = 0
+  const uint8_t* owner;        // its moving obstacle, or kStaticWall
+  Float4* pos;
+  SPHRAY_HD void operator()(uint32_t b) const {
+    const uint8_t k = owner[b];
+    if (k == kStaticWall) return;
+    const float t = obstacles.time + (control ? float(control->limits.dt) : 0.0f);
+    const Float4 p = body[b];
+    const Vec3f w = obstacles.motion[k].at(t).to_world(xyz(p));
+    pos[b] = {w.x, w.y, w.z, p.w};
+  }
+};
+
 // The particle data into the new sorted order, one kernel for all of it
 // (one read of the order): out[i] = in[order[i]] for the first n_new sorted
 // particles. Presence, when there is one, [6][n_old] -> [6][n_new].
@@ -77,6 +95,17 @@ class SolverImpl final : public Solver {
     boundary_near_.resize(grid_.num_cells());
     fluid_near_.resize(grid_.num_cells());
     parallel_for("wall_cells_near", grid_.num_cells(), CellsNear{grid_, raw(boundary_offsets_), raw(boundary_near_)});
+    // Moving obstacles' wall particles: their t = 0 pose and owner, in the
+    // walls' sorted order, for move_walls().
+    if (!in.boundary_obstacle.empty()) {
+      Vector<uint8_t> owner_in;
+      upload(owner_in, in.boundary_obstacle);
+      wall_owner_.resize(nb);
+      wall_body_.resize(nb);
+      thrust::gather(policy(), border.begin(), border.end(), owner_in.begin(), wall_owner_.begin());
+      thrust::gather(policy(), border.begin(), border.end(), boundary_in.begin(), wall_body_.begin());
+      moving_walls_ = thrust::count(policy(), wall_owner_.begin(), wall_owner_.end(), kStaticWall) != ptrdiff_t(nb);
+    }
     build_grid();
   }
 
@@ -111,7 +140,9 @@ class SolverImpl final : public Solver {
     return b(pos_) + b(vel_) + b(flow_) + b(pos_tmp_) + b(vel_tmp_) + b(flow_tmp_) + b(accel_) + b(rate_grad_) + b(presence_) + b(presence_tmp_) + b(id_) +
            b(id_tmp_) + b(status_) + b(status_tmp_) + b(keys_) + b(order_) + b(offsets_) + b(fine_offsets_) + b(boundary_) +
            b(boundary_alpha_) + b(wall_) + b(boundary_offsets_) + b(fluid_pairs_) + b(boundary_pairs_) +
-           b(fluid_pair_count_) + b(boundary_pair_count_) + b(fluid_near_) + b(boundary_near_) + raw_copies_.bytes();
+           b(fluid_pair_count_) + b(boundary_pair_count_) + b(fluid_near_) + b(boundary_near_) + b(wall_body_) +
+           b(wall_pos_tmp_) + b(wall_body_tmp_) + b(wall_owner_) + b(wall_owner_tmp_) + b(wall_alpha_tmp_) +
+           b(wall_keys_) + b(wall_order_) + raw_copies_.bytes();
   }
 
   // Stage order: pairs (wall pressure, then one neighbour loop for the
@@ -122,6 +153,7 @@ class SolverImpl final : public Solver {
     // step that may reach `until` (dt can only be smaller than the bound).
     const bool presence_now = presence_mode_ == PresenceMode::EveryStep ||
                               (presence_mode_ == PresenceMode::AtUntil && t_ + dt_bound() >= until - 1e-12);
+    obstacles_.view.time = float(t_);
     clock_.start();
     if (prm_.kernel.type == KernelType::WendlandC2) pairs<KernelType::WendlandC2>(presence_now);
     else pairs<KernelType::CubicSpline>(presence_now);
@@ -139,7 +171,7 @@ class SolverImpl final : public Solver {
     parallel_for("advance", n_, Advance{prm_, control, state(), pair_results(), obstacles_.view});
     control_read_.start(control);
     clock_.end_of("integrate");
-    build_grid();
+    build_grid(control);
     clock_.end_of("grid");
     clock_.finish();
     const StepControl& c = control_read_.value();
@@ -204,7 +236,32 @@ class SolverImpl final : public Solver {
   PairMask fluid_pairs() { return {raw(fluid_pairs_), raw(fluid_pair_count_), n_, mask_words_}; }
   PairMask boundary_pairs() { return {raw(boundary_pairs_), raw(boundary_pair_count_), n_, mask_words_}; }
 
-  void build_grid() {
+  // The walls of moving obstacles to where the step (control: its dt) puts
+  // them, and every wall particle sorted again into the grid with its cell
+  // flags (the next pair masks index the walls in that order).
+  void move_walls(const StepControl* control) {
+    const uint32_t nb = uint32_t(boundary_.size());
+    parallel_for("wall_motion", nb, MoveWalls{obstacles_.view, control, raw(wall_body_), raw(wall_owner_), raw(boundary_)});
+    Vector<uint32_t>& keys = wall_keys_;
+    Vector<uint32_t>& order = wall_order_;
+    keys.resize(nb);
+    order.resize(nb);
+    parallel_for("wall_keys", nb, KeyOf<Float4>{grid_, raw(boundary_), raw(keys)});
+    sort_and_offsets(grid_, nb, keys, order, boundary_offsets_, nullptr);
+    auto regather = [&](auto& v, auto& tmp) {
+      tmp.resize(nb);
+      thrust::gather(policy(), order.begin(), order.end(), v.begin(), tmp.begin());
+      v.swap(tmp);
+    };
+    regather(boundary_, wall_pos_tmp_);
+    regather(wall_body_, wall_body_tmp_);
+    regather(boundary_alpha_, wall_alpha_tmp_);
+    regather(wall_owner_, wall_owner_tmp_);
+    parallel_for("wall_cells_near", grid_.num_cells(), CellsNear{grid_, raw(boundary_offsets_), raw(boundary_near_)});
+  }
+
+  void build_grid(const StepControl* control = nullptr) {
+    if (moving_walls_ && control) move_walls(control);
     parallel_for("fluid_keys", n_, KeyOf<Float4>{grid_, raw(pos_), raw(keys_)});
     sort_and_offsets(grid_, n_, keys_, order_, fine_offsets_, &offsets_);
     // Particles outside the grid (only possible through an open top: Advance
@@ -298,6 +355,13 @@ class SolverImpl final : public Solver {
   size_t removed_ = 0;
   uint64_t clamped_total_ = 0;
   ObstacleSet obstacles_;
+  // Moving obstacles' wall particles (move_walls): each wall particle's t = 0
+  // pose and owner in the walls' current order, and scratch for the re-sort.
+  bool moving_walls_ = false;
+  Vector<Float4> wall_body_, wall_pos_tmp_, wall_body_tmp_;
+  Vector<uint8_t> wall_owner_, wall_owner_tmp_;
+  Vector<float> wall_alpha_tmp_;
+  Vector<uint32_t> wall_keys_, wall_order_;
   StepLimits limits_;
   StageTimes times_;
   StageClock clock_;

@@ -229,26 +229,25 @@ TEST_CASE("a particle's path is stopped outside a closed mesh, whatever it graze
     Vec3f from{u(rng), u(rng), u(rng)};
     if (length(from) < 0.1001f) continue;  // start outside
     Vec3f to{u(rng), u(rng), u(rng)};
-    const Vec3f n = stop_at_obstacles(obs, from, to);
-    stopped += n.x != 0 || n.y != 0 || n.z != 0;
+    stopped += stop_at_obstacles(obs, from, to, 0, 0).hit();
     CHECK(length(to) > r_in);
   }
   CHECK(stopped > 1000);
   // Resting exactly on the plate's face (as rounding can leave it) and moving in: stopped.
   Vec3f to{0.2005f, 0.01f, 0.0f};
-  Vec3f n = stop_at_obstacles(obs, {0.2f, 0.01f, 0.0f}, to);
+  Vec3f n = stop_at_obstacles(obs, {0.2f, 0.01f, 0.0f}, to, 0, 0).normal;
   CHECK(n.x == Approx(-1.0f));
   CHECK(to.x < 0.2f);
   // Through the edge shared by the face's two triangles (its diagonal), and through a corner.
   to = {0.205f, 0.0f, 0.0f};
-  stop_at_obstacles(obs, {0.19f, 0.0f, 0.0f}, to);
+  stop_at_obstacles(obs, {0.19f, 0.0f, 0.0f}, to, 0, 0);
   CHECK(to.x < 0.2f);
   to = {0.205f, 0.05f, 0.05f};
-  stop_at_obstacles(obs, {0.195f, 0.05f, 0.05f}, to);
+  stop_at_obstacles(obs, {0.195f, 0.05f, 0.05f}, to, 0, 0);
   CHECK(to.x < 0.2f);
   // Along the face, outside: not stopped.
   to = {0.1999f, 0.04f, 0.0f};
-  n = stop_at_obstacles(obs, {0.1999f, -0.04f, 0.0f}, to);
+  n = stop_at_obstacles(obs, {0.1999f, -0.04f, 0.0f}, to, 0, 0).normal;
   CHECK(to.y == 0.04f);
   CHECK(n.x == 0.0f);
 }

@@ -445,7 +445,9 @@ int run_viewer(const ViewOptions& opt, std::ostream& log) {
     if (s.draws_field) field->build(pv);
     s.field_ms = s.draws_field ? field->last_ms() : 0.0;
     const Camera cam = look_at(ctl.orbit.eye(), ctl.orbit.target, rs.fov, W, H);
-    display.render(*renderer, RenderInput{s.draws_field ? field->data() : nullptr, &field->setup(), pv, scene.sph.spacing},
+    display.render(*renderer,
+                   RenderInput{s.draws_field ? field->data() : nullptr, &field->setup(), pv, scene.sph.spacing,
+                               solver->time()},
                    cam, make_environment(scene.tank, field->setup().geom, cam), rs);
     s.render_ms = renderer->last_ms();
     display.draw(fw, fh);
