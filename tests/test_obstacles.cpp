@@ -287,10 +287,12 @@ std::string wave_tank(const std::string& solver, double amplitude = 0.03) {
 
 // Runs the wave tank to 0.8 s: particles found inside the paddle's pose of
 // the moment (every fifth step), and the kinetic energy at the end.
-double run_wave_tank(const std::string& solver, double amplitude, size_t& inside, size_t& lost) {
+double run_wave_tank(const std::string& solver, double amplitude, size_t& inside, size_t& lost,
+                     Backend backend = Backend::Cpu) {
   const Scene s = parse_scene(wave_tank(solver, amplitude), "t.json");
   const ResolvedScene r = resolve_scene(s);
-  auto sv = make_cpu_solver(make_solver_input(r, PresenceMode::Off));
+  const SolverInput in = make_solver_input(r, PresenceMode::Off);
+  auto sv = backend == Backend::Cuda ? make_cuda_solver(in) : make_cpu_solver(in);
   const size_t n = sv->num_fluid();
   const Motion& m = s.obstacles[0].motion;
   int k = 0;
@@ -336,4 +338,17 @@ TEST_CASE("a piston paddle drives the liquid and no particle enters it, under WC
   CHECK((has(e, "obstacles.0.motion") && has(e, "out of the tank")));
   CHECK(has(test::scene_error(wave_tank("wcsph"), {"obstacles.0.motion.period=0"}), "obstacles.0.motion.period"));
   CHECK(has(test::scene_error(wave_tank("wcsph"), {"obstacles.0.motion.rotate=[0, 120, 0]"}), "90 degrees"));
+}
+
+TEST_CASE("cuda: a piston paddle drives the liquid and no particle enters it", "[gpu]") {
+  for (const char* solver : {"wcsph", "pbf", "dfsph"}) {
+    INFO(solver);
+    size_t inside = 0, lost = 0, inside_still = 0, lost_still = 0;
+    const double moving = run_wave_tank(solver, 0.03, inside, lost, Backend::Cuda);
+    const double still = run_wave_tank(solver, 0.0, inside_still, lost_still, Backend::Cuda);
+    INFO("kinetic energy at 0.8 s: " << moving << " J with the piston, " << still << " J with it still");
+    CHECK(inside + inside_still == 0);
+    CHECK(lost + lost_still == 0);
+    CHECK(moving > 2.0 * still);
+  }
 }

@@ -783,4 +783,19 @@ TEST_CASE("an obstacle ends a path on its surface, in air and seen through the l
   CHECK(c.g == Approx(expect.g).margin(2e-3));
   CHECK(c.b == Approx(expect.b).margin(2e-3));
   CHECK(sum().g == Approx(1.0f));
+  // Moving (a Motion): drawn in its pose at the render's time. A quarter
+  // period in, the pier has moved 10 voxels along +y: the ray down onto its
+  // old top now meets the water, one 10 voxels over meets the top.
+  tr.meshes.obstacles.motion[0].omega = 1.0f;
+  tr.meshes.obstacles.motion[0].translate = {0, 10, 0};
+  tr.meshes.at_time(float(M_PI / 2));
+  events.clear();
+  weights.clear();
+  tr.trace({24, 22, 47}, {0, 0, -1}, Watch{&events, &weights});
+  CHECK(events.size() >= 1);  // the water's surface
+  events.clear();
+  weights.clear();
+  c = tr.trace({24, 34, 47}, {0, 0, -1}, Watch{&events, &weights});
+  CHECK(events.empty());
+  CHECK(c.r == Approx(top.r).margin(1e-5));
 }
