@@ -64,6 +64,7 @@ struct WallsIn {
   const Float4* pos_volume;  // x, y, z, volume
   const WallState* state;    // boundary.h, this step's
   const float* alpha;        // artificial viscosity against each wall particle; 0 = free slip
+  const Float4* velocity = nullptr;  // each wall particle's velocity (moving obstacles); null: all at rest
 };
 
 // What the pair loop writes per fluid particle.
@@ -176,15 +177,18 @@ struct Interaction {
     });
     if (WithPresence) write_presence(i, prm.presence_scale / pi.w, grad, ux, uy, uz);  // fluid sums only
 
-    // Static walls (boundary particles of volume V_b, at rest): the wall
-    // pressure and viscosity push; approaching a wall compresses the particle
-    // (Adami et al. 2012, eq. 22 with v_w = 0), the rho_i V_b term of G.
+    // Walls (boundary particles of volume V_b): the wall pressure and
+    // viscosity push; approaching a wall compresses the particle (Adami et
+    // al. 2012, eq. 22), the rho_i V_b term of G for v_i and, where walls
+    // move, -rho_i V_b v_b . grad W in R (without it the walls of a paddle
+    // count as at rest and each stroke leaves the liquid denser: the density
+    // is floored at rho0 on the way down, not on the way up).
     const float p_wall_i = p_over_rho2_i > 0.0f ? p_over_rho2_i : 0.0f;
     for_each_pair<Direct>(grid, walls.offsets, walls.pos_volume, xi, support2, kNoSkip, boundary_pairs, i,
                           [&](uint32_t b) {
                             return WallNeighbour{load(walls.pos_volume + b), walls.state[b], walls.alpha[b]};
                           },
-                          [&](uint32_t, const WallNeighbour& d) {
+                          [&](uint32_t b, const WallNeighbour& d) {
       const Float4 pb = d.pos_volume;
       const WallState w = d.state;
       const float alpha = d.alpha;
@@ -197,6 +201,7 @@ struct Interaction {
       term -= alpha * prm.speed_of_sound * (vr < 0.0f ? visc : 0.0f);  // selected, as for the fluid
       a -= (w.rho * pb.w * term * dwr) * r;
       grad += (pi.w * pb.w * dwr) * r;
+      if (walls.velocity) rest -= pi.w * pb.w * dwr * dot(xyz(load(walls.velocity + b)), r);
     });
 
     a += prm.gravity;

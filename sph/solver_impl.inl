@@ -21,13 +21,17 @@ struct MoveWalls {
   const Float4* body;          // each wall particle at t = 0
   const uint8_t* owner;        // its moving obstacle, or kStaticWall
   Float4* pos;
+  Float4* vel;  // the velocity over the step (static walls: zero, set once)
   SPHRAY_HD void operator()(uint32_t b) const {
     const uint8_t k = owner[b];
     if (k == kStaticWall) return;
-    const float t = obstacles.time + (control ? float(control->limits.dt) : 0.0f);
+    const float dt = control ? float(control->limits.dt) : 0.0f;
     const Float4 p = body[b];
-    const Vec3f w = obstacles.motion[k].at(t).to_world(xyz(p));
+    const Motion& m = obstacles.motion[k];
+    const Vec3f w = m.at(obstacles.time + dt).to_world(xyz(p));
+    const Vec3f v = dt > 0.0f ? (w - m.at(obstacles.time).to_world(xyz(p))) * (1.0f / dt) : Vec3f{0, 0, 0};
     pos[b] = {w.x, w.y, w.z, p.w};
+    vel[b] = {v.x, v.y, v.z, 0.0f};
   }
 };
 
@@ -105,6 +109,7 @@ class SolverImpl final : public Solver {
       thrust::gather(policy(), border.begin(), border.end(), owner_in.begin(), wall_owner_.begin());
       thrust::gather(policy(), border.begin(), border.end(), boundary_in.begin(), wall_body_.begin());
       moving_walls_ = thrust::count(policy(), wall_owner_.begin(), wall_owner_.end(), kStaticWall) != ptrdiff_t(nb);
+      wall_vel_.assign(nb, Float4{0, 0, 0, 0});
     }
     build_grid();
   }
@@ -142,7 +147,7 @@ class SolverImpl final : public Solver {
            b(boundary_alpha_) + b(wall_) + b(boundary_offsets_) + b(fluid_pairs_) + b(boundary_pairs_) +
            b(fluid_pair_count_) + b(boundary_pair_count_) + b(fluid_near_) + b(boundary_near_) + b(wall_body_) +
            b(wall_pos_tmp_) + b(wall_body_tmp_) + b(wall_owner_) + b(wall_owner_tmp_) + b(wall_alpha_tmp_) +
-           b(wall_keys_) + b(wall_order_) + raw_copies_.bytes();
+           b(wall_keys_) + b(wall_order_) + b(wall_vel_) + b(wall_vel_tmp_) + raw_copies_.bytes();
   }
 
   // Stage order: pairs (wall pressure, then one neighbour loop for the
@@ -200,7 +205,8 @@ class SolverImpl final : public Solver {
  private:
   template <bool P, bool Direct, KernelType K>
   Interaction<P, Direct, K> pair_stage() {
-    const WallsIn walls{raw(boundary_offsets_), raw(boundary_), raw(wall_), raw(boundary_alpha_)};
+    const WallsIn walls{raw(boundary_offsets_), raw(boundary_), raw(wall_), raw(boundary_alpha_),
+                        moving_walls_ ? raw(wall_vel_) : nullptr};
     const PairOut out{raw(accel_), raw(rate_grad_), P ? raw(presence_) : nullptr};
     return {prm_, grid_, fluid_in(), walls, fluid_pairs(), boundary_pairs(), out, n_};
   }
@@ -241,7 +247,8 @@ class SolverImpl final : public Solver {
   // flags (the next pair masks index the walls in that order).
   void move_walls(const StepControl* control) {
     const uint32_t nb = uint32_t(boundary_.size());
-    parallel_for("wall_motion", nb, MoveWalls{obstacles_.view, control, raw(wall_body_), raw(wall_owner_), raw(boundary_)});
+    parallel_for("wall_motion", nb,
+                 MoveWalls{obstacles_.view, control, raw(wall_body_), raw(wall_owner_), raw(boundary_), raw(wall_vel_)});
     Vector<uint32_t>& keys = wall_keys_;
     Vector<uint32_t>& order = wall_order_;
     keys.resize(nb);
@@ -257,6 +264,7 @@ class SolverImpl final : public Solver {
     regather(wall_body_, wall_body_tmp_);
     regather(boundary_alpha_, wall_alpha_tmp_);
     regather(wall_owner_, wall_owner_tmp_);
+    regather(wall_vel_, wall_vel_tmp_);
     parallel_for("wall_cells_near", grid_.num_cells(), CellsNear{grid_, raw(boundary_offsets_), raw(boundary_near_)});
   }
 
@@ -358,7 +366,7 @@ class SolverImpl final : public Solver {
   // Moving obstacles' wall particles (move_walls): each wall particle's t = 0
   // pose and owner in the walls' current order, and scratch for the re-sort.
   bool moving_walls_ = false;
-  Vector<Float4> wall_body_, wall_pos_tmp_, wall_body_tmp_;
+  Vector<Float4> wall_body_, wall_pos_tmp_, wall_body_tmp_, wall_vel_, wall_vel_tmp_;
   Vector<uint8_t> wall_owner_, wall_owner_tmp_;
   Vector<float> wall_alpha_tmp_;
   Vector<uint32_t> wall_keys_, wall_order_;
