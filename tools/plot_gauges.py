@@ -42,6 +42,8 @@ def main():
         ax.set_title(g)
         ax.set_ylabel("water height [m]")
         ax.grid(alpha=0.3)
+    for ax in axes.flat[len(gauges):]:
+        ax.axis("off")
     for ax in axes[-1]:
         ax.set_xlabel("t [s]")
     axes.flat[0].legend(fontsize=8)
