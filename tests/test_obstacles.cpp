@@ -175,25 +175,23 @@ Vec3d buoyancy(Backend backend, double& archimedes) {
   return mean * (1.0 / samples);
 }
 
+// The buoyancy check of one backend: upward rho g V within 2%, no sideways force.
+void check_buoyancy(Backend backend) {
+  double archimedes = 0;
+  const Vec3d f = buoyancy(backend, archimedes);
+  INFO("force " << f.x << ", " << f.y << ", " << f.z << " N; rho g V = " << archimedes << " N");
+  CHECK(f.z == Approx(archimedes).epsilon(0.02));
+  CHECK(std::abs(f.x) < 0.02 * archimedes);
+  CHECK(std::abs(f.y) < 0.02 * archimedes);
+}
+
 }  // namespace
 
 TEST_CASE("a box held under water feels the buoyant force rho g V through the wall pressure", "[mesh][cpu]") {
-  double archimedes = 0;
-  const Vec3d f = buoyancy(Backend::Cpu, archimedes);
-  INFO("force " << f.x << ", " << f.y << ", " << f.z << " N; rho g V = " << archimedes << " N");
-  CHECK(f.z == Approx(archimedes).epsilon(0.02));
-  CHECK(std::abs(f.x) < 0.02 * archimedes);
-  CHECK(std::abs(f.y) < 0.02 * archimedes);
+  check_buoyancy(Backend::Cpu);
 }
 
-TEST_CASE("cuda: a box held under water feels the buoyant force rho g V", "[gpu]") {
-  double archimedes = 0;
-  const Vec3d f = buoyancy(Backend::Cuda, archimedes);
-  INFO("force " << f.x << ", " << f.y << ", " << f.z << " N; rho g V = " << archimedes << " N");
-  CHECK(f.z == Approx(archimedes).epsilon(0.02));
-  CHECK(std::abs(f.x) < 0.02 * archimedes);
-  CHECK(std::abs(f.y) < 0.02 * archimedes);
-}
+TEST_CASE("cuda: a box held under water feels the buoyant force rho g V", "[gpu]") { check_buoyancy(Backend::Cuda); }
 
 TEST_CASE("a gauge reads the depth of a still pool and nothing where it is dry", "[mesh][cpu]") {
   const std::string text = R"({"tank": {"min": [0, 0, 0], "max": [0.4, 0.2, 0.3]},
