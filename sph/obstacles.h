@@ -5,9 +5,9 @@
 // surface, and loses the velocity component into it (Mishima et al.: the
 // particle's path against the AABB tree, then the triangle). A thin plate
 // therefore leaks no particle whatever the step. WCSPH's wall particles
-// inside the static meshes (pipeline/setup.cpp) push the liquid away before
-// it gets there; PBF and DFSPH, and every solver at a moving mesh, see the
-// meshes only through this test. A moving mesh follows a prescribed rigid
+// inside the meshes (pipeline/setup.cpp; a moving mesh's move with it) push
+// the liquid away before it gets there; PBF and DFSPH see the meshes only
+// through this test. A moving mesh follows a prescribed rigid
 // motion (Motion); the test runs in the mesh's own frame, the path's start
 // taken back through the mesh's pose at the step's start and its end
 // through the pose at its end, so the mesh's own sweep is part of the path.
