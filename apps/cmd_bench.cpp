@@ -247,10 +247,10 @@ CLI::App* add_bench_command(CLI::App& app, int& exit_code) {
   bench->require_subcommand(1);
   add_sim(bench, exit_code);
   add_field(bench, exit_code);
-  add_mesh(bench, exit_code);
   add_frame(bench, exit_code);
   add_render(bench, exit_code);
   add_surface(bench, exit_code);
+  add_mesh(bench, exit_code);
   return bench;
 }
 

@@ -63,6 +63,9 @@ TEST_CASE("bad obstacles are refused naming the key, the file and the problem", 
   CHECK(has(e, "scael"));
   e = test::scene_error(with_obstacle(R"({"scale": 0.1})"));
   CHECK((has(e, "obstacles.0.mesh") && has(e, "required")));
+  std::string nine;
+  for (int k = 0; k < 9; ++k) nine += std::string(k ? "," : "") + R"({"mesh": ")" + box + R"(", "scale": 0.01})";
+  CHECK(has(test::scene_error(with_obstacle(nine)), "at most 8 obstacles"));
   // Too thin for the wall particles of WCSPH: said before the run.
   const Scene thin = parse_scene(with_obstacle(plate(box, 0.004)), "t.json");
   try {
