@@ -474,6 +474,25 @@ TEST_CASE("bench mesh times the BVH and the collision pass and stops the paths t
   CHECK(run_cli("bench mesh --backend cpu --levels 12").code == 2);
 }
 
+TEST_CASE("sphray view draws a scene's obstacles", "[viewer]") {
+  if (!SPHRAY_TEST_VIEWER || std::system("command -v xvfb-run > /dev/null 2>&1") != 0) {
+    WARN("no viewer in this build, or no xvfb-run: not tested");
+    return;
+  }
+  const std::string cmd = "xvfb-run -a -s '-screen 0 1024x768x24' " + std::string(SPHRAY_EXE) + " view " +
+                          sphray::test::source_path("scenes/dam_break_obstacles.json") +
+                          " --backend cpu --frames 2 --substeps 1 --size 480x270 --set sph.spacing=0.04 --screenshot ";
+  REQUIRE(std::system((cmd + tmp + "/sphray_view_obst.png > /dev/null 2>&1").c_str()) == 0);
+  REQUIRE(std::system((cmd + tmp + "/sphray_view_noobst.png --set 'obstacles=[]' > /dev/null 2>&1").c_str()) == 0);
+  const sphray::Image a = sphray::read_png(tmp + "/sphray_view_obst.png"),
+                      b = sphray::read_png(tmp + "/sphray_view_noobst.png");
+  REQUIRE(a.rgba.size() == b.rgba.size());
+  // The pier and the ball cover a few percent of the window; the liquid has barely moved.
+  const size_t differ = sphray::pixels_differing(a, b, 20);
+  INFO(differ << " of " << a.rgba.size() << " pixels differ");
+  CHECK(differ > a.rgba.size() / 100);
+}
+
 TEST_CASE("sphray view opens a real window under Xvfb and shows the liquid", "[viewer]") {
   if (!SPHRAY_TEST_VIEWER) {
     WARN("this sphray was built without the viewer (GLFW/GLEW/Dear ImGui not found): not tested");
