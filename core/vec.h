@@ -35,6 +35,17 @@ SPHRAY_HD SPHRAY_FORCEINLINE bool all_finite(Vec3f a) {
   return std::isfinite(a.x) && std::isfinite(a.y) && std::isfinite(a.z);
 }
 
+// The rows of R = Rz Ry Rx: a turn by a about x, then b about y, then c
+// about z [radians] (the placement of meshes, mesh/mesh.h, and the motion
+// of obstacles, sph/obstacles.h).
+template <class T>
+SPHRAY_HD SPHRAY_FORCEINLINE void rotation_rows_xyz(T a, T b, T c, Vec3<T> rows[3]) {
+  const T cx = std::cos(a), sx = std::sin(a), cy = std::cos(b), sy = std::sin(b), cz = std::cos(c), sz = std::sin(c);
+  rows[0] = {cz * cy, cz * sy * sx - sz * cx, cz * sy * cx + sz * sx};
+  rows[1] = {sz * cy, sz * sy * sx + cz * cx, sz * sy * cx - cz * sx};
+  rows[2] = {-sy, cy * sx, cy * cx};
+}
+
 // Ray o + t d against the box [lo, hi]: entry and exit distances t0 <= t1,
 // false when missed or when the box lies wholly behind (t1 <= 0). Used by the
 // raycaster (float, render/raycast.h) and the scene setup (double,

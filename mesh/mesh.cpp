@@ -89,11 +89,9 @@ TriangleMesh read_obj(const std::string& path) {
 
 std::array<Vec3d, 3> rotation_rows(Vec3d r) {
   const double k = M_PI / 180.0;
-  const double cx = std::cos(r.x * k), sx = std::sin(r.x * k), cy = std::cos(r.y * k), sy = std::sin(r.y * k),
-               cz = std::cos(r.z * k), sz = std::sin(r.z * k);
-  // R = Rz Ry Rx
-  return {Vec3d{cz * cy, cz * sy * sx - sz * cx, cz * sy * cx + sz * sx},
-          Vec3d{sz * cy, sz * sy * sx + cz * cx, sz * sy * cx - cz * sx}, Vec3d{-sy, cy * sx, cy * cx}};
+  std::array<Vec3d, 3> rows;
+  rotation_rows_xyz(r.x * k, r.y * k, r.z * k, rows.data());
+  return rows;
 }
 
 TriangleMesh placed(const TriangleMesh& m, const Placement& p) {

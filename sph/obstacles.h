@@ -49,12 +49,7 @@ struct Motion {
     RigidFrame f;
     if (omega == 0.0f) return f;
     const float s = std::sin(omega * time);
-    const float ax = s * rotate.x, ay = s * rotate.y, az = s * rotate.z;
-    const float cx = std::cos(ax), sx = std::sin(ax), cy = std::cos(ay), sy = std::sin(ay), cz = std::cos(az),
-                sz = std::sin(az);
-    f.r[0] = {cz * cy, cz * sy * sx - sz * cx, cz * sy * cx + sz * sx};  // R = Rz Ry Rx
-    f.r[1] = {sz * cy, sz * sy * sx + cz * cx, sz * sy * cx - cz * sx};
-    f.r[2] = {-sy, cy * sx, cy * cx};
+    rotation_rows_xyz(s * rotate.x, s * rotate.y, s * rotate.z, f.r);
     f.t = pivot + translate * s - f.dir_to_world(pivot);
     return f;
   }
