@@ -8,6 +8,7 @@
 
 #include "bench/sim.h"
 #include "mesh/mesh.h"
+#include "pipeline/setup.h"
 
 namespace sphray {
 
@@ -25,13 +26,11 @@ std::vector<BenchMeshRow> bench_mesh(Backend b, const BenchMeshOptions& opt, std
   const double R = 1.0, dx = R / 50.0;  // a ball 100 spacings across
   for (const int level : opt.levels) {
     const TriangleMesh m = sphere_mesh({0, 0, 0}, R, level);
-    std::vector<Vec3f> verts, moved;
-    for (const Vec3d& v : m.vertices) {
-      verts.push_back({float(v.x), float(v.y), float(v.z)});
-      moved.push_back({float(1.1 * v.x + 0.05), float(1.1 * v.y), float(1.1 * v.z)});
-    }
-    std::vector<uint32_t> idx;
-    for (const auto& t : m.triangles) idx.insert(idx.end(), t.begin(), t.end());
+    const MeshInput in = mesh_input(m);
+    const std::vector<Vec3f>& verts = in.vertices;
+    const std::vector<uint32_t>& idx = in.indices;
+    std::vector<Vec3f> moved;
+    for (const Vec3f& v : verts) moved.push_back(v * 1.1f + Vec3f{0.05f, 0, 0});
     BenchMeshRow row;
     row.triangles = uint32_t(m.size());
     row.particles = opt.particles;

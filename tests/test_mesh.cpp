@@ -9,21 +9,17 @@
 #include "helpers.h"
 #include "mesh/bvh.h"
 #include "mesh/mesh.h"
+#include "pipeline/setup.h"
 #include "sph/obstacles.h"
 
 using namespace sphray;
 
 namespace {
 
-std::vector<Vec3f> float_vertices(const TriangleMesh& m) {
-  std::vector<Vec3f> v;
-  for (const auto& p : m.vertices) v.push_back({float(p.x), float(p.y), float(p.z)});
-  return v;
-}
-std::vector<uint32_t> flat_indices(const TriangleMesh& m) {
-  std::vector<uint32_t> i;
-  for (const auto& t : m.triangles) i.insert(i.end(), t.begin(), t.end());
-  return i;
+// The tree of a mesh on the CPU (the solver's conversion, mesh_input).
+std::unique_ptr<Bvh> cpu_bvh(const TriangleMesh& m) {
+  const MeshInput in = mesh_input(m);
+  return make_cpu_bvh(in.vertices, in.indices);
 }
 
 // Double-precision ray-triangle parameter, or -1.
@@ -153,7 +149,7 @@ TEST_CASE("BVH queries match a brute-force loop over every triangle", "[mesh][cp
   const uint32_t base = uint32_t(m.vertices.size());
   m.vertices.insert(m.vertices.end(), b.vertices.begin(), b.vertices.end());
   for (auto t : b.triangles) m.triangles.push_back({t[0] + base, t[1] + base, t[2] + base});
-  const auto bvh = make_cpu_bvh(float_vertices(m), flat_indices(m));
+  const auto bvh = cpu_bvh(m);
   const MeshView v = bvh->view();
   const std::vector<uint32_t> order = bvh->input_order();
   REQUIRE(v.num_tris == m.size());
@@ -195,8 +191,8 @@ TEST_CASE("BVH queries match a brute-force loop over every triangle", "[mesh][cp
 
 TEST_CASE("a refit BVH answers for the moved vertices", "[mesh][cpu]") {
   const TriangleMesh m = sphere_mesh({0, 0, 0}, 1, 2);
-  auto verts = float_vertices(m);
-  const auto bvh = make_cpu_bvh(verts, flat_indices(m));
+  const auto bvh = cpu_bvh(m);
+  auto verts = mesh_input(m).vertices;
   for (auto& p : verts) p = p * 2.0f + Vec3f{3, 0, 0};  // scaled and moved
   bvh->refit(verts);
   float s = 0;
@@ -211,13 +207,13 @@ TEST_CASE("a refit BVH answers for the moved vertices", "[mesh][cpu]") {
 
 TEST_CASE("a particle's path is stopped outside a closed mesh, whatever it grazes", "[mesh][cpu]") {
   const TriangleMesh m = sphere_mesh({0, 0, 0}, 0.1, 3);
-  const auto bvh = make_cpu_bvh(float_vertices(m), flat_indices(m));
+  const auto bvh = cpu_bvh(m);
   Obstacles obs;
   obs.mesh[0] = bvh->view();
   obs.count = 1;
   obs.offset = 1e-4f;
   const auto box = box_mesh({{0.2, -0.05, -0.05}, {0.21, 0.05, 0.05}});  // a plate, faces on lattice planes
-  const auto plate = make_cpu_bvh(float_vertices(box), flat_indices(box));
+  const auto plate = cpu_bvh(box);
   obs.mesh[1] = plate->view();
   obs.count = 2;
   // The inscribed polyhedron lies within 0.1 of the centre and beyond 0.1 cos(edge angle).

@@ -248,11 +248,8 @@ TEST_CASE("a prescribed motion turns about its pivot and moves by its amplitude"
 
 TEST_CASE("a moving plate pushes a resting particle ahead of it at its own speed", "[mesh][cpu]") {
   const TriangleMesh plate = box_mesh({{0.1, -0.5, -0.5}, {0.12, 0.5, 0.5}});
-  std::vector<Vec3f> v;
-  for (const auto& p : plate.vertices) v.push_back({float(p.x), float(p.y), float(p.z)});
-  std::vector<uint32_t> idx;
-  for (const auto& t : plate.triangles) idx.insert(idx.end(), t.begin(), t.end());
-  const auto bvh = make_cpu_bvh(v, idx);
+  const MeshInput in = mesh_input(plate);
+  const auto bvh = make_cpu_bvh(in.vertices, in.indices);
   Obstacles obs;
   obs.mesh[0] = bvh->view();
   obs.motion[0].omega = float(2 * M_PI);  // period 1 s, 0.05 m amplitude along x: 0.314 m/s at t = 0

@@ -17,6 +17,7 @@
 #include "field/field.h"
 #include "mesh/bvh.h"
 #include "mesh/mesh.h"
+#include "pipeline/setup.h"
 #include "render/render.h"
 
 using namespace sphray;
@@ -740,11 +741,8 @@ TEST_CASE("an obstacle ends a path on its surface, in air and seen through the l
   // A pier from the floor through the surface of a pool (half-space below z = 30).
   const AnalyticVolume v(half_space);
   const TriangleMesh pier = box_mesh({{20, 20, 0}, {28, 28, 40}});
-  std::vector<Vec3f> verts;
-  for (const auto& p : pier.vertices) verts.push_back({float(p.x), float(p.y), float(p.z)});
-  std::vector<uint32_t> idx;
-  for (const auto& t : pier.triangles) idx.insert(idx.end(), t.begin(), t.end());
-  const auto bvh = make_cpu_bvh(verts, idx);
+  const MeshInput in = mesh_input(pier);
+  const auto bvh = make_cpu_bvh(in.vertices, in.indices);
   auto tr = make_tracer(v, settings(4));
   tr.meshes.obstacles.mesh[0] = bvh->view();
   tr.meshes.obstacles.count = 1;  // world = voxel coordinates (origin 0, voxel 1)
