@@ -134,12 +134,8 @@ class BvhImpl final : public Bvh {
       : n_(uint32_t(indices.size() / 3)) {
     if (n_ == 0) return;
     upload(indices_, indices);
-    Vec3f lo = vertices.at(0), hi = lo;
-    for (const Vec3f& v : vertices) { lo = vmin(lo, v); hi = vmax(hi, v); }
-    lo_ = lo;
-    hi_ = hi;
-    upload(vertices_, vertices);
-    const Vec3f e = hi - lo;
+    take_vertices(vertices);
+    const Vec3f lo = lo_, e = hi_ - lo_;
     auto s = [](float x) { return x > 0 ? 1023.0f / x : 0.0f; };
     keys_.resize(n_);
     order_.resize(n_);
@@ -174,11 +170,7 @@ class BvhImpl final : public Bvh {
 
   void refit(const std::vector<Vec3f>& vertices) override {
     if (n_ == 0) return;
-    Vec3f lo = vertices.at(0), hi = lo;
-    for (const Vec3f& v : vertices) { lo = vmin(lo, v); hi = vmax(hi, v); }
-    lo_ = lo;
-    hi_ = hi;
-    upload(vertices_, vertices);
+    take_vertices(vertices);
     clock_.start();
     parallel_for("bvh_triangles", n_, TrianglesOf{raw(vertices_), raw(indices_), raw(order_), raw(tris_)});
     boxes();
@@ -188,6 +180,16 @@ class BvhImpl final : public Bvh {
   }
 
  private:
+  // The vertices onto the device, and the whole mesh's box.
+  void take_vertices(const std::vector<Vec3f>& vertices) {
+    lo_ = hi_ = vertices.at(0);
+    for (const Vec3f& v : vertices) {
+      lo_ = vmin(lo_, v);
+      hi_ = vmax(hi_, v);
+    }
+    upload(vertices_, vertices);
+  }
+
   void boxes() {
     if (n_ < 2) return;
     thrust::fill(policy(), arrivals_.begin(), arrivals_.end(), 0u);

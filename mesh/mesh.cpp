@@ -19,14 +19,12 @@ namespace {
 }  // namespace
 
 TriangleMesh read_obj(const std::string& path) {
-  {
-    std::ifstream probe(path);
-    if (!probe) fail(path, "cannot open the mesh file (missing or unreadable)");
-  }
   // tinyobjloader reads "nan" and "inf" as numbers it can parse (or as 0):
-  // the vertex lines are checked for non-finite values first.
+  // the vertex lines are checked for non-finite values (and overflow, which
+  // strtod reads as infinite) first.
   {
     std::ifstream in(path);
+    if (!in) fail(path, "cannot open the mesh file (missing or unreadable)");
     std::string line;
     size_t vertex = 0;
     while (std::getline(in, line)) {
