@@ -167,20 +167,23 @@ void check_tank(const ConfigReader& tank, const Scene& s) {
   }
 }
 
+// Whether the box [lo, hi] lies in the tank, within eps of the tank's size;
+// above the rim too where `lid` is false (an open top).
+bool within_tank(const Scene& s, Vec3d lo, Vec3d hi, double rel_eps, bool lid) {
+  const double eps = rel_eps * std::max(1.0, length(s.tank.max - s.tank.min));
+  return lo.x >= s.tank.min.x - eps && lo.y >= s.tank.min.y - eps && lo.z >= s.tank.min.z - eps &&
+         hi.x <= s.tank.max.x + eps && hi.y <= s.tank.max.y + eps && (!lid || hi.z <= s.tank.max.z + eps);
+}
+
 void read_fluid(const ConfigReader& root, Scene& s) {
   if (!root.has("fluid")) return;
   const json& fl = root.at("fluid");
   if (!fl.is_array()) root.fail("fluid", fl, "must be an array of blocks {\"min\": [..], \"max\": [..]}");
-  const Vec3d tank_size = s.tank.max - s.tank.min;
   for (size_t b = 0; b < fl.size(); ++b) {
     const ConfigReader blk(fl[b], root.file(), "fluid." + std::to_string(b));
     blk.only({"min", "max", "velocity"});
     FluidBlock fb{read_box(blk, "min", "max"), blk.vec3("velocity", {0, 0, 0})};
-    const double eps = 1e-9 * std::max(1.0, length(tank_size));
-    const bool inside = fb.box.min.x >= s.tank.min.x - eps && fb.box.min.y >= s.tank.min.y - eps &&
-                        fb.box.min.z >= s.tank.min.z - eps && fb.box.max.x <= s.tank.max.x + eps &&
-                        fb.box.max.y <= s.tank.max.y + eps && fb.box.max.z <= s.tank.max.z + eps;
-    if (!inside) blk.fail("max", fl[b], "the block lies (partly) outside the tank " + root.at("tank").dump());
+    if (!within_tank(s, fb.box.min, fb.box.max, 1e-9, true)) blk.fail("max", fl[b], "the block lies (partly) outside the tank " + root.at("tank").dump());
     if (length(fb.velocity) > 1e4) blk.fail("velocity", blk.at("velocity"), "speed must be at most 1e4 m/s");
     s.fluid.push_back(fb);
   }
@@ -203,14 +206,13 @@ void read_motion(const ConfigReader& o, Obstacle& ob, const Scene& s, const Conf
   const double k = M_PI / 180.0;
   mo.rotate = {float(rot.x * k), float(rot.y * k), float(rot.z * k)};
   mo.pivot = {float(pivot.x), float(pivot.y), float(pivot.z)};
-  const double eps = 1e-6 * std::max(1.0, length(s.tank.max - s.tank.min));
   for (int j = 0; j < 256; ++j) {
     const double t = period * j / 256.0;
     const RigidFrame f = mo.at(float(t));
     for (const Vec3d& v : ob.mesh.vertices) {
       const Vec3f w = f.to_world({float(v.x), float(v.y), float(v.z)});
-      if (w.x < s.tank.min.x - eps || w.y < s.tank.min.y - eps || w.z < s.tank.min.z - eps ||
-          w.x > s.tank.max.x + eps || w.y > s.tank.max.y + eps || (!s.open_top && w.z > s.tank.max.z + eps)) {
+      const Vec3d wd{w.x, w.y, w.z};
+      if (!within_tank(s, wd, wd, 1e-6, !s.open_top)) {
         std::ostringstream os;
         os << "moves " << ob.path << " out of the tank " << root.at("tank").dump() << " (a vertex reaches (" << w.x
            << ", " << w.y << ", " << w.z << ") at t = " << t << " s)";
@@ -262,9 +264,7 @@ void read_obstacles(const ConfigReader& root, Scene& s) {
     }
     if (signed_volume(ob.mesh) < 0) flip(ob.mesh);  // inward-facing triangles: turned outward
     const Box b = bounds(ob.mesh);
-    const double eps = 1e-9 * std::max(1.0, length(s.tank.max - s.tank.min));
-    if (b.min.x < s.tank.min.x - eps || b.min.y < s.tank.min.y - eps || b.min.z < s.tank.min.z - eps ||
-        b.max.x > s.tank.max.x + eps || b.max.y > s.tank.max.y + eps || (!s.open_top && b.max.z > s.tank.max.z + eps)) {
+    if (!within_tank(s, b.min, b.max, 1e-9, !s.open_top)) {
       std::ostringstream os;
       os << ob.path << " crosses the tank walls: placed, it spans [" << b.min.x << ", " << b.max.x << "] x [" << b.min.y
          << ", " << b.max.y << "] x [" << b.min.z << ", " << b.max.z << "], the tank " << root.at("tank").dump()
