@@ -16,6 +16,7 @@ struct Vec3 {
 
 using Vec3f = Vec3<float>;
 using Vec3d = Vec3<double>;
+SPHRAY_HD SPHRAY_FORCEINLINE Vec3f to_f(Vec3d v) { return {float(v.x), float(v.y), float(v.z)}; }
 
 template <class T> SPHRAY_HD SPHRAY_FORCEINLINE Vec3<T> operator+(Vec3<T> a, Vec3<T> b) { return {a.x + b.x, a.y + b.y, a.z + b.z}; }
 template <class T> SPHRAY_HD SPHRAY_FORCEINLINE Vec3<T> operator-(Vec3<T> a, Vec3<T> b) { return {a.x - b.x, a.y - b.y, a.z - b.z}; }

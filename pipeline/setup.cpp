@@ -18,8 +18,6 @@ namespace sphray {
 
 namespace {
 
-Vec3f to_f(Vec3d v) { return {float(v.x), float(v.y), float(v.z)}; }
-
 int lattice_count(double size, double dx) { return std::max(1, int(std::floor(size / dx + 1e-6))); }
 
 // Overlapping fluid blocks fill their union once: a particle of block b is

@@ -3,15 +3,7 @@
 #include <algorithm>
 #include <cmath>
 
-
 namespace sphray {
-
-namespace {
-
-Vec3f to_f(Vec3d v) { return {float(v.x), float(v.y), float(v.z)}; }
-
-
-}  // namespace
 
 Camera look_at(Vec3d eye, Vec3d target, double fov_deg, int width, int height) {
   Camera c{};
