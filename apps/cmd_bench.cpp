@@ -1,10 +1,11 @@
-// `sphray bench sim|field|frame|render|surface|mesh`: the benchmarks (bench/), their
+// `sphray bench sim|field|frame|render|surface|mesh|skin`: the benchmarks (bench/), their
 // tables on stdout and, with --json, their records.
 #include <iostream>
 
 #include "bench/field.h"
 #include "bench/frame.h"
 #include "bench/mesh.h"
+#include "bench/skin.h"
 #include "bench/sim.h"
 #include "bench/surface.h"
 #include "cli.h"
@@ -91,6 +92,30 @@ void add_mesh(CLI::App* bench, int& exit_code) {
   m->callback([a, &exit_code] {
     run_bench(a->c, [&](Backend b) {
       const auto rows = bench_mesh(b, a->opt, std::cout);
+      print_table(rows, std::cout);
+      return to_json(rows, b, a->opt);
+    });
+    exit_code = 0;
+  });
+}
+
+void add_skin(CLI::App* bench, int& exit_code) {
+  struct Args {
+    Common c;
+    BenchSkinOptions opt;
+  };
+  auto a = std::make_shared<Args>();
+  auto* k = bench->add_subcommand("skin", "waves on an obstacle's skin: an impulse's speed by direction, per cube-map "
+                                          "resolution and stencil, and the cost of a substep");
+  add_common(k, a->c, "");
+  k->add_option("--resolutions", a->opt.resolutions, "texels along a cube edge, e.g. 24,48,96")
+      ->delimiter(',')
+      ->check(CLI::Range(8, 512));
+  k->add_option("--warmup", a->opt.warmup, "warm-up substeps")->check(CLI::Range(0, 1000));
+  k->add_option("--frames", a->opt.frames, "measured substeps")->check(CLI::Range(1, 10000));
+  k->callback([a, &exit_code] {
+    run_bench(a->c, [&](Backend b) {
+      const auto rows = bench_skin(b, a->opt, std::cout);
       print_table(rows, std::cout);
       return to_json(rows, b, a->opt);
     });
@@ -251,6 +276,7 @@ CLI::App* add_bench_command(CLI::App& app, int& exit_code) {
   add_render(bench, exit_code);
   add_surface(bench, exit_code);
   add_mesh(bench, exit_code);
+  add_skin(bench, exit_code);
   return bench;
 }
 

@@ -263,6 +263,21 @@ struct DfsphGravity {
 // the step before (kept as p dt^2 in warm[i]: x the pressure solve's, y the
 // divergence solve's). The divergence solve starts from zero where the
 // velocities do not compress (source 0), as SPlisHSPlasH does.
+// The pressure [Pa] of the last step: p = rho0 d^2 p~ / dt^2, p~ the
+// pressure and the divergence solves' variables (kept as p dt^2 in `warm`)
+// summed, both pushing over the step (Solver::device_pressure).
+struct DfsphPressureOf {
+  float rest_density;
+  float inv_dt2;
+  const Float4* pos;   // w: density
+  const Float4* warm;  // x, y: the two solves' p~ dt^2 [m^2]
+  float* out;
+  SPHRAY_HD void operator()(uint32_t i) const {
+    const float d = pos[i].w / rest_density;
+    out[i] = rest_density * d * d * (warm[i].x + warm[i].y) * inv_dt2;
+  }
+};
+
 template <bool Divergence>
 struct DfsphWarmStart {
   const FlowControl* control;

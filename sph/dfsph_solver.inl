@@ -125,15 +125,20 @@ class DfsphSolverImpl final : public Solver {
   // solves' variables summed, [m^2/s^2], dfsph.h: both push over the step).
   // Zero before the first step: no solve has run (and there is no dt).
   std::vector<float> pressures() const override {
-    std::vector<float> out(n_, 0.0f);
-    if (steps_ == 0) return out;
+    if (steps_ == 0) return std::vector<float>(n_, 0.0f);
     const std::vector<Float4> w = sphray::SPHRAY_BK::download(warm_, n_), p = sphray::SPHRAY_BK::download(pos_, n_);
-    const double dt = limits_.dt;
-    for (uint32_t i = 0; i < n_; ++i) {
-      const double d = p[i].w / prm_.rest_density;
-      out[i] = float(prm_.rest_density * d * d * (w[i].x + w[i].y) / (dt * dt));
-    }
+    std::vector<float> out(n_);
+    const DfsphPressureOf of{prm_.rest_density, float(1.0 / (limits_.dt * limits_.dt)), p.data(), w.data(), out.data()};
+    for (uint32_t i = 0; i < n_; ++i) of(i);
     return out;
+  }
+  const float* device_pressure() override {
+    if (pressure_out_.size() < n_) pressure_out_.resize(n_);
+    // Zero before the first step: no solve has run (and there is no dt).
+    const float inv_dt2 = steps_ == 0 ? 0.0f : float(1.0 / (limits_.dt * limits_.dt));
+    parallel_for("dfsph_pressure", n_,
+                 DfsphPressureOf{prm_.rest_density, inv_dt2, raw(pos_), raw(warm_), raw(pressure_out_)});
+    return raw(pressure_out_);
   }
 
  private:
@@ -267,6 +272,7 @@ class DfsphSolverImpl final : public Solver {
   // y: divergence) as p dt^2, sorted with the particles; acc_: a of the solve.
   Vector<Float4> pos_, vel_, warm_, pos_tmp_, vel_tmp_, warm_tmp_, acc_;
   Vector<float> presence_, presence_tmp_, press_, factor_, source_, residual_, error_;
+  Vector<float> pressure_out_;  // device_pressure
   Vector<uint8_t> sparse_;
   Vector<uint32_t> id_, id_tmp_, keys_, order_, offsets_, fine_offsets_;
   Vector<uint8_t> status_, status_tmp_;

@@ -29,6 +29,14 @@ namespace sphray {
 enum ParticleStatus : uint8_t { kStatusOk = 0, kStatusClamped = 1 };
 
 // flow.w = p / rho^2 from the density (params.h); Advance keeps it current.
+// The pressure [Pa] per particle (Solver::device_pressure).
+struct TaitPressureOf {
+  SphParams prm;
+  const Float4* pos_rho;
+  float* out;
+  SPHRAY_HD void operator()(uint32_t i) const { out[i] = tait_pressure(prm, pos_rho[i].w); }
+};
+
 struct PressureTermOf {
   SphParams prm;
   const Float4* pos_rho;

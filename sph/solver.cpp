@@ -1,5 +1,7 @@
 #include "solver.h"
 
+#include "skin.h"
+
 namespace sphray {
 
 const char* solver_name(SolverKind k) {
@@ -12,6 +14,7 @@ const char* solver_name(SolverKind k) {
 
 #if !defined(SPHRAY_HAVE_CUDA)
 std::unique_ptr<Solver> make_cuda_solver(const SolverInput&) { throw_no_cuda(); }
+std::unique_ptr<SkinSet> make_cuda_skin_set(std::vector<SkinGeometry>, const SphParams&) { throw_no_cuda(); }
 #endif
 
 }  // namespace sphray

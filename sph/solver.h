@@ -19,6 +19,7 @@
 #include "params.h"
 #include "dfsph_params.h"
 #include "pbf_params.h"
+#include "skin_params.h"
 #include "solver_kind.h"
 
 namespace sphray {
@@ -50,6 +51,9 @@ struct SolverInput {
   // Triangle meshes the particles' paths stop at (obstacles.h), at most
   // kMaxObstacles; WCSPH's wall particles inside them are in `boundary`.
   std::vector<MeshInput> obstacles;
+  // Obstacles whose skins carry waves (sph/skin.h); the solver is then
+  // wrapped so that every step also advances them.
+  std::vector<SkinInput> skins;
   // Step control, from the scene (sph.cfl, run.min_dt, run.max_dt; their
   // defaults are the scene's): WCSPH's CFL on h and the sound speed, PBF's
   // and DFSPH's on the spacing and the largest particle speed.
@@ -116,8 +120,11 @@ struct SolveStats {
 
 struct StageTimes {
   double grid = 0, pairs = 0, integrate = 0;
-  double total() const { return grid + pairs + integrate; }
+  double skin = 0;  // the obstacles' skin waves (sph/skin.h), when the scene has any
+  double total() const { return grid + pairs + integrate + skin; }
 };
+
+class SkinSet;
 
 class Solver {
  public:
@@ -152,6 +159,13 @@ class Solver {
   // a tolerance leaves the pressure of one step noisy: average over steps.
   // Zero before the first step.
   virtual std::vector<float> pressures() const { return {}; }
+  // The same pressure [Pa] per particle in view()'s order, computed on the
+  // solver's backend into a buffer it keeps (valid until the next step);
+  // null for a solver without one (PBF). WCSPH: tait_pressure of the density.
+  virtual const float* device_pressure() { return nullptr; }
+  // The skins of the run's obstacles (sph/skin.h), or null.
+  virtual SkinSet* skins() { return nullptr; }
+  virtual const SkinSet* skins() const { return nullptr; }
 };
 
 std::unique_ptr<Solver> make_cpu_solver(const SolverInput& in);

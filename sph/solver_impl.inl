@@ -201,6 +201,11 @@ class SolverImpl final : public Solver {
   }
 
   std::vector<Vec3f> boundary_positions() const override { return download_positions(boundary_); }
+  const float* device_pressure() override {
+    if (pressure_out_.size() < n_) pressure_out_.resize(n_);
+    parallel_for("tait_pressure", n_, TaitPressureOf{prm_, raw(pos_), raw(pressure_out_)});
+    return raw(pressure_out_);
+  }
 
  private:
   template <bool P, bool Direct, KernelType K>
@@ -382,6 +387,7 @@ class SolverImpl final : public Solver {
   // u (the predicted kicked velocity) and p / rho^2 (integrate.h).
   Vector<Float4> pos_, vel_, flow_, pos_tmp_, vel_tmp_, flow_tmp_, accel_, rate_grad_, boundary_;
   Vector<float> presence_, presence_tmp_, boundary_alpha_;
+  Vector<float> pressure_out_;  // device_pressure
   Vector<WallState> wall_;
   // offsets_: coarse cell table (view(), the field builder, the raycaster);
   // fine_offsets_ and boundary_offsets_: slab tables of the neighbour loops (grid.h).

@@ -14,4 +14,5 @@
 #include "nsearch/grid.h"
 #include "dfsph.h"
 #include "pbf.h"
+#include "skin.h"
 #include "solver.h"

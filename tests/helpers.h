@@ -3,6 +3,7 @@
 
 #include <sys/wait.h>
 
+#include <cmath>
 #include <cstdlib>
 #include <filesystem>
 #include <stdexcept>
@@ -13,6 +14,7 @@
 
 #include "pipeline/pipeline.h"
 #include "io/scene.h"
+#include "mesh/mesh.h"
 #include "pipeline/setup.h"
 #include "sph/solver.h"
 
@@ -82,6 +84,28 @@ inline bool inside(const Vec3f& p, const Aabb& tank) {
 
 // The message of the SceneError that parsing `text` (with --set overrides)
 // raises, or "" if it parses.
+// A closed, outward-wound torus (genus 1) about the z axis, radii 1 and 0.3.
+inline TriangleMesh torus_mesh(const std::string& name) {
+  TriangleMesh torus;
+  torus.name = name;
+  const int nu = 24, nv = 12;
+  for (int i = 0; i < nu; ++i)
+    for (int j = 0; j < nv; ++j) {
+      const double u = 2 * M_PI * i / nu, v = 2 * M_PI * j / nv;
+      torus.vertices.push_back(
+          {(1 + 0.3 * std::cos(v)) * std::cos(u), (1 + 0.3 * std::cos(v)) * std::sin(u), 0.3 * std::sin(v)});
+    }
+  for (int i = 0; i < nu; ++i)
+    for (int j = 0; j < nv; ++j) {
+      const uint32_t a = i * nv + j, b = ((i + 1) % nu) * nv + j, c = ((i + 1) % nu) * nv + (j + 1) % nv,
+                     d = i * nv + (j + 1) % nv;
+      torus.triangles.push_back({a, b, c});
+      torus.triangles.push_back({a, c, d});
+    }
+  if (signed_volume(torus) < 0) flip(torus);
+  return torus;
+}
+
 inline std::string scene_error(const std::string& text, const std::vector<std::string>& sets = {}) {
   try {
     parse_scene(text, "t.json", sets);

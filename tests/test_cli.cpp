@@ -53,7 +53,7 @@ TEST_CASE("sphray run reports bad input with exit code 2", "[cli][cpu]") {
   CHECK(has(r.output, "unknown command 'rnu': one of run, render, view, inspect, bench"));
   r = run_cli("bench simm");
   CHECK(r.code == 2);
-  CHECK(has(r.output, "unknown command 'simm' after 'bench': one of sim, field, frame, render, surface, mesh"));
+  CHECK(has(r.output, "unknown command 'simm' after 'bench': one of sim, field, frame, render, surface, mesh, skin"));
   r = run_cli("bench sim --backend cpu --steps -3");  // CLI11's own check, with sphray's prefix
   CHECK(r.code == 2);
   CHECK(has(r.output, "sphray: error: --steps: Value -3 not in range"));  // CLI11 2.3 and 2.4 word the range differently

@@ -1,0 +1,70 @@
+// The skins' waves on one backend (sph/skin.h), included by solver_cpu.cpp
+// and solver_cuda.cu inside their backend namespace.
+
+class SkinSetImpl final : public SkinSet {
+ public:
+  SkinSetImpl(std::vector<SkinGeometry> geo, const SphParams& prm) : prm_(prm) {
+    geo_ = std::move(geo);
+    buf_.resize(geo_.size());
+    for (size_t k = 0; k < geo_.size(); ++k) {
+      const SkinGeometry& g = geo_[k];
+      Buffers& b = buf_[k];
+      upload(b.point, g.point);
+      upload(b.neighbour, g.neighbour);
+      upload(b.coef, g.coef);
+      const std::vector<float> zero(g.point.size(), 0.0f);
+      upload(b.h, zero);
+      upload(b.v, zero);
+      upload(b.load, zero);
+    }
+  }
+
+  void advance(const ParticleView& p, const float* pressure, double t, double dt) override {
+    clock_.start();
+    for (size_t k = 0; k < geo_.size(); ++k) {
+      const SkinGeometry& g = geo_[k];
+      Buffers& b = buf_[k];
+      const uint32_t n = uint32_t(g.point.size());
+      if (pressure && p.n > 0)
+        parallel_for("skin_load", n,
+                     SampleSkinLoad{raw(b.point), g.input.motion.at(float(t)), p.grid, p.fine_offsets, p.pos, pressure,
+                                    prm_.kernel, prm_.particle_mass, prm_.gravity, raw(b.load)});
+      if (!(dt > 0.0)) continue;
+      const SkinParams& sp = g.input.params;
+      const float omega = float(2.0 * M_PI * sp.frequency);
+      const int sub = int(std::ceil(dt / g.max_substep));
+      const float h = float(dt / sub);
+      for (int s = 0; s < sub; ++s) {
+        parallel_for("skin_accelerate", n,
+                     SkinAccelerate{raw(b.h), raw(b.v), raw(b.load), raw(b.neighbour), raw(b.coef), omega * omega,
+                                    omega * omega * sp.compliance, sp.damping, h});
+        parallel_for("skin_move", n, SkinMove{raw(b.h), raw(b.v), h});
+      }
+    }
+    clock_.end_of("skin");
+    clock_.finish();
+    ms_ = clock_.ms("skin");
+  }
+
+  std::vector<float> heights(size_t k) const override { return sphray::SPHRAY_BK::download(buf_[k].h, buf_[k].h.size()); }
+  std::vector<float> loads(size_t k) const override {
+    return sphray::SPHRAY_BK::download(buf_[k].load, buf_[k].load.size());
+  }
+  void set_heights(size_t k, const std::vector<float>& h) override {
+    if (h.size() != geo_[k].point.size()) throw std::invalid_argument("skin: one height per texel expected");
+    upload(buf_[k].h, h);
+    upload(buf_[k].v, std::vector<float>(h.size(), 0.0f));
+  }
+  double last_ms() const override { return ms_; }
+
+ private:
+  struct Buffers {
+    Vector<Vec3f> point;
+    Vector<uint32_t> neighbour;
+    Vector<float> coef, h, v, load;
+  };
+  SphParams prm_;
+  std::vector<Buffers> buf_;
+  StageClock clock_;
+  double ms_ = 0;
+};
