@@ -47,7 +47,7 @@ std::vector<BenchFrameRow> bench_frame(Backend b, const BenchFrameOptions& opt, 
     const FieldSetup fs = make_field_setup(rs);  // the environment's frame, with or without a field
     auto field = with_field ? make_field_builder(b, fs, kind) : nullptr;
     auto renderer = make_renderer(b);
-    renderer->set_obstacles(obstacle_meshes(s));
+    renderer->set_obstacles(drawn_obstacles(obstacle_meshes(s), *solver));
     simulate_collapse(s, *solver, opt.collapse, log);
     const Camera cam = make_camera(s.tank, s.render);
     const Environment env = make_environment(s.tank, fs.geom, cam);
@@ -64,6 +64,7 @@ std::vector<BenchFrameRow> bench_frame(Backend b, const BenchFrameOptions& opt, 
                        : advance_frame(*solver, opt.substeps, presence, 1e30);
       const ParticleView pv = solver->view();
       if (with_field) field->build(pv);
+      show_skins(*solver, *renderer);
       renderer->render(RenderInput{with_field ? field->data() : nullptr, &fs, pv, s.sph.spacing, solver->time()}, cam, env,
                        s.render);
       const double w = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();

@@ -8,6 +8,7 @@
 #include <set>
 #include <sstream>
 
+#include "mesh/skin_map.h"
 #include "sph/obstacles.h"
 
 namespace sphray {
@@ -222,6 +223,29 @@ void read_motion(const ConfigReader& o, Obstacle& ob, const Scene& s, const Conf
   }
 }
 
+// "obstacles.N.skin": waves on the mesh's surface (sph/skin.h). The mesh
+// must map one to one onto a sphere (mesh/skin_map.h), checked here.
+void read_skin(const ConfigReader& o, Obstacle& ob, const Scene& s) {
+  const ConfigReader k = o.child("skin");
+  k.only({"resolution", "wave_speed", "damping", "frequency", "compliance", "stencil"});
+  if (s.sph.solver == SolverKind::Pbf)
+    o.fail("skin", o.at("skin"), "needs a solver with a pressure to drive the waves: sph.solver \"wcsph\" or \"dfsph\" (pbf has none)");
+  SkinParams& p = ob.skin;
+  p.resolution = k.integer("resolution", p.resolution, 4, 512);
+  p.wave_speed = float(k.number("wave_speed", p.wave_speed, 0, 1e3, false, true));
+  p.damping = float(k.number("damping", p.damping, 0, 1e4));
+  p.frequency = float(k.number("frequency", p.frequency, 0, 1e4, false, true));
+  p.compliance = float(k.number("compliance", p.compliance, 0, 1));
+  const std::string st = k.string("stencil", "fitted", {"fitted", "surface", "texture"});
+  p.stencil = st == "surface" ? SkinStencil::Surface : st == "texture" ? SkinStencil::Texture : SkinStencil::Fitted;
+  try {
+    embed_on_sphere(ob.mesh);
+  } catch (const MeshError& e) {
+    o.fail("skin", o.at("skin"), e.what());
+  }
+  ob.has_skin = true;
+}
+
 // "obstacles": meshes read, placed and checked here, so that every problem
 // is reported with the key and file before anything runs.
 void read_obstacles(const ConfigReader& root, Scene& s) {
@@ -234,7 +258,7 @@ void read_obstacles(const ConfigReader& root, Scene& s) {
   const std::filesystem::path folder = std::filesystem::path(root.file()).parent_path();
   for (size_t k = 0; k < list.size(); ++k) {
     const ConfigReader o(list[k], root.file(), "obstacles." + std::to_string(k));
-    o.only({"mesh", "scale", "rotate", "translate", "motion"});
+    o.only({"mesh", "scale", "rotate", "translate", "motion", "skin"});
     if (!o.has("mesh") || !o.at("mesh").is_string() || o.at("mesh").get<std::string>().empty())
       o.fail("mesh", o.has("mesh") ? o.at("mesh") : json(), "is required: the path of an OBJ file (relative to the scene file)");
     Obstacle ob;
@@ -272,6 +296,7 @@ void read_obstacles(const ConfigReader& root, Scene& s) {
       o.fail("mesh", o.at("mesh"), os.str());
     }
     if (o.has("motion")) read_motion(o, ob, s, root);
+    if (o.has("skin")) read_skin(o, ob, s);
     s.obstacles.push_back(std::move(ob));
   }
 }

@@ -18,6 +18,7 @@
 #include "render/render_settings.h"
 #include "sph/config.h"
 #include "sph/obstacles.h"
+#include "sph/skin_params.h"
 #include "sph/eos.h"
 
 namespace sphray {
@@ -36,6 +37,8 @@ struct Obstacle {
   Placement placement;  // as given
   TriangleMesh mesh;    // placed: world coordinates at t = 0, outward winding
   Motion motion;        // "motion"; omega 0: static
+  bool has_skin = false;  // "skin": waves on its surface (sph/skin.h)
+  SkinParams skin;
 };
 
 // A water-height gauge: the liquid's height above the tank floor on the

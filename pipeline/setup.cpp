@@ -13,6 +13,7 @@
 #include "mesh/bvh.h"
 #include "nsearch/pair_masks.h"
 #include "sph/eos.h"
+#include "sph/skin.h"
 
 namespace sphray {
 
@@ -173,6 +174,24 @@ std::vector<MeshInput> obstacle_meshes(const Scene& s) {
     out.back().motion = o.motion;
   }
   return out;
+}
+
+std::vector<MeshInput> drawn_obstacles(std::vector<MeshInput> meshes, const Solver& solver) {
+  std::vector<MeshInput> out = std::move(meshes);
+  const SkinSet* skins = solver.skins();
+  for (size_t k = 0; skins && k < skins->size(); ++k) {
+    const SkinGeometry& g = skins->geometry(k);
+    const Motion motion = out[g.input.obstacle].motion;
+    out[g.input.obstacle] = mesh_input(g.surface.mesh);
+    out[g.input.obstacle].motion = motion;
+  }
+  return out;
+}
+
+void show_skins(const Solver& solver, Renderer& renderer) {
+  const SkinSet* skins = solver.skins();
+  for (size_t k = 0; skins && k < skins->size(); ++k)
+    renderer.set_obstacle_vertices(skins->geometry(k).input.obstacle, skins->displaced(k));
 }
 
 SphParams make_params(const Scene& s) {
@@ -396,6 +415,9 @@ SolverInput make_solver_input(const ResolvedScene& r, PresenceMode presence) {
   in.fluid_vel.reserve(z.fluid);
   const std::vector<ObstacleProbe> probes = obstacle_probes(s);
   in.obstacles = obstacle_meshes(s);
+  for (size_t k = 0; k < s.obstacles.size(); ++k)
+    if (s.obstacles[k].has_skin)
+      in.skins.push_back({uint32_t(k), s.obstacles[k].mesh, s.obstacles[k].motion, s.obstacles[k].skin});
   for (size_t b = 0; b < s.fluid.size(); ++b) {
     const FluidBlock& blk = s.fluid[b];
     const Vec3d e = blk.box.max - blk.box.min;

@@ -7,6 +7,7 @@
 #include <cstddef>
 
 #include "field/field.h"
+#include "render/render.h"
 #include "io/scene.h"
 #include "sph/solver.h"
 
@@ -33,6 +34,12 @@ SphParams make_params(const Scene& s);
 // A placed mesh as the solver and the renderer take it.
 MeshInput mesh_input(const TriangleMesh& m);
 std::vector<MeshInput> obstacle_meshes(const Scene& s);  // every obstacle's
+// The meshes a renderer draws for a run of `solver`: the scene's
+// (obstacle_meshes), a skinned one replaced by its skin's finer surface
+// (sph/skin.h), whose vertices show_skins then moves before each frame.
+std::vector<MeshInput> drawn_obstacles(std::vector<MeshInput> meshes, const Solver& solver);
+// Hands the renderer each skin's surface displaced by its waves now.
+void show_skins(const Solver& solver, Renderer& renderer);
 // One presence lobe (sph/interaction.h) of a particle inside a full cubic
 // lattice of spacing dx: the value that presence is normalised by.
 double presence_lobe_on_lattice(const SmoothingKernel<double>& k, double dx);

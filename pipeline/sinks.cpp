@@ -23,11 +23,18 @@ std::ofstream open_output(const std::string& flag, const std::string& path) {
 
 void PngSink::open(const Scene& scene, Backend b, const FieldSetup& fs) {
   frames_ = std::make_unique<FrameRenderer>(scene.render, scene.tank, scene.sph.spacing, b, fs, dir_, flag_);
-  frames_->set_obstacles(obstacle_meshes(scene));
+  meshes_ = obstacle_meshes(scene);
+  frames_->set_obstacles(meshes_);
 }
 
 void PngSink::write(const Solver& s, const FieldBuilder* field, int frame) {
-  if (frame % every_ == 0) frames_->write_frame(s.view(), field, frame, s.time());
+  if (frame % every_ != 0) return;
+  if (s.skins()) {
+    if (!skins_drawn_) frames_->set_obstacles(drawn_obstacles(meshes_, s));
+    skins_drawn_ = true;
+    show_skins(s, frames_->renderer());
+  }
+  frames_->write_frame(s.view(), field, frame, s.time());
 }
 
 FrameNeeds ExportSink::needs(int frame) const { return frame % every_ == 0 ? needs_ever() : FrameNeeds{}; }

@@ -33,6 +33,8 @@ class PngSink final : public OutputSink {
   int every_;
   bool field_;
   std::unique_ptr<FrameRenderer> frames_;
+  std::vector<MeshInput> meshes_;  // the scene's obstacles
+  bool skins_drawn_ = false;       // the skins' surfaces replace them (drawn_obstacles)
 };
 
 // HDF5 frames (--export), every `every`-th output frame, with the datasets

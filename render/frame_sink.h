@@ -35,6 +35,7 @@ class FrameRenderer {
   const std::string& dir() const { return dir_; }
   // The scene's obstacles, drawn in the frames that follow (Renderer::set_obstacles).
   void set_obstacles(const std::vector<MeshInput>& meshes) { renderer_->set_obstacles(meshes); }
+  Renderer& renderer() { return *renderer_; }
 
  private:
   Image render(const ParticleView& particles, const FieldBuilder* field, double time);  // the image, its time counted

@@ -63,6 +63,9 @@ class Renderer {
   // follow: raycast and slices draw them (raycast.h, MeshHits); screen_space
   // does not. Their BVHs are built here, once, on the renderer's backend.
   virtual void set_obstacles(const std::vector<MeshInput>& meshes) = 0;
+  // New vertex positions (same count and triangles) for obstacle k, its
+  // BVH refitted: a skin's displaced surface (sph/skin.h).
+  virtual void set_obstacle_vertices(uint32_t k, const std::vector<Vec3f>& vertices) = 0;
   // The viewer's interop target: the next renders write here instead (device
   // memory on CUDA, host memory on CPU), width x height pixels; null: own buffer.
   virtual void set_target(uint32_t* pixels) = 0;

@@ -11,6 +11,11 @@ class RendererImpl final : public Renderer {
   void set_obstacles(const std::vector<MeshInput>& meshes) override {
     obstacles_ = make_obstacle_set(kBackend, meshes, 0.0f);
   }
+  void set_obstacle_vertices(uint32_t k, const std::vector<Vec3f>& vertices) override {
+    if (k >= obstacles_.trees.size()) throw std::out_of_range("renderer: no obstacle " + std::to_string(k));
+    obstacles_.trees[k]->refit(vertices);
+    obstacles_.view.mesh[k] = obstacles_.trees[k]->view();
+  }
 
   Image download() const override {
     Image img;

@@ -11,6 +11,7 @@
 #include "io/metrics.h"
 #include "mesh/bvh.h"
 #include "pipeline/setup.h"
+#include "sph/skin.h"
 
 using namespace sphray;
 using test::has;
@@ -345,4 +346,123 @@ TEST_CASE("a piston paddle drives the liquid and no particle enters it, under WC
 
 TEST_CASE("cuda: a piston paddle drives the liquid and no particle enters it", "[gpu]") {
   for (const char* solver : {"wcsph", "pbf", "dfsph"}) check_piston(solver, Backend::Cuda);
+}
+
+TEST_CASE("bad skins are refused naming the key and the problem", "[mesh][cpu]") {
+  const std::string box = unit_box_obj();
+  const std::string torus = test::tmp_dir() + "/torus.obj";
+  write_obj(test::torus_mesh("torus"), torus);
+  auto skinned = [&](const std::string& mesh, const std::string& skin, const std::string& sph = R"({"spacing": 0.01})") {
+    return with_obstacle(R"({"mesh": ")" + mesh + R"(", "scale": 0.04, "translate": [0.25, 0.03, 0.02], "skin": )" +
+                             skin + "}",
+                         sph);
+  };
+  CHECK(test::scene_error(skinned(box, "{}")).empty());
+  std::string e = test::scene_error(skinned(box, "{}", R"({"spacing": 0.01, "solver": "pbf"})"));
+  CHECK((has(e, "obstacles.0.skin") && has(e, "pbf")));
+  e = test::scene_error(skinned(box, R"({"resolution": 2})"));
+  CHECK(has(e, "obstacles.0.skin.resolution"));
+  e = test::scene_error(skinned(box, R"({"wave_speed": 0})"));
+  CHECK(has(e, "obstacles.0.skin.wave_speed"));
+  e = test::scene_error(skinned(box, R"({"frequency": -1})"));
+  CHECK(has(e, "obstacles.0.skin.frequency"));
+  e = test::scene_error(skinned(box, R"({"damping": -1})"));
+  CHECK(has(e, "obstacles.0.skin.damping"));
+  e = test::scene_error(skinned(box, R"({"compliance": -1e-6})"));
+  CHECK(has(e, "obstacles.0.skin.compliance"));
+  e = test::scene_error(skinned(box, R"({"stencil": "cubic"})"));
+  CHECK(has(e, "obstacles.0.skin.stencil"));
+  e = test::scene_error(skinned(box, R"({"speed": 1})"));
+  CHECK(has(e, "obstacles.0.skin.speed"));
+  e = test::scene_error(with_obstacle(R"({"mesh": ")" + torus +
+                                     R"(", "scale": 0.03, "translate": [0.25, 0.05, 0.1], "skin": {}})"));
+  CHECK((has(e, "obstacles.0.skin") && has(e, "torus") && has(e, "genus-0")));
+}
+
+namespace {
+
+// The 6 cm cube of the buoyancy check with a skin, stiff and heavily damped
+// so that it settles within a few hundredths of a second: where the pool's
+// pressure p = rho g depth holds still, the skin dents by h = -C p (the
+// foundation's balance; the wave term is small, s / w0 = 1.6 mm against
+// the 6 cm faces). Per texel on the cube's faces away from its edges, the
+// height and the load averaged over t = 0.1 .. 0.2 s against the analytic
+// pressure at the texel's depth below the pool's surface.
+struct DentError {
+  double height = 0, load = 0;  // RMS relative errors
+  size_t texels = 0;
+};
+DentError skin_dent(Backend backend, const std::string& solver) {
+  const std::string text = R"({"tank": {"min": [0, 0, 0], "max": [0.2, 0.2, 0.2]},
+    "fluid": [{"min": [0, 0, 0], "max": [0.2, 0.2, 0.16]}],
+    "obstacles": [{"mesh": ")" + unit_box_obj() + R"(", "scale": 0.06, "translate": [0.07, 0.07, 0.05],
+                   "skin": {"resolution": 16, "wave_speed": 0.1, "frequency": 10, "damping": 100,
+                            "compliance": 1e-6}}],
+    "sph": {"spacing": 0.01, "solver": ")" + solver + R"("}})";
+  const Scene s = parse_scene(text, "t.json");
+  const ResolvedScene r = resolve_scene(s);
+  const SolverInput in = make_solver_input(r, PresenceMode::Off);
+  auto solver_ptr = backend == Backend::Cuda ? make_cuda_solver(in) : make_cpu_solver(in);
+  Solver& sv = *solver_ptr;
+  REQUIRE(sv.skins() != nullptr);
+  const SkinGeometry& g = sv.skins()->geometry(0);
+  std::vector<double> h(g.map.size(), 0.0), load(g.map.size(), 0.0);
+  int samples = 0;
+  for (double t = 0.1; t <= 0.2 + 1e-9; t += 0.01) {
+    test::run_until(sv, t);
+    const std::vector<float> hk = sv.skins()->heights(0), lk = sv.skins()->loads(0);
+    for (size_t i = 0; i < h.size(); ++i) {
+      h[i] += hk[i];
+      load[i] += lk[i];
+    }
+    ++samples;
+  }
+  // The pool's surface: the mean height of the top particles' layer.
+  const HostParticles p = sv.download();
+  double top = 0;
+  for (const Vec3f& x : p.pos) top = std::max(top, double(x.z));
+  top += 0.5 * s.sph.spacing;
+  DentError e;
+  double sh = 0, sl = 0;
+  for (size_t i = 0; i < h.size(); ++i) {
+    const Vec3d x = g.map.point[i];
+    const double lo = 0.07 + 0.01, hi = 0.13 - 0.01;  // away from the cube's edges
+    const bool inner = (x.x > lo && x.x < hi) + (x.y > lo && x.y < hi) + (x.z > 0.06 && x.z < 0.10) >= 2;
+    if (!inner) continue;
+    const double p_exact = 1000.0 * 9.81 * (top - x.z);
+    const double dent = -1e-6 * p_exact;
+    sh += std::pow((h[i] / samples - dent) / dent, 2);
+    sl += std::pow((load[i] / samples - p_exact) / p_exact, 2);
+    ++e.texels;
+  }
+  e.height = std::sqrt(sh / e.texels);
+  e.load = std::sqrt(sl / e.texels);
+  return e;
+}
+
+// DFSPH's pressure of one step is noisy (its solve stops at a tolerance;
+// Solver::pressures): its load is checked only through the dent, which the
+// damped skin averages over many steps.
+void check_dent(Backend backend, const std::string& solver, double load_tol, double dent_tol) {
+  const DentError e = skin_dent(backend, solver);
+  INFO(solver << ": RMS relative error of the load " << e.load << ", of the dent " << e.height << " over " << e.texels
+              << " texels");
+  CHECK(e.texels > 200);
+  if (load_tol > 0) CHECK(e.load < load_tol);
+  CHECK(e.height < dent_tol);
+}
+
+}  // namespace
+
+TEST_CASE("a skin under a still pool dents by its compliance times the hydrostatic pressure", "[mesh][cpu]") {
+  check_dent(Backend::Cpu, "wcsph", 0.02, 0.02);
+}
+
+TEST_CASE("a skin under DFSPH dents by its compliance times the hydrostatic pressure", "[mesh][cpu]") {
+  check_dent(Backend::Cpu, "dfsph", 0, 0.05);
+}
+
+TEST_CASE("cuda: a skin under a still pool dents by its compliance times the hydrostatic pressure", "[gpu]") {
+  check_dent(Backend::Cuda, "wcsph", 0.02, 0.02);
+  check_dent(Backend::Cuda, "dfsph", 0, 0.05);
 }

@@ -414,7 +414,7 @@ int run_viewer(const ViewOptions& opt, std::ostream& log) {
   std::unique_ptr<Solver> solver = make_solver(rscene, b, needs);
   std::unique_ptr<FieldBuilder> field = make_field(rscene, b, needs);
   std::unique_ptr<Renderer> renderer = make_renderer(b);
-  renderer->set_obstacles(obstacle_meshes(scene));
+  renderer->set_obstacles(drawn_obstacles(obstacle_meshes(scene), *solver));
   RenderSettings rs = scene.render;
   {
     Vec3d eye, target;
@@ -445,6 +445,7 @@ int run_viewer(const ViewOptions& opt, std::ostream& log) {
     if (s.draws_field) field->build(pv);
     s.field_ms = s.draws_field ? field->last_ms() : 0.0;
     const Camera cam = look_at(ctl.orbit.eye(), ctl.orbit.target, rs.fov, W, H);
+    show_skins(*solver, *renderer);
     display.render(*renderer,
                    RenderInput{s.draws_field ? field->data() : nullptr, &field->setup(), pv, scene.sph.spacing,
                                solver->time()},
