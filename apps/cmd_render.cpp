@@ -45,7 +45,11 @@ int render_scene(const RenderArgs& ra, const std::string& backend_arg, std::vect
   PngSink png(single ? "" : ra.out, scene.render, "--out");
   const int last = scene.run.end_time > 0 ? 1 : 0;
   const bool needs_field = method_needs_field(scene.render.method);
-  FunctionSink one([&](const Solver& s, const FieldBuilder* f, int) { png.frames().render_to(s.view(), f, ra.out, s.time()); },
+  FunctionSink one(
+      [&](const Solver& s, const FieldBuilder* f, int) {
+        png.draw_skins(s);
+        png.frames().render_to(s.view(), f, ra.out, s.time());
+      },
                    FrameNeeds{needs_field, false}, [last](int f) { return f == last; });
   OutputSink* sink = single ? static_cast<OutputSink*>(&one) : &png;
   const StageNeeds needs = needs_of(scene, {sink});

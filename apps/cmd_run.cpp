@@ -11,6 +11,7 @@
 #include "io/frames_h5.h"
 #include "pipeline/pipeline.h"
 #include "pipeline/setup.h"
+#include "sph/skin.h"
 #include "pipeline/sinks.h"
 
 namespace sphray::cli {
@@ -53,6 +54,17 @@ void print_start(const ResolvedScene& rs, const std::string& scene_path, const S
     size_t tris = 0;
     for (const Obstacle& o : scene.obstacles) tris += o.mesh.size();
     std::cout << ", " << scene.obstacles.size() << " obstacle(s) of " << tris << " triangles";
+    if (const SkinSet* skins = solver.skins()) {
+      for (size_t k = 0; k < skins->size(); ++k) {
+        const SkinGeometry& g = skins->geometry(k);
+        std::cout << " (obstacle " << g.input.obstacle << ": a skin of " << g.map.size() << " texels, "
+                  << g.map.mean_spacing * 1e3 << " mm apart"
+                  << (g.map.embedding.iterations ? ", mapped to the sphere after " +
+                                                        std::to_string(g.map.embedding.iterations) + " flow steps"
+                                                  : std::string())
+                  << ")";
+      }
+    }
   }
   if (solver.kind() == SolverKind::Pbf)
     std::cout << ", " << scene.sph.pbf.iterations << " iterations, walls: the tank's planes";

@@ -236,7 +236,7 @@ void read_skin(const ConfigReader& o, Obstacle& ob, const Scene& s) {
   p.damping = float(k.number("damping", p.damping, 0, 1e4));
   p.frequency = float(k.number("frequency", p.frequency, 0, 1e4, false, true));
   p.compliance = float(k.number("compliance", p.compliance, 0, 1));
-  const std::string st = k.string("stencil", "fitted", {"fitted", "surface", "texture"});
+  const std::string st = k.string("stencil", "surface", {"surface", "fitted", "texture"});
   p.stencil = st == "surface" ? SkinStencil::Surface : st == "texture" ? SkinStencil::Texture : SkinStencil::Fitted;
   try {
     embed_on_sphere(ob.mesh);

@@ -71,7 +71,7 @@ struct StepTally {
 
   void add(const Solver& solver, bool free, RunSummary& r) {
     const StageTimes& st = solver.last_stage_times();
-    sum.grid += st.grid; sum.pairs += st.pairs; sum.integrate += st.integrate;
+    sum.grid += st.grid; sum.pairs += st.pairs; sum.integrate += st.integrate; sum.skin += st.skin;
     const StepLimits& l = solver.last_limits();
     if (free) {
       dt_sum += l.dt;
@@ -103,7 +103,7 @@ void finish_summary(RunSummary& r, const Solver& solver, const StepTally& tally,
   r.clamped = solver.num_clamped();
   if (r.steps) {
     const double k = 1.0 / double(r.steps);
-    r.mean_stage_ms = {tally.sum.grid * k, tally.sum.pairs * k, tally.sum.integrate * k};
+    r.mean_stage_ms = {tally.sum.grid * k, tally.sum.pairs * k, tally.sum.integrate * k, tally.sum.skin * k};
     r.iterations_mean = tally.iterations_sum * k;
     r.divergence_iterations_mean = tally.divergence_iterations_sum * k;
     r.density_error_mean = tally.density_error_sum * k;
@@ -270,7 +270,9 @@ void print_summary(const RunSummary& r, std::ostream& log) {
   log << "  max speed      " << r.max_speed << " m/s\n"
       << "  ms per step    grid (with the pair masks) " << r.mean_stage_ms.grid
       << ", pairs (forces, density rate, presence where needed) " << r.mean_stage_ms.pairs << ", integrate "
-      << r.mean_stage_ms.integrate << "\n";
+      << r.mean_stage_ms.integrate;
+  if (r.mean_stage_ms.skin > 0) log << ", obstacle skins " << r.mean_stage_ms.skin;
+  log << "\n";
   if (r.field_builds)
     log << "  field          " << r.field_builder << " builder, " << r.field_kernel << " kernels, " << r.field_dims[0]
         << "x" << r.field_dims[1] << "x" << r.field_dims[2] << " voxels, " << r.field_builds << " builds, " << r.field_ms_mean << " ms per build"

@@ -27,13 +27,16 @@ void PngSink::open(const Scene& scene, Backend b, const FieldSetup& fs) {
   frames_->set_obstacles(meshes_);
 }
 
+void PngSink::draw_skins(const Solver& s) {
+  if (!s.skins()) return;
+  if (!skins_drawn_) frames_->set_obstacles(drawn_obstacles(meshes_, s));
+  skins_drawn_ = true;
+  show_skins(s, frames_->renderer());
+}
+
 void PngSink::write(const Solver& s, const FieldBuilder* field, int frame) {
   if (frame % every_ != 0) return;
-  if (s.skins()) {
-    if (!skins_drawn_) frames_->set_obstacles(drawn_obstacles(meshes_, s));
-    skins_drawn_ = true;
-    show_skins(s, frames_->renderer());
-  }
+  draw_skins(s);
   frames_->write_frame(s.view(), field, frame, s.time());
 }
 

@@ -27,6 +27,9 @@ class PngSink final : public OutputSink {
   FrameNeeds needs(int frame) const override { return {field_ && frame % every_ == 0, false}; }
   FrameNeeds needs_ever() const override { return {field_, false}; }
   void write(const Solver& s, const FieldBuilder* field, int frame) override;
+  // The obstacles' skins as the solver's waves displace them now, for the
+  // next render (write does it itself).
+  void draw_skins(const Solver& s);
 
  private:
   std::string dir_, flag_;

@@ -15,7 +15,7 @@ namespace {
 constexpr double kEdgeWeight = 2.0 / 3.0, kDiagonalWeight = 1.0 / 3.0;
 
 // The render surface is refined to the texel spacing, within this many triangles.
-constexpr size_t kMaxSurfaceTriangles = size_t(1) << 21;
+constexpr size_t kMaxSurfaceTriangles = size_t(1) << 18;
 
 // Least-squares Laplacian weights: the quadratic through a texel's
 // neighbours (offsets in its tangent plane, weighted by 1 / d^2) fitted for
@@ -61,7 +61,8 @@ SkinGeometry make_skin_geometry(const SkinInput& in) {
     g.point[i] = to_f(g.map.point[i]);
     double diag = 0;
     std::array<double, kSkinNeighbours> fit{};
-    if (in.params.stencil == SkinStencil::Fitted) {
+    bool fitted_here = in.params.stencil == SkinStencil::Fitted;
+    if (fitted_here) {
       std::array<Vec3d, kSkinNeighbours> r{};
       std::array<bool, kSkinNeighbours> use{};
       for (int q = 0; q < kSkinNeighbours; ++q) {
@@ -69,19 +70,27 @@ SkinGeometry make_skin_geometry(const SkinInput& in) {
         use[q] = g.map.neighbour[i][q] != i;
       }
       fit = fitted_laplacian(r, g.map.normal[i], use);
+      // A negative weight (a skewed or squeezed neighbourhood) can make the
+      // scheme grow without bound: that texel keeps the paper's weights.
+      if (*std::min_element(fit.begin(), fit.end()) < 0.0) {
+        fitted_here = false;
+        ++g.unfitted;
+      }
     }
     for (int q = 0; q < kSkinNeighbours; ++q) {
       const uint32_t nb = g.map.neighbour[i][q];
       const double d = in.params.stencil == SkinStencil::Texture ? g.map.mean_spacing * (q < 4 ? 1.0 : std::sqrt(2.0))
                                                                  : g.map.distance[i][q];
       double c = (nb == i || d <= 0.0) ? 0.0 : s2 * (q < 4 ? kEdgeWeight : kDiagonalWeight) / (d * d);
-      if (in.params.stencil == SkinStencil::Fitted) c = s2 * fit[q];
+      if (fitted_here) c = s2 * fit[q];
       g.neighbour[i * kSkinNeighbours + q] = nb;
       g.coef[i * kSkinNeighbours + q] = float(c);
-      diag += std::abs(c);
+      diag += c;
     }
     lambda_max = std::max(lambda_max, 2.0 * diag);  // Gershgorin's bound on the stencil's spectrum
   }
+  const Box box = bounds(in.mesh);
+  g.size = length(box.max - box.min);
   const double omega = 2.0 * M_PI * in.params.frequency;
   // Symplectic Euler is stable for dt^2 lambda <= 4; a fifth kept in hand.
   g.max_substep = 0.8 * 2.0 / std::sqrt(lambda_max + omega * omega);

@@ -10,10 +10,10 @@
 // 2 pi f0 the foundation's frequency, zeta the damping rate and C the
 // compliance (a steady pressure p dents the skin by C p). The Laplacian
 // takes each texel's eight neighbours at their positions on the real
-// surface, which removes the cube map's distortion: by default with weights
-// fitted to those positions (SkinStencil::Fitted), or as the paper does,
-// edge neighbours 2/3 and diagonals 1/3 over their distances squared (exact
-// for quadratics on a square grid only). p is sampled per texel after every solver step from the
+// surface, which removes the cube map's distortion: by default as the paper
+// does, edge neighbours 2/3 and diagonals 1/3 over their distances squared
+// (exact for quadratics on a square grid only), or with weights fitted to
+// those positions (SkinStencil). p is sampled per texel after every solver step from the
 // fluid particles within one support (Shepard average, with the hydrostatic
 // extrapolation of Adami et al. 2012 to the surface point); a texel with
 // little liquid near it (kernel sum below kSkinCover) sees a proportionally
@@ -97,6 +97,23 @@ struct SkinMove {
   SPHRAY_HD void operator()(uint32_t i) const { h[i] += dt * v[i]; }
 };
 
+// The largest |h| (infinity for a non-finite one): the guard against waves
+// that grow without bound.
+struct SkinAbsHeight {
+  const float* h;
+  SPHRAY_HD float operator()(uint32_t i) const {
+    const float a = h[i] < 0.0f ? -h[i] : h[i];
+    return a == a ? a : INFINITY;
+  }
+};
+struct SkinMax {
+  SPHRAY_HD float operator()(float a, float b) const { return a > b ? a : b; }
+};
+// Every this many advances the largest height is checked (one reduction and
+// read-back): beyond a quarter of the obstacle's size the run stops
+// (SimulationError) rather than draw a skin blown apart.
+constexpr int kSkinCheckEvery = 64;
+
 // Host-side geometry of a skin: its cube map, the render surface that the
 // heights displace, and the per-texel arrays the kernels read.
 struct SkinGeometry {
@@ -107,6 +124,8 @@ struct SkinGeometry {
   std::vector<uint32_t> neighbour;  // kSkinNeighbours per texel
   std::vector<float> coef;          // kSkinNeighbours per texel
   double max_substep = 0;           // [s] the explicit scheme's stability limit, with margin
+  size_t unfitted = 0;              // texels of a Fitted stencil left with the paper's weights
+  double size = 0;                  // the mesh's bounding-box diagonal [m]
 };
 SkinGeometry make_skin_geometry(const SkinInput& in);
 

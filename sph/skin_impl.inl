@@ -44,6 +44,7 @@ class SkinSetImpl final : public SkinSet {
     clock_.end_of("skin");
     clock_.finish();
     ms_ = clock_.ms("skin");
+    if (++advances_ % kSkinCheckEvery == 0) check(t);
   }
 
   std::vector<float> heights(size_t k) const override { return sphray::SPHRAY_BK::download(buf_[k].h, buf_[k].h.size()); }
@@ -58,6 +59,21 @@ class SkinSetImpl final : public SkinSet {
   double last_ms() const override { return ms_; }
 
  private:
+  void check(double t) {
+    for (size_t k = 0; k < geo_.size(); ++k) {
+      const uint32_t n = uint32_t(geo_[k].point.size());
+      transform_reduce_into(n, SkinAbsHeight{raw(buf_[k].h)}, SkinMax(), 0.0f, raw(peak_));
+      const float peak = read_one(peak_, 0);
+      if (!(peak <= 0.25 * geo_[k].size)) {
+        std::ostringstream os;
+        os << "obstacles." << geo_[k].input.obstacle << ".skin: its waves grew without bound (|h| = " << peak
+           << " m on a mesh " << geo_[k].size << " m across, t = " << t
+           << " s): raise its damping, lower its compliance, or use the \"surface\" stencil";
+        throw SimulationError(os.str());
+      }
+    }
+  }
+
   struct Buffers {
     Vector<Vec3f> point;
     Vector<uint32_t> neighbour;
@@ -67,4 +83,6 @@ class SkinSetImpl final : public SkinSet {
   std::vector<Buffers> buf_;
   StageClock clock_;
   double ms_ = 0;
+  uint64_t advances_ = 0;
+  Vector<float> peak_ = Vector<float>(1);
 };

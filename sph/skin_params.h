@@ -8,13 +8,16 @@
 
 namespace sphray {
 
-// The Laplacian on the texels: weights fitted per texel to its eight
-// neighbours' positions in its tangent plane (least squares: exact for
-// quadratics on the skewed grid near the cube's corners, the default);
-// Kira et al.'s fixed weights over the neighbours' distances on the surface;
-// or the same at the mean texel spacing (texture space, uncorrected).
-// docs/validation.md compares their wave speeds by direction.
-enum class SkinStencil { Fitted, Surface, Texture };
+// The Laplacian on the texels: Kira et al.'s eight neighbours at their
+// distances on the surface, edge neighbours 2/3 and diagonals 1/3 (the
+// default); weights fitted per texel to the neighbours' positions in its
+// tangent plane (least squares: exact for quadratics on the skewed grid
+// near the cube's corners, so more isotropic on round meshes, but not
+// symmetric: on a mesh whose map squeezes texels, as the bunny's, free
+// waves grow; a texel whose fit has a negative weight keeps the paper's);
+// or the paper's weights at the mean texel spacing (texture space,
+// uncorrected). docs/validation.md compares their speeds by direction.
+enum class SkinStencil { Surface, Fitted, Texture };
 
 struct SkinParams {
   int resolution = 48;       // texels along a cube edge (6 n^2 in all)
@@ -22,7 +25,7 @@ struct SkinParams {
   float damping = 3.0f;      // zeta [1/s]
   float frequency = 4.0f;    // f0 [Hz] of the restoring foundation
   float compliance = 1e-6f;  // steady dent per pascal [m/Pa]
-  SkinStencil stencil = SkinStencil::Fitted;
+  SkinStencil stencil = SkinStencil::Surface;
 };
 
 // One skinned obstacle as the solver's input gives it.

@@ -162,3 +162,41 @@ TEST_CASE("skin waves: free waves stay bounded for many crossings of the sphere"
     CHECK(peak < 1.2);
   }
 }
+TEST_CASE("skin waves on the bunny: free waves stay bounded; a skin blown apart stops the run", "[mesh][skin]") {
+  // The bunny is not star-shaped (its map needs the flow) and its conformal
+  // map squeezes and skews texels (ears, feet).
+  SkinInput in;
+  in.mesh = placed(read_obj(test::source_path("scenes/meshes/bunny.obj")), Placement{{0.12, 0.12, 0.12}, {90, 0, 0}, {0, 0, 0}});
+  in.params.resolution = 48;
+  in.params.wave_speed = 0.6f;
+  in.params.damping = 0.0f;
+  in.params.frequency = 1e-6f;
+  std::vector<SkinGeometry> geo;
+  geo.push_back(make_skin_geometry(in));
+  CHECK(geo[0].map.embedding.iterations > 0);
+  CHECK(*std::min_element(geo[0].coef.begin(), geo[0].coef.end()) >= 0.0f);
+  // A bump on its back, 3 s of free waves (several crossings of the bunny).
+  std::vector<float> h(geo[0].map.size());
+  const Vec3d top = geo[0].map.point[geo[0].map.texel_of({0.2, 0.3, 1.0})];
+  for (size_t i = 0; i < h.size(); ++i) h[i] = float(1e-3 * std::exp(-length2(geo[0].map.point[i] - top) / (2 * 0.01 * 0.01)));
+  const double size = geo[0].size;
+  auto skins = make_cpu_skin_set(std::move(geo), SphParams{});
+  skins->set_heights(0, h);
+  double peak = 0;
+  for (int k = 0; k < 3000; ++k) {
+    skins->advance(ParticleView{}, nullptr, k * 1e-3, 1e-3);
+    if (k % 100 == 99)
+      for (const float v : skins->heights(0)) peak = std::max(peak, double(std::abs(v)));
+  }
+  CHECK(std::isfinite(peak));
+  CHECK(peak < 1.2e-3);
+  // Heights beyond a quarter of the mesh's size: the guard stops the run within kSkinCheckEvery advances.
+  skins->set_heights(0, std::vector<float>(h.size(), float(0.3 * size)));
+  try {
+    for (int k = 0; k < kSkinCheckEvery; ++k) skins->advance(ParticleView{}, nullptr, 3.0, 1e-3);
+    FAIL("a skin displaced by 0.3 of its size ran on");
+  } catch (const SimulationError& e) {
+    CHECK_THAT(std::string(e.what()), Catch::Matchers::Contains("obstacles.0.skin") &&
+                                          Catch::Matchers::Contains("grew without bound"));
+  }
+}
