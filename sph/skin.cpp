@@ -101,6 +101,7 @@ std::vector<Vec3f> SkinSet::displaced(size_t k) const {
   const SkinGeometry& g = geo_[k];
   const std::vector<float> h = heights(k);
   std::vector<Vec3f> out(g.surface.mesh.vertices.size());
+#pragma omp parallel for schedule(static)
   for (size_t v = 0; v < out.size(); ++v)
     out[v] = to_f(g.surface.mesh.vertices[v] + g.surface.normal[v] * g.map.sample(h, g.surface.direction[v]));
   return out;
