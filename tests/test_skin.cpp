@@ -110,8 +110,7 @@ TEST_CASE("skin map: a mesh with no one-to-one spherical embedding is refused by
     embed_on_sphere(torus, 2000);
     FAIL("a torus was embedded on the sphere");
   } catch (const MeshError& e) {
-    CHECK_THAT(std::string(e.what()), Catch::Matchers::Contains("ring.obj") &&
-                                          Catch::Matchers::Contains("genus-0"));
+    CHECK((test::has(e.what(), "ring.obj") && test::has(e.what(), "genus-0")));
   }
 }
 
@@ -196,7 +195,6 @@ TEST_CASE("skin waves on the bunny: free waves stay bounded; a skin blown apart 
     for (int k = 0; k < kSkinCheckEvery; ++k) skins->advance(ParticleView{}, nullptr, 3.0, 1e-3);
     FAIL("a skin displaced by 0.3 of its size ran on");
   } catch (const SimulationError& e) {
-    CHECK_THAT(std::string(e.what()), Catch::Matchers::Contains("obstacles.0.skin") &&
-                                          Catch::Matchers::Contains("grew without bound"));
+    CHECK((test::has(e.what(), "obstacles.0.skin") && test::has(e.what(), "grew without bound")));
   }
 }
