@@ -52,7 +52,7 @@ struct SolverInput {
   // kMaxObstacles; WCSPH's wall particles inside them are in `boundary`.
   std::vector<MeshInput> obstacles;
   // Obstacles whose skins carry waves (sph/skin.h); the solver is then
-  // wrapped so that every step also advances them.
+  // wrapped (with_skins) so that its steps also advance them.
   std::vector<SkinInput> skins;
   // Step control, from the scene (sph.cfl, run.min_dt, run.max_dt; their
   // defaults are the scene's): WCSPH's CFL on h and the sound speed, PBF's

@@ -474,6 +474,34 @@ TEST_CASE("bench mesh times the BVH and the collision pass and stops the paths t
   CHECK(run_cli("bench mesh --backend cpu --levels 12").code == 2);
 }
 
+TEST_CASE("bench skin measures the waves' speed by direction for every stencil", "[cli][cpu]") {
+  const std::string json = tmp + "/sphray_bench_skin.json";
+  const Result r = run_cli("bench skin --backend cpu --resolutions 16 --warmup 0 --frames 1 --json " + json);
+  INFO(r.output);
+  REQUIRE(r.code == 0);
+  const nlohmann::json j = nlohmann::json::parse(slurp(json));
+  REQUIRE(j["rows"].size() == 3);
+  for (const auto& row : j["rows"]) {
+    CHECK(row["texels"] == 6 * 16 * 16);
+    CHECK(double(row["speed_mean"]) == Approx(1.0).epsilon(0.1));
+    CHECK(double(row["speed_min"]) <= double(row["speed_max"]));
+  }
+  CHECK(run_cli("bench skin --backend cpu --resolutions 4").code == 2);
+}
+
+TEST_CASE("a run with a skinned obstacle names its skin and the skins' cost", "[cli][cpu]") {
+  const Result r = run_cli("run " + sphray::test::source_path("scenes/dam_break_bunny.json") +
+                           " --backend cpu --set sph.spacing=0.04 --set run.end_time=0.02 --set obstacles.0.skin.resolution=16");
+  INFO(r.output);
+  REQUIRE(r.code == 0);
+  CHECK(has(r.output, "a skin of 1536 texels"));
+  CHECK(has(r.output, "mapped to the sphere after"));  // the bunny is not star-shaped
+  CHECK(has(r.output, "obstacle skins"));
+  const Result pbf = run_cli("run " + sphray::test::source_path("scenes/dam_break_bunny.json") + " --set sph.solver=pbf");
+  CHECK(pbf.code == 2);
+  CHECK(has(pbf.output, "obstacles.0.skin"));
+}
+
 TEST_CASE("sphray view draws a scene's obstacles", "[viewer]") {
   if (!SPHRAY_TEST_VIEWER || std::system("command -v xvfb-run > /dev/null 2>&1") != 0) {
     WARN("no viewer in this build, or no xvfb-run: not tested");
