@@ -26,6 +26,7 @@
 #include <string>
 #include <vector>
 
+#include "core/atomics.h"
 #include "core/device.h"
 #include "core/vec.h"
 #include "mesh/skin_map.h"
@@ -41,7 +42,12 @@ namespace sphray {
 constexpr float kSkinCover = 0.25f;
 
 // The pressure at each texel's surface point [Pa], from the fluid particles
-// sorted on `grid` (pos: x, y, z, density; pressure per particle).
+// sorted on `grid` (pos: x, y, z, density; pressure per particle): one
+// element per texel and candidate row of the grid (nsearch/grid.h), adding
+// its part of the kernel-weighted sums into sum[2 i] (pressure) and
+// sum[2 i + 1] (weights), which start at zero; SkinLoadOf divides. A texel
+// alone per thread left the device mostly idle (14k texels, each walking a
+// few hundred candidates in turn).
 struct SampleSkinLoad {
   const Vec3f* point;  // per texel, in the obstacle's placed frame
   RigidFrame pose;     // the obstacle's pose now
@@ -52,22 +58,39 @@ struct SampleSkinLoad {
   SmoothingKernel<float> kernel;
   float mass;
   Vec3f gravity;
-  float* load;
-  SPHRAY_HD void operator()(uint32_t i) const {
+  float* sum;
+  SPHRAY_HD void operator()(uint32_t e) const {
+    const uint32_t i = e / kCandidateRows;
+    const int row = int(e % kCandidateRows);
     const Vec3f x = pose.to_world(point[i]);
+    uint32_t begin = 0, end = 0;
+    if (!candidate_row(grid, fine_offsets, x, row, begin, end) || begin == end) return;
     const float r_max = kernel.support(), r2_max = r_max * r_max;
     float num = 0.0f, den = 0.0f;
-    for_each_candidate(grid, fine_offsets, x, [&](uint32_t j) {
+    for (uint32_t j = begin; j < end; ++j) {
       const Float4 q = pos[j];
       const Vec3f r = x - xyz(q);
       const float r2 = dot(r, r);
-      if (r2 >= r2_max) return;
+      if (r2 >= r2_max) continue;
       const float w = kernel.W(std::sqrt(r2)) * mass / q.w;
       num += w * (pressure[j] + q.w * dot(gravity, r));
       den += w;
-    });
+    }
+    if (den == 0.0f) return;
+    atomic_add(&sum[2 * i], num);
+    atomic_add(&sum[2 * i + 1], den);
+  }
+};
+
+struct SkinLoadOf {
+  float* sum;  // zeroed for the next sampling
+  float* load;
+  SPHRAY_HD void operator()(uint32_t i) const {
+    const float num = sum[2 * i], den = sum[2 * i + 1];
     const float p = num / (den > kSkinCover ? den : kSkinCover);
     load[i] = p > 0.0f ? p : 0.0f;  // the liquid pushes; it does not pull
+    sum[2 * i] = 0.0f;
+    sum[2 * i + 1] = 0.0f;
   }
 };
 

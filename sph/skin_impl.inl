@@ -16,6 +16,7 @@ class SkinSetImpl final : public SkinSet {
       upload(b.h, zero);
       upload(b.v, zero);
       upload(b.load, zero);
+      upload(b.sum, std::vector<float>(2 * g.point.size(), 0.0f));
     }
   }
 
@@ -25,10 +26,12 @@ class SkinSetImpl final : public SkinSet {
       const SkinGeometry& g = geo_[k];
       Buffers& b = buf_[k];
       const uint32_t n = uint32_t(g.point.size());
-      if (pressure && p.n > 0)
-        parallel_for("skin_load", n,
+      if (pressure && p.n > 0) {
+        parallel_for("skin_load_sums", n * uint32_t(kCandidateRows),
                      SampleSkinLoad{raw(b.point), g.input.motion.at(float(t)), p.grid, p.fine_offsets, p.pos, pressure,
-                                    prm_.kernel, prm_.particle_mass, prm_.gravity, raw(b.load)});
+                                    prm_.kernel, prm_.particle_mass, prm_.gravity, raw(b.sum)});
+        parallel_for("skin_load", n, SkinLoadOf{raw(b.sum), raw(b.load)});
+      }
       if (!(dt > 0.0)) continue;
       const SkinParams& sp = g.input.params;
       const float omega = float(2.0 * M_PI * sp.frequency);
@@ -78,6 +81,7 @@ class SkinSetImpl final : public SkinSet {
     Vector<Vec3f> point;
     Vector<uint32_t> neighbour;
     Vector<float> coef, h, v, load;
+    Vector<float> sum;  // 2 per texel: the load's kernel-weighted sums (SampleSkinLoad)
   };
   SphParams prm_;
   std::vector<Buffers> buf_;
