@@ -10,6 +10,7 @@
 #include "pipeline/pipeline.h"
 #include "pipeline/setup.h"
 #include "pipeline/sinks.h"
+#include "sph/skin.h"
 
 namespace sphray::cli {
 
@@ -113,11 +114,35 @@ int render_file(const RenderArgs& ra, const std::string& backend_arg, const std:
   const bool needs_field = method_needs_field(scene.render.method);
   auto field = needs_field ? make_field_builder(b, fs, scene.field.builder) : nullptr;
   FrameRenderer frames(scene.render, scene.tank, scene.sph.spacing, b, fs, single ? "" : ra.out, "--out");
-  frames.set_obstacles(obstacle_meshes(scene));
+  // Skinned obstacles are drawn displaced by the heights the frames carry
+  // (a frame without them: at rest).
+  std::vector<MeshInput> meshes = obstacle_meshes(scene);
+  std::vector<SkinGeometry> skins;
+  for (size_t k = 0; k < scene.obstacles.size(); ++k)
+    if (scene.obstacles[k].has_skin) {
+      skins.push_back(make_skin_geometry({uint32_t(k), scene.obstacles[k].mesh, scene.obstacles[k].motion,
+                                          scene.obstacles[k].skin}));
+      meshes[k] = mesh_input(skins.back().surface.mesh);
+      meshes[k].motion = scene.obstacles[k].motion;
+    }
+  frames.set_obstacles(meshes);
   const size_t first = ra.frame >= 0 ? size_t(ra.frame) : 0, end = ra.frame >= 0 ? first + 1 : n;
   for (size_t k = first; k < end; ++k) {
     const Frame f = reader.read(k);
+    for (const SkinGeometry& g : skins) {
+      std::vector<float> h(g.map.size(), 0.0f);
+      for (const Frame::Skin& fk : f.skins)
+        if (fk.obstacle == g.input.obstacle) {
+          if (fk.height.size() != h.size())
+            throw std::runtime_error("--from '" + ra.from + "': frame " + std::to_string(k) + " holds " +
+                                     std::to_string(fk.height.size()) + " heights for obstacle " +
+                                     std::to_string(fk.obstacle) + "'s skin, its scene " + std::to_string(h.size()));
+          h = fk.height;
+        }
+      frames.renderer().set_obstacle_vertices(g.input.obstacle, displaced_surface(g, h));
+    }
     SolverInput in = make_solver_input(rs, PresenceMode::Off);
+    in.skins.clear();  // drawn from the file's heights; nothing steps here
     const float rho0 = float(scene.sph.rest_density);
     in.fluid_pos_rho.resize(f.count());
     for (size_t i = 0; i < f.count(); ++i) {

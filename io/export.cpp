@@ -1,4 +1,5 @@
 #include "export.h"
+#include "sph/skin.h"
 
 #include <algorithm>
 #include <functional>
@@ -41,6 +42,7 @@ struct Snapshot {
   std::vector<float> solver_pressure;  // Solver::pressures (DFSPH), sorted order; empty: Tait from the density
   VolumeGeom geom{};
   float iso = 0;
+  std::vector<Frame::Skin> skins;
   std::vector<uint32_t> rank, slot;  // scratch of convert()
   Frame out;                         // made by convert(), its buffers kept for the next frame
 };
@@ -98,6 +100,8 @@ void convert(Snapshot& s) {
     if (pres)
       for (size_t d = 0; d < 6; ++d) f.presence[6 * r + d] = p.presence[d * size_t(n) + i];
   }
+  f.skins.swap(s.skins);
+  s.skins.clear();
   f.field.swap(s.field);  // the next capture downloads into the other buffer
   s.field.clear();
   if (!f.field.empty()) {
@@ -153,6 +157,10 @@ std::function<std::shared_ptr<const Frame>()> capture_frame(const Solver& solver
   s->step = solver.steps();
   s->dt = solver.last_limits().dt;
   s->prm = prm;
+  s->skins.clear();
+  if (const SkinSet* skins = solver.skins())
+    for (size_t k = 0; k < skins->size(); ++k)
+      s->skins.push_back({skins->geometry(k).input.obstacle, skins->geometry(k).map.n, skins->heights(k)});
   if (field && fields.count("field")) {
     s->field = field->download();
     s->geom = field->setup().geom;

@@ -255,6 +255,11 @@ void FrameWriter::write(const Frame& f) {
     attr_array(d.id, "voxel_size", H5T_NATIVE_FLOAT, H5T_IEEE_F32LE, &f.field_voxel, 1, path_);
     attr_array(d.id, "iso", H5T_NATIVE_FLOAT, H5T_IEEE_F32LE, &f.field_iso, 1, path_);
   }
+  for (const Frame::Skin& k : f.skins) {
+    const hsize_t n = hsize_t(k.n);
+    dataset(g.id, ("skin_" + std::to_string(k.obstacle)).c_str(), H5T_NATIVE_FLOAT, H5T_IEEE_F32LE, k.height.data(),
+            {6, n, n}, gzip_, path_);
+  }
   if (H5Fflush(file_, H5F_SCOPE_GLOBAL) < 0) fail(path_, "flushing frame " + name);
   xdmf_.push_back({f.time,
                    f.count(),

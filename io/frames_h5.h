@@ -51,6 +51,14 @@ struct Frame {
   std::vector<float> field;         // nz x ny x nx or empty
   int field_dims[3] = {0, 0, 0};    // nx, ny, nz
   float field_origin[3] = {0, 0, 0}, field_voxel = 0, field_iso = 0;
+  // Obstacle skins' heights (sph/skin.h): per skinned obstacle its index in
+  // the scene's "obstacles" and 6 x n x n heights [m] (face, row, column).
+  struct Skin {
+    uint32_t obstacle = 0;
+    int n = 0;
+    std::vector<float> height;
+  };
+  std::vector<Skin> skins;
   size_t count() const { return id.size(); }
 };
 

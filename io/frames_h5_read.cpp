@@ -167,6 +167,21 @@ Frame FrameReader::read(size_t k) const {
     f.field_voxel = read_attr<float>(d.id, "voxel_size", H5T_NATIVE_FLOAT, path);
     f.field_iso = read_attr<float>(d.id, "iso", H5T_NATIVE_FLOAT, path);
   }
+  for (const std::string& name : fi.datasets) {
+    if (name.rfind("skin_", 0) != 0) continue;
+    Frame::Skin k;
+    try {
+      k.obstacle = uint32_t(std::stoul(name.substr(5)));
+    } catch (const std::exception&) {
+      throw FrameFileError(path + "/" + name + ": not skin_<obstacle index>");
+    }
+    std::vector<hsize_t> dims;
+    k.height = read_dataset<float>(g.id, name.c_str(), H5T_NATIVE_FLOAT, path, &dims);
+    if (dims.size() != 3 || dims[0] != 6 || dims[1] != dims[2])
+      throw FrameFileError(path + "/" + name + ": not 6 x n x n skin heights");
+    k.n = int(dims[1]);
+    f.skins.push_back(std::move(k));
+  }
   // Every per-particle dataset of the frame holds its particles (position is
   // N x 3, checked on opening; the field is a 3D grid, above): a reader
   // indexes them by particle.

@@ -98,9 +98,9 @@ SkinGeometry make_skin_geometry(const SkinInput& in) {
   return g;
 }
 
-std::vector<Vec3f> SkinSet::displaced(size_t k) const {
-  const SkinGeometry& g = geo_[k];
-  const std::vector<float> h = heights(k);
+std::vector<Vec3f> SkinSet::displaced(size_t k) const { return displaced_surface(geo_[k], heights(k)); }
+
+std::vector<Vec3f> displaced_surface(const SkinGeometry& g, const std::vector<float>& h) {
   std::vector<Vec3f> out(g.surface.mesh.vertices.size());
 #pragma omp parallel for schedule(static)
   for (size_t v = 0; v < out.size(); ++v)

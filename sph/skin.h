@@ -151,6 +151,9 @@ struct SkinGeometry {
   double size = 0;                  // the mesh's bounding-box diagonal [m]
 };
 SkinGeometry make_skin_geometry(const SkinInput& in);
+// The skin's render surface displaced by heights h (one per texel) along
+// its vertices' normals, in the placed pose (mesh coordinates).
+std::vector<Vec3f> displaced_surface(const SkinGeometry& g, const std::vector<float>& h);
 
 // Every skin of a run on one backend.
 class SkinSet {

@@ -15,6 +15,7 @@
 #include "catch.h"
 #include "helpers.h"
 #include "io/frames_h5.h"
+#include "mesh/mesh.h"
 #include "render/render.h"
 
 // This process's own directory (helpers.h), and its name.
@@ -500,6 +501,39 @@ TEST_CASE("a run with a skinned obstacle names its skin and the skins' cost", "[
   const Result pbf = run_cli("run " + sphray::test::source_path("scenes/dam_break_bunny.json") + " --set sph.solver=pbf");
   CHECK(pbf.code == 2);
   CHECK(has(pbf.output, "obstacles.0.skin"));
+}
+
+TEST_CASE("an export carries the skins' heights and render --from draws them", "[cli][cpu]") {
+  // A 6 cm cube with a skin in a still pool: dented by about C rho g depth (1e-6 m/Pa, 5-11 cm deep).
+  const std::string box = tmp + "/skin_box.obj", scene = tmp + "/skin_pool.json", h5 = tmp + "/skin_pool.h5";
+  sphray::write_obj(sphray::box_mesh({{0, 0, 0}, {1, 1, 1}}), box);
+  std::ofstream(scene) << R"({"tank": {"min": [0, 0, 0], "max": [0.2, 0.2, 0.2]},
+    "fluid": [{"min": [0, 0, 0], "max": [0.2, 0.2, 0.16]}],
+    "obstacles": [{"mesh": ")" + box + R"(", "scale": 0.06, "translate": [0.07, 0.07, 0.05],
+                   "skin": {"resolution": 8, "wave_speed": 0.1, "frequency": 10, "damping": 100}}],
+    "sph": {"spacing": 0.02}, "run": {"end_time": 0.06, "output_interval": 0.03}})";
+  const Result r = run_cli("run " + scene + " --backend cpu --export " + h5);
+  INFO(r.output);
+  REQUIRE(r.code == 0);
+  const sphray::FrameReader reader(h5);
+  REQUIRE(reader.frames().size() == 3);
+  const sphray::Frame f = reader.read(2);
+  REQUIRE(f.skins.size() == 1);
+  CHECK(f.skins[0].obstacle == 0);
+  CHECK(f.skins[0].n == 8);
+  REQUIRE(f.skins[0].height.size() == 6 * 8 * 8);
+  float lo = 0, hi = 0;
+  for (const float h : f.skins[0].height) {
+    lo = std::min(lo, h);
+    hi = std::max(hi, h);
+  }
+  CHECK(lo < -5e-4f);  // the bottom face, 11 cm deep: about -1.1 mm
+  CHECK(lo > -2e-3f);
+  CHECK(hi < 1e-4f);
+  const Result png = run_cli("render --from " + h5 + " --frame 2 --backend cpu --size 64x36 --out " + tmp + "/skin.png");
+  INFO(png.output);
+  CHECK(png.code == 0);
+  CHECK(std::filesystem::exists(tmp + "/skin.png"));
 }
 
 TEST_CASE("sphray view draws a scene's obstacles", "[viewer]") {
