@@ -1,8 +1,9 @@
 // Waves on an obstacle's skin (mesh/skin_map.h, sph/skin.h): the cube map
 // against the mesh it comes from, the spherical embedding of a mesh that is
 // not star-shaped, a single impulse's speed in every direction against the
-// set wave speed (with and without the distortion correction), and the
-// steady dent of a skin under hydrostatic pressure.
+// set wave speed (with and without the distortion correction), bounded
+// free waves, and the guard against heights that grow. The skin driven by a
+// pool's pressure is in test_obstacles.cpp.
 #include <algorithm>
 #include <cmath>
 #include <numeric>
