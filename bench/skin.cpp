@@ -17,14 +17,12 @@ namespace {
 
 constexpr int kDirections = 16;
 
-Vec3d unit(Vec3d v) { return v * (1.0 / length(v)); }
-
 // Along each great circle leaving `src`, the geodesic distance in [lo, hi]
 // where the height, read through the cube map, peaks (a parabola through the
 // samples around the largest).
 std::array<double, kDirections> ring_radius(const SkinMap& map, const std::vector<float>& h, Vec3d src, double lo,
                                             double hi) {
-  const Vec3d e1 = unit(cross(src, std::abs(src.z) < 0.9 ? Vec3d{0, 0, 1} : Vec3d{1, 0, 0})), e2 = cross(src, e1);
+  const Vec3d e1 = normalized(cross(src, std::abs(src.z) < 0.9 ? Vec3d{0, 0, 1} : Vec3d{1, 0, 0})), e2 = cross(src, e1);
   std::array<double, kDirections> out{};
   const int samples = 400;
   const double step = (hi - lo) / samples;
@@ -66,14 +64,14 @@ SkinImpulseSpeeds skin_impulse_speeds(Backend b, int resolution, SkinStencil ste
   in.params.stencil = stencil;
   std::vector<SkinGeometry> geo;
   geo.push_back(make_skin_geometry(in));
-  const Vec3d src = unit(source);
+  const Vec3d src = normalized(source);
   SkinImpulseSpeeds out;
   out.texels = geo[0].map.size();
   out.spacing = geo[0].map.mean_spacing;
   const double sigma = 3.0 * out.spacing;
   std::vector<float> h0(out.texels);
   for (size_t i = 0; i < out.texels; ++i) {
-    const double rho = std::acos(std::clamp(dot(unit(geo[0].map.point[i]), src), -1.0, 1.0));
+    const double rho = std::acos(std::clamp(dot(normalized(geo[0].map.point[i]), src), -1.0, 1.0));
     h0[i] = float(std::exp(-rho * rho / (2 * sigma * sigma)));
   }
   const double dt = 0.5 * geo[0].max_substep;  // one substep per advance

@@ -28,6 +28,7 @@ template <class T> SPHRAY_HD SPHRAY_FORCEINLINE Vec3<T>& operator-=(Vec3<T>& a, 
 template <class T> SPHRAY_HD SPHRAY_FORCEINLINE T dot(Vec3<T> a, Vec3<T> b) { return a.x * b.x + a.y * b.y + a.z * b.z; }
 template <class T> SPHRAY_HD SPHRAY_FORCEINLINE T length2(Vec3<T> a) { return dot(a, a); }
 template <class T> SPHRAY_HD SPHRAY_FORCEINLINE T length(Vec3<T> a) { return std::sqrt(dot(a, a)); }
+template <class T> SPHRAY_HD SPHRAY_FORCEINLINE Vec3<T> normalized(Vec3<T> a) { return a * (T(1) / std::sqrt(dot(a, a))); }
 template <class T> SPHRAY_HD SPHRAY_FORCEINLINE Vec3<T> cross(Vec3<T> a, Vec3<T> b) {
   return {a.y * b.z - a.z * b.y, a.z * b.x - a.x * b.z, a.x * b.y - a.y * b.x};
 }

@@ -14,8 +14,6 @@ namespace sphray {
 
 namespace {
 
-Vec3d normalized(Vec3d v) { return v * (1.0 / std::sqrt(dot(v, v))); }
-
 Vec3d face_normal(const TriangleMesh& m, size_t t, double* twice_area = nullptr) {
   const auto& tri = m.triangles[t];
   const Vec3d n = cross(m.vertices[tri[1]] - m.vertices[tri[0]], m.vertices[tri[2]] - m.vertices[tri[0]]);

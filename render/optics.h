@@ -16,7 +16,6 @@ SPHRAY_HD SPHRAY_FORCEINLINE Rgb operator*(Rgb a, Rgb b) { return {a.r * b.r, a.
 SPHRAY_HD SPHRAY_FORCEINLINE Rgb operator*(Rgb a, float s) { return {a.r * s, a.g * s, a.b * s}; }
 SPHRAY_HD SPHRAY_FORCEINLINE Rgb operator+(Rgb a, Rgb b) { return {a.r + b.r, a.g + b.g, a.b + b.b}; }
 
-SPHRAY_HD SPHRAY_FORCEINLINE Vec3f normalized(Vec3f a) { return a * (1.0f / std::sqrt(dot(a, a))); }
 SPHRAY_HD SPHRAY_FORCEINLINE Vec3f reflect(Vec3f d, Vec3f n) { return d - n * (2.0f * dot(d, n)); }
 
 // Snell refraction of unit d at unit normal n (facing against d), eta = n1 / n2.

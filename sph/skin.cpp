@@ -108,12 +108,6 @@ std::vector<Vec3f> displaced_surface(const SkinGeometry& g, const std::vector<fl
   return out;
 }
 
-size_t SkinSet::texels() const {
-  size_t n = 0;
-  for (const SkinGeometry& g : geo_) n += g.map.size();
-  return n;
-}
-
 namespace {
 
 class SkinnedSolver final : public Solver {

@@ -171,7 +171,6 @@ class SkinSet {
   // The render surface of skin k, displaced by its heights along the
   // vertices' normals, in the placed pose (mesh coordinates).
   std::vector<Vec3f> displaced(size_t k) const;
-  size_t texels() const;
 
  protected:
   std::vector<SkinGeometry> geo_;

@@ -89,8 +89,7 @@ struct Watch {
 
 Vec3d dbl(Vec3f v) { return {v.x, v.y, v.z}; }
 Vec3f unit_f(Vec3f v) { return v * (1.0f / std::sqrt(dot(v, v))); }
-Vec3d unit(Vec3d v) { return v * (1.0 / length(v)); }
-double angle(Vec3d a, Vec3d b) { return std::acos(std::clamp(dot(unit(a), unit(b)), -1.0, 1.0)); }
+double angle(Vec3d a, Vec3d b) { return std::acos(std::clamp(dot(normalized(a), normalized(b)), -1.0, 1.0)); }
 
 // Double-precision Snell (n facing against d).
 bool refract_d(Vec3d d, Vec3d n, double eta, Vec3d& out) {
@@ -203,7 +202,7 @@ TEST_CASE("ray hits a sphere field at the analytic distance with the analytic no
     // from outside the box toward a random point of the sphere's silhouette disc
     const Vec3d o{-20.0, kC + off(rng), kC + off(rng) * 0.5};
     const Vec3d aim{kC, kC + off(rng) * 0.6, kC + off(rng) * 0.6};
-    const Vec3d d = unit(aim - o);
+    const Vec3d d = normalized(aim - o);
     const double t_ref = hit_sphere(o, d);
     if (t_ref < 0) continue;
     ++hits;
@@ -252,7 +251,7 @@ TEST_CASE("the liquid is confined to the tank: glass is the interface, the margi
   // x = 0, the volume box, with the box's normal, or on the spilled sphere).
   for (const double y : {kC - 6.0, kC, kC + 3.0}) {
     ev.clear();
-    const Vec3d d = unit(Vec3d{1.0, 0.05, -0.1});
+    const Vec3d d = normalized(Vec3d{1.0, 0.05, -0.1});
     tracer.trace(Vec3f{-10.0f, float(y), float(kC)}, Vec3f{float(d.x), float(d.y), float(d.z)}, Watch{&ev, &w});
     REQUIRE(!ev.empty());
     CHECK(std::abs(ev[0].p.x - 8.0f) < 1e-3f);
@@ -308,11 +307,11 @@ TEST_CASE("a ray refracts through a sphere as Snell's law says", "[render]") {
     const Vec3d o{-20.0, kC + b * kRho * 0.8, kC + b * kRho * 0.6}, d{1, 0, 0};
     // analytic path in double
     const double t1 = hit_sphere(o, d);
-    const Vec3d p1 = o + d * t1, n1 = unit(p1 - Vec3d{kC, kC, kC});
+    const Vec3d p1 = o + d * t1, n1 = normalized(p1 - Vec3d{kC, kC, kC});
     Vec3d r1;
     REQUIRE(refract_d(d, n1, 1.0 / eta, r1));
     const double t2 = hit_sphere(p1, r1, 1e-6);
-    const Vec3d p2 = p1 + r1 * t2, n2 = unit(Vec3d{kC, kC, kC} - p2);  // inward: faces the ray inside
+    const Vec3d p2 = p1 + r1 * t2, n2 = normalized(Vec3d{kC, kC, kC} - p2);  // inward: faces the ray inside
     Vec3d r2;
     REQUIRE(refract_d(r1, n2, eta, r2));
     // total deviation 2 (theta_i - theta_t) around the incidence plane

@@ -23,14 +23,13 @@ using namespace sphray;
 namespace {
 
 Vec3d dbl(Vec3f v) { return {v.x, v.y, v.z}; }
-Vec3d unit(Vec3d v) { return v * (1.0 / length(v)); }
-double angle(Vec3d a, Vec3d b) { return std::acos(std::clamp(dot(unit(a), unit(b)), -1.0, 1.0)); }
+double angle(Vec3d a, Vec3d b) { return std::acos(std::clamp(dot(normalized(a), normalized(b)), -1.0, 1.0)); }
 
 // Camera::direction in double.
 Vec3d direction_d(const Camera& c, double px, double py) {
   const double aspect = double(c.width) / c.height, t = c.tan_half_fov;
   const double sx = (2 * px / c.width - 1) * t * aspect, sy = (1 - 2 * py / c.height) * t;
-  return unit(dbl(c.forward) + dbl(c.right) * sx + dbl(c.up) * sy);
+  return normalized(dbl(c.forward) + dbl(c.right) * sx + dbl(c.up) * sy);
 }
 
 struct Sphere {

@@ -20,8 +20,6 @@ using namespace sphray;
 
 namespace {
 
-Vec3d normalize(Vec3d v) { return v * (1.0 / length(v)); }
-
 bool inside(const Box& b, Vec3d p, double tol) {
   return p.x >= b.min.x - tol && p.x <= b.max.x + tol && p.y >= b.min.y - tol && p.y <= b.max.y + tol &&
          p.z >= b.min.z - tol && p.z <= b.max.z + tol;
@@ -80,7 +78,7 @@ TEST_CASE("skin map: a mesh that is not star-shaped is relaxed onto the sphere w
   // The central projection folds it ...
   std::vector<Vec3d> central(m.vertices.size());
   const SphereEmbedding e = embed_on_sphere(m);
-  for (size_t i = 0; i < m.vertices.size(); ++i) central[i] = normalize(m.vertices[i] - e.centre);
+  for (size_t i = 0; i < m.vertices.size(); ++i) central[i] = normalized(m.vertices[i] - e.centre);
   CHECK(folded_triangles(m, central) > 0);
   // ... the relaxed embedding does not, and every texel maps to the surface.
   CHECK(e.iterations > 0);
@@ -148,7 +146,7 @@ TEST_CASE("skin waves: free waves stay bounded for many crossings of the sphere"
     std::vector<SkinGeometry> geo;
     geo.push_back(make_skin_geometry(in));
     std::vector<float> h(geo[0].map.size());
-    for (size_t i = 0; i < h.size(); ++i) h[i] = float(std::exp(-8.0 * length2(normalize(geo[0].map.point[i]) - Vec3d{0, 0, 1})));
+    for (size_t i = 0; i < h.size(); ++i) h[i] = float(std::exp(-8.0 * length2(normalized(geo[0].map.point[i]) - Vec3d{0, 0, 1})));
     auto skins = make_cpu_skin_set(std::move(geo), SphParams{});
     skins->set_heights(0, h);
     double peak = 0;
