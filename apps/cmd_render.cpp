@@ -116,16 +116,9 @@ int render_file(const RenderArgs& ra, const std::string& backend_arg, const std:
   FrameRenderer frames(scene.render, scene.tank, scene.sph.spacing, b, fs, single ? "" : ra.out, "--out");
   // Skinned obstacles are drawn displaced by the heights the frames carry
   // (a frame without them: at rest).
-  std::vector<MeshInput> meshes = obstacle_meshes(scene);
   std::vector<SkinGeometry> skins;
-  for (size_t k = 0; k < scene.obstacles.size(); ++k)
-    if (scene.obstacles[k].has_skin) {
-      skins.push_back(make_skin_geometry({uint32_t(k), scene.obstacles[k].mesh, scene.obstacles[k].motion,
-                                          scene.obstacles[k].skin}));
-      meshes[k] = mesh_input(skins.back().surface.mesh);
-      meshes[k].motion = scene.obstacles[k].motion;
-    }
-  frames.set_obstacles(meshes);
+  for (const SkinInput& k : skin_inputs(scene)) skins.push_back(make_skin_geometry(k));
+  frames.set_obstacles(drawn_obstacles(obstacle_meshes(scene), skins));
   const size_t first = ra.frame >= 0 ? size_t(ra.frame) : 0, end = ra.frame >= 0 ? first + 1 : n;
   for (size_t k = first; k < end; ++k) {
     const Frame f = reader.read(k);

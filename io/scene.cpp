@@ -239,7 +239,7 @@ void read_skin(const ConfigReader& o, Obstacle& ob, const Scene& s) {
   const std::string st = k.string("stencil", "surface", {"surface", "fitted", "texture"});
   p.stencil = st == "surface" ? SkinStencil::Surface : st == "texture" ? SkinStencil::Texture : SkinStencil::Fitted;
   try {
-    embed_on_sphere(ob.mesh);
+    ob.skin_embedding = embed_on_sphere(ob.mesh);
   } catch (const MeshError& e) {
     o.fail("skin", o.at("skin"), e.what());
   }

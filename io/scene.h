@@ -39,6 +39,7 @@ struct Obstacle {
   Motion motion;        // "motion"; omega 0: static
   bool has_skin = false;  // "skin": waves on its surface (sph/skin.h)
   SkinParams skin;
+  SphereEmbedding skin_embedding;  // the mesh mapped onto the sphere (mesh/skin_map.h), when it has a skin
 };
 
 // A water-height gauge: the liquid's height above the tank floor on the

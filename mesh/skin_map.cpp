@@ -180,11 +180,11 @@ double SkinMap::sample(const std::vector<float>& value, Vec3d d) const {
   return (1 - fy) * ((1 - fx) * v(i0, j0) + fx * v(i0 + 1, j0)) + fy * ((1 - fx) * v(i0, j0 + 1) + fx * v(i0 + 1, j0 + 1));
 }
 
-SkinMap make_skin_map(const TriangleMesh& m, int n) {
+SkinMap make_skin_map(const TriangleMesh& m, int n, SphereEmbedding embedding) {
   if (n < 2) throw MeshError(m.name + ": a skin needs at least 2 texels along a cube edge");
   SkinMap s;
   s.n = n;
-  s.embedding = embed_on_sphere(m);
+  s.embedding = embedding.u.empty() ? embed_on_sphere(m) : std::move(embedding);
   const std::vector<Vec3d>& u = s.embedding.u;
 
   // The embedded mesh's flat triangles, through a BVH: a texel's ray meets one.

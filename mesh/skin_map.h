@@ -70,8 +70,9 @@ struct SkinMap {
   double sample(const std::vector<float>& value, Vec3d d) const;
 };
 
+// Over `embedding`, the mesh's embed_on_sphere (computed here when empty).
 // Throws MeshError (naming the mesh) when it cannot be embedded; n >= 2.
-SkinMap make_skin_map(const TriangleMesh& m, int n);
+SkinMap make_skin_map(const TriangleMesh& m, int n, SphereEmbedding embedding = {});
 
 // The mesh split flat (each triangle into four at its edge midpoints) until no
 // edge is longer than `max_edge`, at most `max_levels` times, with each new

@@ -176,16 +176,27 @@ std::vector<MeshInput> obstacle_meshes(const Scene& s) {
   return out;
 }
 
-std::vector<MeshInput> drawn_obstacles(std::vector<MeshInput> meshes, const Solver& solver) {
-  std::vector<MeshInput> out = std::move(meshes);
-  const SkinSet* skins = solver.skins();
-  for (size_t k = 0; skins && k < skins->size(); ++k) {
-    const SkinGeometry& g = skins->geometry(k);
-    const Motion motion = out[g.input.obstacle].motion;
-    out[g.input.obstacle] = mesh_input(g.surface.mesh);
-    out[g.input.obstacle].motion = motion;
+std::vector<SkinInput> skin_inputs(const Scene& s) {
+  std::vector<SkinInput> out;
+  for (size_t k = 0; k < s.obstacles.size(); ++k) {
+    const Obstacle& o = s.obstacles[k];
+    if (o.has_skin) out.push_back({uint32_t(k), o.mesh, o.motion, o.skin, o.skin_embedding});
   }
   return out;
+}
+
+std::vector<MeshInput> drawn_obstacles(std::vector<MeshInput> meshes, const std::vector<SkinGeometry>& skins) {
+  for (const SkinGeometry& g : skins) {
+    const Motion motion = meshes[g.input.obstacle].motion;
+    meshes[g.input.obstacle] = mesh_input(g.surface.mesh);
+    meshes[g.input.obstacle].motion = motion;
+  }
+  return meshes;
+}
+
+std::vector<MeshInput> drawn_obstacles(std::vector<MeshInput> meshes, const Solver& solver) {
+  const SkinSet* skins = solver.skins();
+  return skins ? drawn_obstacles(std::move(meshes), skins->geometries()) : meshes;
 }
 
 void show_skins(const Solver& solver, Renderer& renderer) {
@@ -415,9 +426,7 @@ SolverInput make_solver_input(const ResolvedScene& r, PresenceMode presence) {
   in.fluid_vel.reserve(z.fluid);
   const std::vector<ObstacleProbe> probes = obstacle_probes(s);
   in.obstacles = obstacle_meshes(s);
-  for (size_t k = 0; k < s.obstacles.size(); ++k)
-    if (s.obstacles[k].has_skin)
-      in.skins.push_back({uint32_t(k), s.obstacles[k].mesh, s.obstacles[k].motion, s.obstacles[k].skin});
+  in.skins = skin_inputs(s);
   for (size_t b = 0; b < s.fluid.size(); ++b) {
     const FluidBlock& blk = s.fluid[b];
     const Vec3d e = blk.box.max - blk.box.min;

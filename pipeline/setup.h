@@ -8,6 +8,7 @@
 
 #include "field/field.h"
 #include "render/render.h"
+#include "sph/skin.h"
 #include "io/scene.h"
 #include "sph/solver.h"
 
@@ -34,9 +35,11 @@ SphParams make_params(const Scene& s);
 // A placed mesh as the solver and the renderer take it.
 MeshInput mesh_input(const TriangleMesh& m);
 std::vector<MeshInput> obstacle_meshes(const Scene& s);  // every obstacle's
+std::vector<SkinInput> skin_inputs(const Scene& s);      // every skinned obstacle's
 // The meshes a renderer draws for a run of `solver`: the scene's
 // (obstacle_meshes), a skinned one replaced by its skin's finer surface
 // (sph/skin.h), whose vertices show_skins then moves before each frame.
+std::vector<MeshInput> drawn_obstacles(std::vector<MeshInput> meshes, const std::vector<SkinGeometry>& skins);
 std::vector<MeshInput> drawn_obstacles(std::vector<MeshInput> meshes, const Solver& solver);
 // Hands the renderer each skin's surface displaced by its waves now.
 void show_skins(const Solver& solver, Renderer& renderer);

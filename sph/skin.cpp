@@ -47,7 +47,7 @@ std::array<double, kSkinNeighbours> fitted_laplacian(const std::array<Vec3d, kSk
 SkinGeometry make_skin_geometry(const SkinInput& in) {
   SkinGeometry g;
   g.input = in;
-  g.map = make_skin_map(in.mesh, in.params.resolution);
+  g.map = make_skin_map(in.mesh, in.params.resolution, in.embedding);
   int levels = 0;
   while (levels < 6 && in.mesh.size() << (2 * (levels + 1)) <= kMaxSurfaceTriangles) ++levels;
   g.surface = skin_surface(in.mesh, g.map.embedding, g.map.mean_spacing, levels);

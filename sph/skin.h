@@ -161,6 +161,7 @@ class SkinSet {
   virtual ~SkinSet() = default;
   size_t size() const { return geo_.size(); }
   const SkinGeometry& geometry(size_t k) const { return geo_[k]; }
+  const std::vector<SkinGeometry>& geometries() const { return geo_; }
   // Samples the liquid's pressure on every texel (the particles as a step
   // left them, at time t) and advances the waves over dt.
   virtual void advance(const ParticleView& p, const float* pressure, double t, double dt) = 0;

@@ -4,6 +4,7 @@
 #include <cstdint>
 
 #include "mesh/mesh.h"
+#include "mesh/skin_map.h"
 #include "obstacles.h"
 
 namespace sphray {
@@ -34,6 +35,7 @@ struct SkinInput {
   TriangleMesh mesh;      // placed (the pose at t = 0), world coordinates
   Motion motion{};
   SkinParams params{};
+  SphereEmbedding embedding;  // the mesh's embed_on_sphere, as the scene checked it (empty: computed again)
 };
 
 }  // namespace sphray
