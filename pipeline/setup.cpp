@@ -196,7 +196,8 @@ std::vector<MeshInput> drawn_obstacles(std::vector<MeshInput> meshes, const std:
 
 std::vector<MeshInput> drawn_obstacles(std::vector<MeshInput> meshes, const Solver& solver) {
   const SkinSet* skins = solver.skins();
-  return skins ? drawn_obstacles(std::move(meshes), skins->geometries()) : meshes;
+  if (!skins) return meshes;
+  return drawn_obstacles(std::move(meshes), skins->geometries());
 }
 
 void show_skins(const Solver& solver, Renderer& renderer) {

@@ -81,35 +81,29 @@ class SolverImpl final : public Solver {
     parallel_for("pressure_term", n_, PressureTermOf{prm_, raw(pos_), raw(flow_)});
     set_presence(in.presence);
 
-    // Static walls: sorted by the same grid once.
+    // Walls: sorted by the same grid, once unless obstacles move them. A
+    // moving obstacle's wall particles keep their t = 0 pose and owner for
+    // move_walls().
     const uint32_t nb = uint32_t(in.boundary.size());
-    Vector<Float4> boundary_in;
-    upload(boundary_in, in.boundary);
-    Vector<float> alpha_in;
-    upload(alpha_in, in.boundary_alpha);
-    Vector<uint32_t> bkeys(nb), border(nb);
-    boundary_.resize(nb);
-    boundary_alpha_.resize(nb);
+    upload(boundary_, in.boundary);
+    upload(boundary_alpha_, in.boundary_alpha);
     wall_.resize(nb);
     boundary_offsets_.resize(slabs);
-    parallel_for("wall_keys", nb, KeyOf<Float4>{grid_, raw(boundary_in), raw(bkeys)});
-    sort_and_offsets(grid_, nb, bkeys, border, boundary_offsets_, nullptr);
-    thrust::gather(policy(), border.begin(), border.end(), boundary_in.begin(), boundary_.begin());
-    thrust::gather(policy(), border.begin(), border.end(), alpha_in.begin(), boundary_alpha_.begin());
     boundary_near_.resize(grid_.num_cells());
     fluid_near_.resize(grid_.num_cells());
-    parallel_for("wall_cells_near", grid_.num_cells(), CellsNear{grid_, raw(boundary_offsets_), raw(boundary_near_)});
-    // Moving obstacles' wall particles: their t = 0 pose and owner, in the
-    // walls' sorted order, for move_walls().
     if (!in.boundary_obstacle.empty()) {
-      Vector<uint8_t> owner_in;
-      upload(owner_in, in.boundary_obstacle);
-      wall_owner_.resize(nb);
-      wall_body_.resize(nb);
-      thrust::gather(policy(), border.begin(), border.end(), owner_in.begin(), wall_owner_.begin());
-      thrust::gather(policy(), border.begin(), border.end(), boundary_in.begin(), wall_body_.begin());
+      upload(wall_owner_, in.boundary_obstacle);
       moving_walls_ = thrust::count(policy(), wall_owner_.begin(), wall_owner_.end(), kStaticWall) != ptrdiff_t(nb);
+    }
+    if (moving_walls_) {
+      wall_body_ = boundary_;
       wall_vel_.assign(nb, Float4{0, 0, 0, 0});
+    } else {
+      wall_owner_ = {};
+    }
+    sort_walls();
+    if (!moving_walls_) {  // the scratch of the sort is not needed again
+      wall_keys_ = {}; wall_order_ = {}; wall_pos_tmp_ = {}; wall_alpha_tmp_ = {};
     }
     build_grid();
   }
@@ -247,30 +241,36 @@ class SolverImpl final : public Solver {
   PairMask fluid_pairs() { return {raw(fluid_pairs_), raw(fluid_pair_count_), n_, mask_words_}; }
   PairMask boundary_pairs() { return {raw(boundary_pairs_), raw(boundary_pair_count_), n_, mask_words_}; }
 
-  // The walls of moving obstacles to where the step (control: its dt) puts
-  // them, and every wall particle sorted again into the grid with its cell
-  // flags (the next pair masks index the walls in that order).
-  void move_walls(const StepControl* control) {
+  // Every wall particle sorted by the grid, with what it carries (viscosity;
+  // where obstacles move, t = 0 pose, owner and velocity), its slab table and
+  // cell flags (the next pair masks index the walls in that order).
+  void sort_walls() {
     const uint32_t nb = uint32_t(boundary_.size());
-    parallel_for("wall_motion", nb,
-                 MoveWalls{obstacles_.view, control, raw(wall_body_), raw(wall_owner_), raw(boundary_), raw(wall_vel_)});
-    Vector<uint32_t>& keys = wall_keys_;
-    Vector<uint32_t>& order = wall_order_;
-    keys.resize(nb);
-    order.resize(nb);
-    parallel_for("wall_keys", nb, KeyOf<Float4>{grid_, raw(boundary_), raw(keys)});
-    sort_and_offsets(grid_, nb, keys, order, boundary_offsets_, nullptr);
+    wall_keys_.resize(nb);
+    wall_order_.resize(nb);
+    parallel_for("wall_keys", nb, KeyOf<Float4>{grid_, raw(boundary_), raw(wall_keys_)});
+    sort_and_offsets(grid_, nb, wall_keys_, wall_order_, boundary_offsets_, nullptr);
     auto regather = [&](auto& v, auto& tmp) {
       tmp.resize(nb);
-      thrust::gather(policy(), order.begin(), order.end(), v.begin(), tmp.begin());
+      thrust::gather(policy(), wall_order_.begin(), wall_order_.end(), v.begin(), tmp.begin());
       v.swap(tmp);
     };
     regather(boundary_, wall_pos_tmp_);
-    regather(wall_body_, wall_body_tmp_);
     regather(boundary_alpha_, wall_alpha_tmp_);
-    regather(wall_owner_, wall_owner_tmp_);
-    regather(wall_vel_, wall_vel_tmp_);
+    if (moving_walls_) {
+      regather(wall_body_, wall_body_tmp_);
+      regather(wall_owner_, wall_owner_tmp_);
+      regather(wall_vel_, wall_vel_tmp_);
+    }
     parallel_for("wall_cells_near", grid_.num_cells(), CellsNear{grid_, raw(boundary_offsets_), raw(boundary_near_)});
+  }
+
+  // The walls of moving obstacles to where the step (control: its dt) puts
+  // them, then sorted again.
+  void move_walls(const StepControl* control) {
+    parallel_for("wall_motion", uint32_t(boundary_.size()),
+                 MoveWalls{obstacles_.view, control, raw(wall_body_), raw(wall_owner_), raw(boundary_), raw(wall_vel_)});
+    sort_walls();
   }
 
   void build_grid(const StepControl* control = nullptr) {
