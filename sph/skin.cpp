@@ -24,8 +24,7 @@ constexpr size_t kMaxSurfaceTriangles = size_t(1) << 18;
 std::array<double, kSkinNeighbours> fitted_laplacian(const std::array<Vec3d, kSkinNeighbours>& r, Vec3d n,
                                                      const std::array<bool, kSkinNeighbours>& use) {
   const Vec3d a = std::abs(n.x) < 0.9 ? Vec3d{1, 0, 0} : Vec3d{0, 1, 0};
-  Vec3d t1 = cross(n, a);
-  t1 = t1 * (1.0 / length(t1));
+  const Vec3d t1 = normalized(cross(n, a));
   const Vec3d t2 = cross(n, t1);
   Eigen::Matrix<double, kSkinNeighbours, 5> A = Eigen::Matrix<double, kSkinNeighbours, 5>::Zero();
   Eigen::Matrix<double, kSkinNeighbours, 1> w = Eigen::Matrix<double, kSkinNeighbours, 1>::Zero();
@@ -126,9 +125,7 @@ class SkinnedSolver final : public Solver {
   // its pressure follows the density smoothly, and its acoustic steps are
   // many per skin step. Under DFSPH they advance every step: the pressure
   // of one step is noisy (the solve stops at a tolerance), and the skins'
-  // damped response averages it only if it sees every step (sampled every
-  // few steps, a skin under a still pool dented 15-55% off its hydrostatic
-  // value, against 2% every step).
+  // damped response averages it only if it sees every step.
   void step(double until) override {
     const double t0 = inner_->time();
     inner_->step(until);

@@ -45,9 +45,9 @@ constexpr float kSkinCover = 0.25f;
 // sorted on `grid` (pos: x, y, z, density; pressure per particle): one
 // element per texel and candidate row of the grid (nsearch/grid.h), adding
 // its part of the kernel-weighted sums into sum[2 i] (pressure) and
-// sum[2 i + 1] (weights), which start at zero; SkinLoadOf divides. A texel
-// alone per thread left the device mostly idle (14k texels, each walking a
-// few hundred candidates in turn).
+// sum[2 i + 1] (weights), which start at zero; SkinLoadOf divides. (Skins
+// have few texels, each with a few hundred candidates: a thread per texel
+// alone would leave most of the device idle.)
 struct SampleSkinLoad {
   const Vec3f* point;  // per texel, in the obstacle's placed frame
   RigidFrame pose;     // the obstacle's pose now
