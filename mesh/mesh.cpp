@@ -119,8 +119,7 @@ void check_mesh(const TriangleMesh& m, double min_area) {
     const auto& tr = m.triangles[t];
     for (int k = 0; k < 3; ++k)
       if (tr[k] >= m.vertices.size()) fail(m.name, "triangle " + std::to_string(t + 1) + " refers to a vertex that does not exist");
-    const Vec3d a = m.vertices[tr[0]], b = m.vertices[tr[1]], c = m.vertices[tr[2]];
-    const double A = 0.5 * length(cross(b - a, c - a));
+    const double A = triangle_area(m.vertices[tr[0]], m.vertices[tr[1]], m.vertices[tr[2]]);
     if (!(A >= min_area)) {
       std::ostringstream os;
       os << "triangle " << t + 1 << " is degenerate (area " << A << " m^2, below " << min_area << ")";
@@ -155,10 +154,7 @@ Box bounds(const TriangleMesh& m) {
 
 double area(const TriangleMesh& m) {
   double s = 0;
-  for (const auto& t : m.triangles) {
-    const Vec3d a = m.vertices[t[0]], b = m.vertices[t[1]], c = m.vertices[t[2]];
-    s += 0.5 * length(cross(b - a, c - a));
-  }
+  for (const auto& t : m.triangles) s += triangle_area(m.vertices[t[0]], m.vertices[t[1]], m.vertices[t[2]]);
   return s;
 }
 

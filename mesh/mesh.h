@@ -47,6 +47,7 @@ TriangleMesh placed(const TriangleMesh& m, const Placement& p);
 // shared by exactly two triangles (open or non-manifold).
 void check_mesh(const TriangleMesh& m, double min_area);
 
+inline double triangle_area(Vec3d a, Vec3d b, Vec3d c) { return 0.5 * length(cross(b - a, c - a)); }
 Box bounds(const TriangleMesh& m);
 double area(const TriangleMesh& m);
 // Enclosed volume (divergence theorem), positive for outward-facing triangles.

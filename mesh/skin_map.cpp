@@ -109,7 +109,7 @@ SphereEmbedding embed_on_sphere(const TriangleMesh& m, int max_iterations) {
     double total = 0;
     Vec3d c{0, 0, 0};
     for (const auto& t : m.triangles) {
-      const double a = 0.5 * length(cross(x[t[1]] - x[t[0]], x[t[2]] - x[t[0]]));
+      const double a = triangle_area(x[t[0]], x[t[1]], x[t[2]]);
       total += a;
       c = c + (x[t[0]] + x[t[1]] + x[t[2]]) * (a / 3.0);
     }
@@ -124,7 +124,7 @@ SphereEmbedding embed_on_sphere(const TriangleMesh& m, int max_iterations) {
   while (folded > 0 && e.iterations < max_iterations) {
     std::vector<double> mass(nv, 0.0);
     for (const auto& t : m.triangles) {
-      const double a = 0.5 * length(cross(x[t[1]] - x[t[0]], x[t[2]] - x[t[0]]));
+      const double a = triangle_area(x[t[0]], x[t[1]], x[t[2]]);
       for (uint32_t v : t) mass[v] += a / 3.0;
     }
     Sparse A = L * tau;
