@@ -330,10 +330,10 @@ SceneSize measure_scene(const Scene& s) {
                in_z = std::max(1.0, double(std::lround(e.z / dx)));
   const double all = (in_x + 2 * L) * (in_y + 2 * L) * (in_z + (s.open_top ? 1 : 2) * L);
   z.boundary = L > 0 ? size_t(all - in_x * in_y * in_z) : 0;
-  // An obstacle's skin, L layers under its surface (an estimate from above:
-  // counting would mean generating it).
-  if (L > 0)
-    for (const Obstacle& o : s.obstacles) z.boundary += size_t(std::ceil(1.5 * area(o.mesh) * L / (dx * dx)));
+  // An obstacle's skin, mesh_layers under its surface (an estimate from
+  // above: counting would mean generating it).
+  z.mesh_layers = s.sph.mesh_wall_layers();
+  for (const Obstacle& o : s.obstacles) z.boundary += size_t(std::ceil(1.5 * area(o.mesh) * z.mesh_layers / (dx * dx)));
 
   GridGeom& g = z.grid;
   g.cell_size = float(support);
@@ -449,19 +449,23 @@ SolverInput make_solver_input(const ResolvedScene& r, PresenceMode presence) {
         }
   }
 
-  const int L = z.boundary_layers;
-  if (L == 0) return in;  // PBF, DFSPH: the walls are the tank's planes
+  const int L = z.boundary_layers;  // 0 for PBF and DFSPH: their tank walls are its planes
   const AxisCoords ax = axis_coords(s.tank.min.x, s.tank.max.x, dx, L, true);
   const AxisCoords ay = axis_coords(s.tank.min.y, s.tank.max.y, dx, L, true);
   const AxisCoords az = axis_coords(s.tank.min.z, s.tank.max.z, dx, L, !s.open_top);
   const float volume = float(dx * dx * dx);
+  // PBF's and DFSPH's wall particles weigh as their fluid's lattice does (the
+  // volume that gives a full lattice the rest density, make_pbf_params).
+  const float mesh_volume = s.sph.solver == SolverKind::Pbf     ? r.pbf.volume
+                            : s.sph.solver == SolverKind::Dfsph ? r.dfsph.volume
+                                                                : volume;
   in.boundary.reserve(z.boundary);
   in.boundary_alpha.reserve(z.boundary);
   // A wall particle is viscous unless every face it belongs to is free-slip
   // (an edge between a free-slip and a viscous face stays viscous).
   const float wall_alpha = float(s.sph.wall_viscosity_alpha < 0 ? s.sph.viscosity_alpha : s.sph.wall_viscosity_alpha);
   auto face_of = [&](const AxisCoords& a, size_t k, int axis) { return k < a.wall_lo ? 2 * axis : 2 * axis + 1; };
-  for (size_t k = 0; k < az.c.size(); ++k)
+  for (size_t k = 0; k < az.c.size() && L > 0; ++k)
     for (size_t j = 0; j < ay.c.size(); ++j)
       for (size_t i = 0; i < ax.c.size(); ++i) {
         const bool wx = is_wall(ax, i), wy = is_wall(ay, j), wz = is_wall(az, k);
@@ -472,7 +476,8 @@ SolverInput make_solver_input(const ResolvedScene& r, PresenceMode presence) {
         in.boundary_alpha.push_back(viscous ? wall_alpha : 0.0f);
       }
   // Each obstacle's skin: the points of the tank's inner lattice inside the
-  // mesh and within the wall's layers of its surface, viscous like the walls
+  // mesh and within mesh_layers spacings of its surface (every solver's; PBF
+  // and DFSPH: mesh_walls.h), viscous (WCSPH) like the walls
   // where it stands still; a moving one's free-slip (the pair loop's wall
   // viscosity takes walls at rest) and marked with its obstacle, whose
   // motion then carries them (their positions here: the pose at t = 0).
@@ -483,7 +488,7 @@ SolverInput make_solver_input(const ResolvedScene& r, PresenceMode presence) {
     const bool moves = s.obstacles[o].motion.moves();
     const ObstacleProbe& pr = probes[o];
     const size_t before = in.boundary.size();
-    const double depth = L * dx;
+    const double depth = z.mesh_layers * dx;
     for (size_t k = az.wall_lo; k < az.wall_lo + az.inner; ++k) {
       if (az.c[k] < pr.box.min.z || az.c[k] > pr.box.max.z) continue;
       for (size_t j = ay.wall_lo; j < ay.wall_lo + ay.inner; ++j) {
@@ -492,7 +497,7 @@ SolverInput make_solver_input(const ResolvedScene& r, PresenceMode presence) {
           if (ax.c[i] < pr.box.min.x || ax.c[i] > pr.box.max.x) continue;
           const Vec3d p{ax.c[i], ay.c[j], az.c[k]};
           if (pr.distance(p, depth) < depth && pr.inside(p)) {
-            in.boundary.push_back({float(p.x), float(p.y), float(p.z), volume});
+            in.boundary.push_back({float(p.x), float(p.y), float(p.z), mesh_volume});
             in.boundary_alpha.push_back(moves ? 0.0f : wall_alpha);
             if (any_moving) in.boundary_obstacle.push_back(moves ? uint8_t(o) : kStaticWall);
           }

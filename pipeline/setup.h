@@ -16,7 +16,8 @@ namespace sphray {
 
 struct SceneSize {
   size_t fluid = 0, boundary = 0, cells = 0;
-  int boundary_layers = 0;
+  int boundary_layers = 0;  // the tank's wall layers (WCSPH; 0: PBF, DFSPH)
+  int mesh_layers = 0;      // the obstacles' wall layers (SphConfig::mesh_wall_layers)
   GridGeom grid{};
   size_t bytes = 0;  // estimated memory of the solver's buffers
 };

@@ -67,10 +67,19 @@ struct SphConfig {
   // its kernel full. Fewer (boundary_layers) leave part of it empty near walls.
   int auto_boundary_layers() const;
   // boundary_layers, or the automatic number; none for PBF and DFSPH, whose
-  // walls are the tank's planes.
+  // tank walls are its planes (mirror_walls.h).
   int wall_layers() const {
     if (incompressible(solver)) return 0;
     return boundary_layers > 0 ? boundary_layers : auto_boundary_layers();
+  }
+  // The layers of wall particles inside an obstacle's surface: WCSPH's
+  // wall_layers(), and for PBF and DFSPH enough to cover their support.
+  int mesh_wall_layers() const {
+    switch (solver) {
+      case SolverKind::Pbf: return int(std::ceil(pbf.support - 1e-9));
+      case SolverKind::Dfsph: return int(std::ceil(dfsph.support - 1e-9));
+      default: return wall_layers();
+    }
   }
   // The neighbour grid's cell edge [m] (and with it the field's voxels): the
   // WCSPH support, or twice the PBF or DFSPH support, so that every solver's

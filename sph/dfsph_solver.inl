@@ -12,7 +12,8 @@ class DfsphSolverImpl final : public Solver {
  public:
   explicit DfsphSolverImpl(const SolverInput& in)
       : prm_(in.params), df_(in.dfsph), grid_(in.grid), cfl_(in.cfl), min_dt_(in.min_dt), max_dt_(in.max_dt),
-        n_(uint32_t(in.fluid_pos_rho.size())), obstacles_(make_obstacle_set(kBackend, in.obstacles, in.params.spacing)) {
+        n_(uint32_t(in.fluid_pos_rho.size())), obstacles_(make_obstacle_set(kBackend, in.obstacles, in.params.spacing)),
+        walls_(in, in.grid) {
     const size_t n = n_;
     upload(pos_, in.fluid_pos_rho);
     upload(vel_, in.fluid_vel);
@@ -25,6 +26,7 @@ class DfsphSolverImpl final : public Solver {
     acc_.resize(n);
     press_.assign(n, 0.0f); factor_.resize(n); source_.resize(n); residual_.resize(n); error_.assign(n, 0.0f);
     sparse_.resize(n);
+    if (walls_.size()) wall_sum_.resize(n);
     keys_.resize(n); order_.resize(n);
     offsets_.resize(size_t(grid_.num_cells()) + 1);
     fine_offsets_.resize(size_t(grid_.num_fine_cells()) + 1);
@@ -68,7 +70,7 @@ class DfsphSolverImpl final : public Solver {
     return b(pos_) + b(vel_) + b(warm_) + b(pos_tmp_) + b(vel_tmp_) + b(warm_tmp_) + b(acc_) + b(presence_) +
            b(presence_tmp_) + b(press_) + b(factor_) + b(source_) + b(residual_) + b(error_) + b(sparse_) + b(id_) +
            b(id_tmp_) + b(status_) + b(status_tmp_) + b(keys_) + b(order_) + b(offsets_) + b(fine_offsets_) +
-           b(pairs_) + b(pair_count_) + raw_copies_.bytes();
+           b(pairs_) + b(pair_count_) + b(wall_sum_) + walls_.bytes() + raw_copies_.bytes();
   }
 
   void step(double until) override {
@@ -88,9 +90,10 @@ class DfsphSolverImpl final : public Solver {
     kick<true>();
     pos_.swap(pos_tmp_);
     clock_.end_of("pairs");
+    walls_.move(obstacles_.view, control);
     sort_and_mask();
     clock_.end_of("grid");
-    density(presence_now);
+    density(presence_now, control);
     parallel_for("dfsph_warm_divergence", n_, DfsphWarmStart<true>{control, raw(warm_), raw(source_), raw(press_)});
     SolveResult divergence = iterate<true>(1, df_.max_divergence_iterations, df_.divergence_tolerance);
     kick<false>();
@@ -119,7 +122,7 @@ class DfsphSolverImpl final : public Solver {
   void download_raw(RawParticles& out, bool velocity, bool presence) const override {
     raw_copies_.take(out, pos_, vel_, id_, presence && presence_valid_ ? &presence_ : nullptr, n_, velocity);
   }
-  std::vector<Vec3f> boundary_positions() const override { return {}; }
+  std::vector<Vec3f> boundary_positions() const override { return walls_.positions(); }
 
   // p = rho0 d^2 p~ of the last step (p~ the pressure and the divergence
   // solves' variables summed, [m^2/s^2], dfsph.h: both push over the step).
@@ -172,18 +175,18 @@ class DfsphSolverImpl final : public Solver {
   void forces() {
     const FlowControl* control = raw(control_);
     if (df_.viscosity <= 0) {
-      parallel_for("dfsph_gravity", n_, DfsphGravity{prm_, control, raw(vel_)});
+      parallel_for("dfsph_gravity", n_, DfsphGravity{prm_, grid_, control, raw(pos_), raw(vel_), walls_.view(), raw(wall_sum_)});
       return;
     }
     static constexpr const char* kNames[3] = {"dfsph_viscosity", "dfsph_viscosity_walls", "dfsph_viscosity_direct"};
     mirror_pass_launches<DfsphViscosity>(kNames, n_, prm_, df_, grid_, raw(fine_offsets_), pairs(), control, raw(pos_),
-                                         raw(vel_), raw(vel_tmp_));
+                                         raw(vel_), raw(vel_tmp_), walls_.view(), raw(wall_sum_));
     vel_.swap(vel_tmp_);
   }
 
   // The density pass (dfsph.h, DfsphDensity) into pos_ (density), factor_,
   // source_, sparse_, error_ and, when asked for, presence_.
-  void density(bool presence) {
+  void density(bool presence, const FlowControl* control = nullptr) {
     presence_valid_ = presence;
     static constexpr const char* kNames[3] = {"dfsph_density", "dfsph_density_walls", "dfsph_density_direct"};
     float* pr = presence ? raw(presence_) : nullptr;
@@ -191,7 +194,8 @@ class DfsphSolverImpl final : public Solver {
       using P = decltype(pass);
       mirror_pass_launches<P::template pass>(kNames, n_, prm_, df_, grid_, raw(fine_offsets_), pairs(), raw(pos_),
                                              raw(vel_), raw(pos_tmp_), raw(factor_), raw(source_), raw(sparse_),
-                                             raw(error_), pr, n_);
+                                             raw(error_), pr, n_, walls_.view(), raw(wall_sum_), raw(warm_),
+                                             control);
     };
     if (presence) launch(WithFlag<true, DfsphDensity>{});
     else launch(WithFlag<false, DfsphDensity>{});
@@ -205,7 +209,7 @@ class DfsphSolverImpl final : public Solver {
                                                     "dfsph_accel_source_direct"};
     mirror_pass_launches<WithFlag<WithSource, DfsphAccel>::template pass>(
         WithSource ? kSourceNames : kNames, n_, prm_, df_, grid_, raw(fine_offsets_), pairs(), raw(control_), raw(pos_),
-        raw(vel_), raw(press_), raw(acc_), raw(source_));
+        raw(vel_), raw(press_), raw(acc_), raw(source_), walls_.view(), raw(wall_sum_));
   }
 
   // The iterations of one solve (dfsph.h): at least min_it, at most max_it,
@@ -221,7 +225,8 @@ class DfsphSolverImpl final : public Solver {
       else accel<false>();
       mirror_pass_launches<WithFlag<Divergence, DfsphUpdate>::template pass>(
           Divergence ? kDivNames : kNames, n_, prm_, df_, grid_, raw(fine_offsets_), pairs(), raw(control_),
-          raw(pos_), raw(acc_), raw(factor_), raw(source_), raw(sparse_), raw(press_), raw(residual_));
+          raw(pos_), raw(acc_), raw(factor_), raw(source_), raw(sparse_), raw(press_), raw(residual_), walls_.view(),
+          raw(wall_sum_));
       ++k;
       // The residual is read on the host: one reduction per iteration.
       const double mean = n_ ? thrust::reduce(policy(), residual_.begin(), residual_.begin() + n_, 0.0) / n_ : 0.0;
@@ -256,6 +261,7 @@ class DfsphSolverImpl final : public Solver {
   double cfl_, min_dt_, max_dt_;
   uint32_t n_;
   ObstacleSet obstacles_;  // meshes the particles' paths stop at (obstacles.h)
+  WallParticles walls_;    // the obstacles' (mesh_walls.h)
   PresenceMode presence_mode_ = PresenceMode::Off;
   bool presence_valid_ = false;
   double t_ = 0;
@@ -274,6 +280,7 @@ class DfsphSolverImpl final : public Solver {
   Vector<float> presence_, presence_tmp_, press_, factor_, source_, residual_, error_;
   Vector<float> pressure_out_;  // device_pressure
   Vector<uint8_t> sparse_;
+  Vector<WallSum> wall_sum_;  // per particle near the obstacles' walls (dfsph.h)
   Vector<uint32_t> id_, id_tmp_, keys_, order_, offsets_, fine_offsets_;
   Vector<uint8_t> status_, status_tmp_;
   uint32_t mask_words_ = 0;

@@ -187,6 +187,7 @@ struct Advance {
         const Vec3f w = velocity_after(xyz(v), stop);
         v.x = w.x; v.y = w.y; v.z = w.z;
         u = velocity_after(u, stop);
+        x = inside_tank(prm, x);
         p.x = x.x; p.y = x.y; p.z = x.z;
         st = kStatusClamped;
       }

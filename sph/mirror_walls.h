@@ -16,15 +16,6 @@
 
 namespace sphray {
 
-// Projects x into the tank (the top stays open where the tank has none).
-SPHRAY_HD SPHRAY_FORCEINLINE Vec3f inside_tank(const SphParams& prm, Vec3f x) {
-  x.x = std::fmin(std::fmax(x.x, prm.tank.min.x), prm.tank.max.x);
-  x.y = std::fmin(std::fmax(x.y, prm.tank.min.y), prm.tank.max.y);
-  x.z = std::fmax(x.z, prm.tank.min.z);
-  if (!prm.open_top) x.z = std::fmin(x.z, prm.tank.max.z);
-  return x;
-}
-
 // The tank's planes within the support of a point, the nearer one per axis:
 // the mirrors that make its wall images (Mirrors::images).
 struct Mirrors {
@@ -90,16 +81,18 @@ SPHRAY_HD SPHRAY_FORCEINLINE Mirrors mirrors_of(const SphParams& prm, float supp
 constexpr int kMirrorPassRegisters = 64;
 
 // Each neighbour pass is three launches, each particle served by one: the
-// pair masks of the particles away from the walls (no image code in the
-// loop, which cost the interior particles twice the time when they carried
-// it), the pair masks of those within a support of a wall, and the direct
-// loop of those whose masks overflowed (nsearch/pair_masks.h).
+// pair masks of the particles away from the walls (no image or wall
+// particle code in the loop, which cost the interior particles twice the
+// time when they carried it), the pair masks of those within a support of
+// a wall of the tank or near an obstacle's wall particles (mesh_walls.h),
+// and the direct loop of those whose masks overflowed (nsearch/pair_masks.h).
 enum MirrorPass { kInterior = 0, kNearWalls = 1, kDirect = 2 };
 
-// Whether launch P serves particle i.
-SPHRAY_HD SPHRAY_FORCEINLINE bool serves(int P, const PairMask& m, uint32_t i, const Mirrors& mirrors) {
+// Whether launch P serves particle i; near_mesh: the obstacles' wall
+// particles may be within its support (WallsView::near_point).
+SPHRAY_HD SPHRAY_FORCEINLINE bool serves(int P, const PairMask& m, uint32_t i, const Mirrors& mirrors, bool near_mesh) {
   if (!mask_complete(m, i)) return P == kDirect;
-  return P == (mirrors.axes ? kNearWalls : kInterior);
+  return P == (mirrors.axes || near_mesh ? kNearWalls : kInterior);
 }
 
 // The neighbour loop of launch P with the wall images: f(r, r2, a, set) for

@@ -4,10 +4,10 @@
 // crosses a triangle stops on the side it came from, `offset` off the
 // surface, and loses the velocity component into it (Mishima et al.: the
 // particle's path against the AABB tree, then the triangle). A thin plate
-// therefore leaks no particle whatever the step. WCSPH's wall particles
-// inside the meshes (pipeline/setup.cpp; a moving mesh's move with it) push
-// the liquid away before it gets there; PBF and DFSPH see the meshes only
-// through this test. A moving mesh follows a prescribed rigid
+// therefore leaks no particle whatever the step. The wall particles inside
+// the meshes (pipeline/setup.cpp; a moving mesh's move with it) push the
+// liquid away before it gets there (WCSPH: boundary.h; PBF and DFSPH:
+// mesh_walls.h). A moving mesh follows a prescribed rigid
 // motion (Motion); the test runs in the mesh's own frame, the path's start
 // taken back through the mesh's pose at the step's start and its end
 // through the pose at its end, so the mesh's own sweep is part of the path.
@@ -107,7 +107,10 @@ struct Stop {
 // kEdgeSlack, so that shared edges leak nothing). A two-sided ray test would
 // miss a particle that rests exactly on the surface, where the crossing's
 // parameter rounds to zero. A moving mesh is met in its own frame: `from`
-// through its pose at t0, `to` through its pose at t1.
+// through its pose at t0, `to` through its pose at t1. Where a face lies in
+// a tank wall's plane the stop puts `to` outside the tank by the offset:
+// the callers project it back (inside_tank), or the next path, starting
+// outside the face's edge, would miss the face beside it.
 SPHRAY_HD inline Stop stop_at_obstacles(const Obstacles& obs, Vec3f from, Vec3f& to, float t0, float t1) {
   Stop stop;
   if (obs.count == 0) return stop;

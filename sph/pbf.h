@@ -22,7 +22,10 @@
 // liquid beyond each wall instead over-counts there and at corners, and
 // pushed the liquid up the walls of a pool at rest). The walls are free-slip.
 // Each correction ends with the position projected into the tank, so no
-// particle leaves it (mirror_walls.h).
+// particle leaves it (mirror_walls.h). The obstacles' wall particles
+// (mesh_walls.h) are static wall particles in the same way: they add to the
+// density and to grad_i C_i and push with lambda_i alone; the Lambda pass
+// keeps their gradient sum for the Correct pass at the same positions.
 // The step (ChooseFlowStep, flow_step.h) has a depth limit besides the CFL:
 // each Jacobi iteration carries a correction about one support, so a column
 // of depth H under gravity stays compressed by about g H dt^2 / (K s^2) with
@@ -36,6 +39,7 @@
 #include <cstdint>
 
 #include "flow_step.h"
+#include "mesh_walls.h"
 #include "mirror_walls.h"
 #include "obstacles.h"
 #include "params.h"
@@ -56,7 +60,7 @@ struct Predict {
     const float dt = float(control->limits.dt);
     const Vec3f v = xyz(vel[i]) + dt * prm.gravity;
     Vec3f x = inside_tank(prm, xyz(pos[i]) + dt * v);
-    stop_at_obstacles(obstacles, xyz(pos[i]), x, obstacles.time, obstacles.time + dt);
+    if (stop_at_obstacles(obstacles, xyz(pos[i]), x, obstacles.time, obstacles.time + dt).hit()) x = inside_tank(prm, x);
     pred[i] = {x.x, x.y, x.z, 0.0f};
   }
 };
@@ -81,12 +85,15 @@ struct Lambda {
   const Float4* pred;
   Float4* out;
   float* error;
+  WallsView walls;
+  Float4* wall_grad;  // out where the obstacles' walls are near: sum_b V_b grad W_ib
   SPHRAY_HD void operator()(uint32_t i) const {
     const PbfKernel<float>& k = pbf.kernel;
     const float s2 = k.s * k.s;
     const Vec3f xi = xyz(pred[i]);
     const Mirrors mirrors = mirrors_of(prm, k.s, xi);
-    if (!serves(P, pairs, i, mirrors)) return;
+    const bool near_mesh = walls.near_point(grid, xi);
+    if (!serves(P, pairs, i, mirrors, near_mesh)) return;
     float w_sum = k.W(0.0f), g2 = 0.0f;
     Vec3f grad = {0.0f, 0.0f, 0.0f};
     // The images are static: they add nothing to the sum over the neighbours' gradients.
@@ -97,7 +104,17 @@ struct Lambda {
       grad += g;
       if (set == 0u) g2 += length2(g);
     });
-    const float c = fmaxf(pbf.volume * w_sum - 1.0f, 0.0f);  // rho / rho0 - 1
+    float wall_volume = 0.0f;
+    if (P != kInterior && near_mesh) {
+      Vec3f gw = {0.0f, 0.0f, 0.0f};
+      walls.for_each_near(grid, xi, k.s, [&](uint32_t, Float4 pb, Vec3f r, float r2) {
+        wall_volume += pb.w * k.W(r2);
+        gw += (pb.w * k.dW_over_r(std::sqrt(r2))) * r;
+      });
+      grad += gw;
+      wall_grad[i] = {gw.x, gw.y, gw.z, 0.0f};
+    }
+    const float c = fmaxf(pbf.volume * w_sum + wall_volume - 1.0f, 0.0f);  // rho / rho0 - 1
     const float lambda = -c / (length2(grad) + g2 + pbf.epsilon);
     out[i] = {xi.x, xi.y, xi.z, lambda};
     error[i] = c;
@@ -116,14 +133,17 @@ struct Correct {
   const Float4* pred;  // x*, lambda
   Float4* out;
   Obstacles obstacles;  // the correction is stopped at them (obstacles.h), in their pose at the step's end
-  const FlowControl* control = nullptr;  // the step's dt (with obstacles)
+  const FlowControl* control;  // the step's dt (with obstacles)
+  WallsView walls;
+  const Float4* wall_grad;  // Lambda's, at these positions
   SPHRAY_HD void operator()(uint32_t i) const {
     const PbfKernel<float>& k = pbf.kernel;
     const float s2 = k.s * k.s;
     const Float4 pi = pred[i];
     const Vec3f xi = xyz(pi);
     const Mirrors mirrors = mirrors_of(prm, k.s, xi);
-    if (!serves(P, pairs, i, mirrors)) return;
+    const bool near_mesh = walls.near_point(grid, xi);
+    if (!serves(P, pairs, i, mirrors, near_mesh)) return;
     Vec3f dx = {0.0f, 0.0f, 0.0f};
     // An image is a static wall particle: lambda_i only, no s_corr.
     auto lambda = [](uint32_t, Float4 pj) { return pj.w; };
@@ -141,6 +161,7 @@ struct Correct {
       }
       dx += (scale * pbf.volume * k.dW_over_r(std::sqrt(r2))) * r;
     });
+    if (P != kInterior && near_mesh) dx += pi.w * xyz(wall_grad[i]);  // lambda_i only, as the images
     // At most pbf.max_correction per iteration (pbf_params.h).
     const float len2 = length2(dx);
     if (pbf.max_correction > 0.0f && len2 > pbf.max_correction * pbf.max_correction)
@@ -148,7 +169,7 @@ struct Correct {
     Vec3f x = inside_tank(prm, xi + dx);
     if (obstacles.count > 0) {
       const float t_end = obstacles.time + float(control->limits.dt);
-      stop_at_obstacles(obstacles, xi, x, t_end, t_end);
+      if (stop_at_obstacles(obstacles, xi, x, t_end, t_end).hit()) x = inside_tank(prm, x);
     }
     out[i] = {x.x, x.y, x.z, 0.0f};
   }
@@ -156,7 +177,7 @@ struct Correct {
 
 // The end of the step: v = (x* - x) / dt with XSPH viscosity
 // (v_i += c sum_j (m / rho0) (v_j - v_i) W_ij), x = x*, and at x* the density
-// with the wall images (error[i] = its compression) and, when asked for,
+// with the wall images and the obstacles' walls (error[i] = its compression) and, when asked for,
 // presence (fluid only).
 template <bool WithPresence, int P>
 struct Finish {
@@ -174,11 +195,13 @@ struct Finish {
   float* error;
   float* presence;     // [6][n]; null without presence
   uint32_t n;
+  WallsView walls;
   SPHRAY_HD void operator()(uint32_t i) const {
     const PbfKernel<float>& k = pbf.kernel;
     const Vec3f xi = xyz(pred[i]);
     const Mirrors mirrors = mirrors_of(prm, k.s, xi);
-    if (!serves(P, pairs, i, mirrors)) return;
+    const bool near_mesh = walls.near_point(grid, xi);
+    if (!serves(P, pairs, i, mirrors, near_mesh)) return;
     const float inv_dt = float(1.0 / control->limits.dt);
     const Vec3f vi = inv_dt * (xi - xyz(pos[i]));
     float w_sum = k.W(0.0f);
@@ -200,7 +223,10 @@ struct Finish {
         uz += v_dwr * std::fabs(r.z);
       }
     });
-    const float rho_rel = pbf.volume * w_sum;
+    float wall_volume = 0.0f;
+    if (P != kInterior && near_mesh)
+      walls.for_each_near(grid, xi, k.s, [&](uint32_t, Float4 pb, Vec3f, float r2) { wall_volume += pb.w * k.W(r2); });
+    const float rho_rel = pbf.volume * w_sum + wall_volume;
     const float rho = prm.rest_density * rho_rel;
     // Weighed by the rest volume, not m / rho_i: the summed density falls by
     // the kernel's deficit at a free surface, and dividing by it would count

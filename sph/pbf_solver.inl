@@ -13,7 +13,8 @@ class PbfSolverImpl final : public Solver {
  public:
   explicit PbfSolverImpl(const SolverInput& in)
       : prm_(in.params), pbf_(in.pbf), grid_(in.grid), cfl_(in.cfl), min_dt_(in.min_dt), max_dt_(in.max_dt),
-        n_(uint32_t(in.fluid_pos_rho.size())), obstacles_(make_obstacle_set(kBackend, in.obstacles, in.params.spacing)) {
+        n_(uint32_t(in.fluid_pos_rho.size())), obstacles_(make_obstacle_set(kBackend, in.obstacles, in.params.spacing)),
+        walls_(in, in.grid) {
     const size_t n = n_;
     upload(pos_, in.fluid_pos_rho);
     upload(vel_, in.fluid_vel);
@@ -24,6 +25,7 @@ class PbfSolverImpl final : public Solver {
     pos_tmp_.resize(n); vel_tmp_.resize(n); pred_tmp_.resize(n); id_tmp_.resize(n);
     status_.assign(n, uint8_t(kStatusOk)); status_tmp_.resize(n);
     error_.assign(n, 0.0f);
+    if (walls_.size()) wall_grad_.resize(n);
     keys_.resize(n); order_.resize(n);
     offsets_.resize(size_t(grid_.num_cells()) + 1);
     fine_offsets_.resize(size_t(grid_.num_fine_cells()) + 1);
@@ -68,7 +70,7 @@ class PbfSolverImpl final : public Solver {
     auto b = [](const auto& v) { return v.size() * sizeof(typename std::decay_t<decltype(v)>::value_type); };
     return b(pos_) + b(vel_) + b(pred_) + b(pos_tmp_) + b(vel_tmp_) + b(pred_tmp_) + b(presence_) + b(presence_tmp_) +
            b(id_) + b(id_tmp_) + b(status_) + b(status_tmp_) + b(error_) + b(keys_) + b(order_) + b(offsets_) +
-           b(fine_offsets_) + b(pairs_) + b(pair_count_) + raw_copies_.bytes();
+           b(fine_offsets_) + b(pairs_) + b(pair_count_) + b(wall_grad_) + walls_.bytes() + raw_copies_.bytes();
   }
 
   void step(double until) override {
@@ -83,6 +85,7 @@ class PbfSolverImpl final : public Solver {
     parallel_for("pbf_choose_step", 1,
                  ChooseFlowStep{cfl_ * prm_.spacing, double(pbf_.speed_floor), max_dt_, double(pbf_.max_dt_depth), min_dt_,
                                std::max(until - t_, 0.0), control});
+    walls_.move(obstacles_.view, control);  // to the step's end, where the corrections meet them
     parallel_for("pbf_predict", n_, Predict{prm_, control, raw(pos_), raw(vel_), raw(pred_), obstacles_.view});
     sort_by(pred_);
     grid_current_ = false;
@@ -117,7 +120,7 @@ class PbfSolverImpl final : public Solver {
   void download_raw(RawParticles& out, bool velocity, bool presence) const override {
     raw_copies_.take(out, pos_, vel_, id_, presence && presence_valid_ ? &presence_ : nullptr, n_, velocity);
   }
-  std::vector<Vec3f> boundary_positions() const override { return {}; }
+  std::vector<Vec3f> boundary_positions() const override { return walls_.positions(); }
 
  private:
   PairMask pairs() { return {raw(pairs_), raw(pair_count_), n_, mask_words_}; }
@@ -151,7 +154,7 @@ class PbfSolverImpl final : public Solver {
   int solve() {
     for (int k = 0; k < pbf_.iterations; ++k) {
       mirror_pass_launches<Lambda>(kLambdaNames, n_, prm_, pbf_, grid_, raw(fine_offsets_), pairs(), raw(pred_), raw(pred_tmp_),
-                            raw(error_));
+                            raw(error_), walls_.view(), raw(wall_grad_));
       pred_.swap(pred_tmp_);
       if (pbf_.tolerance > 0) {
         // Ending early needs the error on the host: one read per iteration.
@@ -159,7 +162,7 @@ class PbfSolverImpl final : public Solver {
         if (n_ == 0 || sum / n_ <= pbf_.tolerance) return k;
       }
       mirror_pass_launches<Correct>(kCorrectNames, n_, prm_, pbf_, grid_, raw(fine_offsets_), pairs(), raw(pred_), raw(pred_tmp_),
-                                    obstacles_.view, raw(control_));
+                                    obstacles_.view, raw(control_), walls_.view(), raw(wall_grad_));
       pred_.swap(pred_tmp_);
     }
     return pbf_.iterations;
@@ -196,7 +199,7 @@ class PbfSolverImpl final : public Solver {
     float* presence = Presence ? raw(presence_) : nullptr;
     mirror_pass_launches<FinishOf<Presence>::template pass>(kFinishNames, n_, prm_, pbf_, grid_, raw(fine_offsets_), pairs(),
                                                      control, raw(pred_), raw(pos_), raw(pos_tmp_), raw(vel_tmp_),
-                                                     raw(error_), presence, n_);
+                                                     raw(error_), presence, n_, walls_.view());
   }
 
   // Speed, density error and finiteness of the current state, into the
@@ -213,6 +216,7 @@ class PbfSolverImpl final : public Solver {
   double cfl_, min_dt_, max_dt_;
   uint32_t n_;
   ObstacleSet obstacles_;  // meshes the particles' paths stop at (obstacles.h)
+  WallParticles walls_;    // the obstacles' (mesh_walls.h)
   PresenceMode presence_mode_ = PresenceMode::Off;
   bool presence_valid_ = false;
   bool grid_current_ = false;  // offsets_ match pos_ (else pred_, as sorted at the step's start)
@@ -229,6 +233,7 @@ class PbfSolverImpl final : public Solver {
   // pos_: x, density; vel_: v; pred_: x*, lambda during the iterations.
   Vector<Float4> pos_, vel_, pred_, pos_tmp_, vel_tmp_, pred_tmp_;
   Vector<float> presence_, presence_tmp_, error_;
+  Vector<Float4> wall_grad_;  // per particle near the obstacles' walls (pbf.h, Lambda)
   Vector<uint32_t> id_, id_tmp_, keys_, order_, offsets_, fine_offsets_;
   Vector<uint8_t> status_, status_tmp_;
   uint32_t mask_words_ = 0;

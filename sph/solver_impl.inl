@@ -12,28 +12,7 @@
 
 #include "nsearch/sort.inl"
 #include "particle_copies.inl"
-
-// The wall particles of moving obstacles into their pose at the step's end
-// (the obstacles' Motion at time + dt, dt from the device's choice).
-struct MoveWalls {
-  Obstacles obstacles;
-  const StepControl* control;  // null: at obstacles.time itself
-  const Float4* body;          // each wall particle at t = 0
-  const uint8_t* owner;        // its moving obstacle, or kStaticWall
-  Float4* pos;
-  Float4* vel;  // the velocity over the step (static walls: zero, set once)
-  SPHRAY_HD void operator()(uint32_t b) const {
-    const uint8_t k = owner[b];
-    if (k == kStaticWall) return;
-    const float dt = control ? float(control->limits.dt) : 0.0f;
-    const Float4 p = body[b];
-    const Motion& m = obstacles.motion[k];
-    const Vec3f w = m.at(obstacles.time + dt).to_world(xyz(p));
-    const Vec3f v = dt > 0.0f ? (w - m.at(obstacles.time).to_world(xyz(p))) * (1.0f / dt) : Vec3f{0, 0, 0};
-    pos[b] = {w.x, w.y, w.z, p.w};
-    vel[b] = {v.x, v.y, v.z, 0.0f};
-  }
-};
+#include "wall_particles.inl"
 
 // The particle data into the new sorted order, one kernel for all of it
 // (one read of the order): out[i] = in[order[i]] for the first n_new sorted
@@ -60,7 +39,8 @@ class SolverImpl final : public Solver {
  public:
   explicit SolverImpl(const SolverInput& in)
       : prm_(in.params), grid_(in.grid), cfl_(in.cfl), min_dt_(in.min_dt), max_dt_(in.max_dt),
-        n_(uint32_t(in.fluid_pos_rho.size())), obstacles_(make_obstacle_set(kBackend, in.obstacles, in.params.spacing)) {
+        n_(uint32_t(in.fluid_pos_rho.size())), obstacles_(make_obstacle_set(kBackend, in.obstacles, in.params.spacing)),
+        walls_(in, in.grid) {
     const size_t n = n_, cells = size_t(grid_.num_cells()) + 1, slabs = size_t(grid_.num_fine_cells()) + 1;
     upload(pos_, in.fluid_pos_rho);
     upload(vel_, in.fluid_vel);
@@ -81,30 +61,8 @@ class SolverImpl final : public Solver {
     parallel_for("pressure_term", n_, PressureTermOf{prm_, raw(pos_), raw(flow_)});
     set_presence(in.presence);
 
-    // Walls: sorted by the same grid, once unless obstacles move them. A
-    // moving obstacle's wall particles keep their t = 0 pose and owner for
-    // move_walls().
-    const uint32_t nb = uint32_t(in.boundary.size());
-    upload(boundary_, in.boundary);
-    upload(boundary_alpha_, in.boundary_alpha);
-    wall_.resize(nb);
-    boundary_offsets_.resize(slabs);
-    boundary_near_.resize(grid_.num_cells());
+    wall_.resize(walls_.size());
     fluid_near_.resize(grid_.num_cells());
-    if (!in.boundary_obstacle.empty()) {
-      upload(wall_owner_, in.boundary_obstacle);
-      moving_walls_ = thrust::count(policy(), wall_owner_.begin(), wall_owner_.end(), kStaticWall) != ptrdiff_t(nb);
-    }
-    if (moving_walls_) {
-      wall_body_ = boundary_;
-      wall_vel_.assign(nb, Float4{0, 0, 0, 0});
-    } else {
-      wall_owner_ = {};
-    }
-    sort_walls();
-    if (!moving_walls_) {  // the scratch of the sort is not needed again
-      wall_keys_ = {}; wall_order_ = {}; wall_pos_tmp_ = {}; wall_alpha_tmp_ = {};
-    }
     build_grid();
   }
 
@@ -137,11 +95,9 @@ class SolverImpl final : public Solver {
   size_t device_bytes() const override {
     auto b = [](const auto& v) { return v.size() * sizeof(typename std::decay_t<decltype(v)>::value_type); };
     return b(pos_) + b(vel_) + b(flow_) + b(pos_tmp_) + b(vel_tmp_) + b(flow_tmp_) + b(accel_) + b(rate_grad_) + b(presence_) + b(presence_tmp_) + b(id_) +
-           b(id_tmp_) + b(status_) + b(status_tmp_) + b(keys_) + b(order_) + b(offsets_) + b(fine_offsets_) + b(boundary_) +
-           b(boundary_alpha_) + b(wall_) + b(boundary_offsets_) + b(fluid_pairs_) + b(boundary_pairs_) +
-           b(fluid_pair_count_) + b(boundary_pair_count_) + b(fluid_near_) + b(boundary_near_) + b(wall_body_) +
-           b(wall_pos_tmp_) + b(wall_body_tmp_) + b(wall_owner_) + b(wall_owner_tmp_) + b(wall_alpha_tmp_) +
-           b(wall_keys_) + b(wall_order_) + b(wall_vel_) + b(wall_vel_tmp_) + raw_copies_.bytes();
+           b(id_tmp_) + b(status_) + b(status_tmp_) + b(keys_) + b(order_) + b(offsets_) + b(fine_offsets_) + b(wall_) +
+           b(fluid_pairs_) + b(boundary_pairs_) + b(fluid_pair_count_) + b(boundary_pair_count_) + b(fluid_near_) +
+           walls_.bytes() + raw_copies_.bytes();
   }
 
   // Stage order: pairs (wall pressure, then one neighbour loop for the
@@ -194,7 +150,7 @@ class SolverImpl final : public Solver {
     raw_copies_.take(out, pos_, vel_, id_, presence && presence_valid_ ? &presence_ : nullptr, n_, velocity);
   }
 
-  std::vector<Vec3f> boundary_positions() const override { return download_positions(boundary_); }
+  std::vector<Vec3f> boundary_positions() const override { return walls_.positions(); }
   const float* device_pressure() override {
     if (pressure_out_.size() < n_) pressure_out_.resize(n_);
     parallel_for("tait_pressure", n_, TaitPressureOf{prm_, raw(pos_), raw(pressure_out_)});
@@ -204,8 +160,7 @@ class SolverImpl final : public Solver {
  private:
   template <bool P, bool Direct, KernelType K>
   Interaction<P, Direct, K> pair_stage() {
-    const WallsIn walls{raw(boundary_offsets_), raw(boundary_), raw(wall_), raw(boundary_alpha_),
-                        moving_walls_ ? raw(wall_vel_) : nullptr};
+    const WallsIn walls{walls_.offsets(), walls_.pos(), raw(wall_), walls_.alpha(), walls_.vel()};
     const PairOut out{raw(accel_), raw(rate_grad_), P ? raw(presence_) : nullptr};
     return {prm_, grid_, fluid_in(), walls, fluid_pairs(), boundary_pairs(), out, n_};
   }
@@ -224,8 +179,8 @@ class SolverImpl final : public Solver {
   // is a template parameter of both loops (kernel.h, W_for and dW_over_r_for).
   template <KernelType K>
   void pairs(bool presence) {
-    parallel_for("wall_pressure", uint32_t(boundary_.size()),
-                 WallPressure<K>{prm_, grid_, fluid_in(), raw(fluid_near_), raw(boundary_), raw(wall_)});
+    parallel_for("wall_pressure", walls_.size(),
+                 WallPressure<K>{prm_, grid_, fluid_in(), raw(fluid_near_), walls_.pos(), raw(wall_)});
     if (presence) pair_launches<true, K>();
     else pair_launches<false, K>();
   }
@@ -241,40 +196,8 @@ class SolverImpl final : public Solver {
   PairMask fluid_pairs() { return {raw(fluid_pairs_), raw(fluid_pair_count_), n_, mask_words_}; }
   PairMask boundary_pairs() { return {raw(boundary_pairs_), raw(boundary_pair_count_), n_, mask_words_}; }
 
-  // Every wall particle sorted by the grid, with what it carries (viscosity;
-  // where obstacles move, t = 0 pose, owner and velocity), its slab table and
-  // cell flags (the next pair masks index the walls in that order).
-  void sort_walls() {
-    const uint32_t nb = uint32_t(boundary_.size());
-    wall_keys_.resize(nb);
-    wall_order_.resize(nb);
-    parallel_for("wall_keys", nb, KeyOf<Float4>{grid_, raw(boundary_), raw(wall_keys_)});
-    sort_and_offsets(grid_, nb, wall_keys_, wall_order_, boundary_offsets_, nullptr);
-    auto regather = [&](auto& v, auto& tmp) {
-      tmp.resize(nb);
-      thrust::gather(policy(), wall_order_.begin(), wall_order_.end(), v.begin(), tmp.begin());
-      v.swap(tmp);
-    };
-    regather(boundary_, wall_pos_tmp_);
-    regather(boundary_alpha_, wall_alpha_tmp_);
-    if (moving_walls_) {
-      regather(wall_body_, wall_body_tmp_);
-      regather(wall_owner_, wall_owner_tmp_);
-      regather(wall_vel_, wall_vel_tmp_);
-    }
-    parallel_for("wall_cells_near", grid_.num_cells(), CellsNear{grid_, raw(boundary_offsets_), raw(boundary_near_)});
-  }
-
-  // The walls of moving obstacles to where the step (control: its dt) puts
-  // them, then sorted again.
-  void move_walls(const StepControl* control) {
-    parallel_for("wall_motion", uint32_t(boundary_.size()),
-                 MoveWalls{obstacles_.view, control, raw(wall_body_), raw(wall_owner_), raw(boundary_), raw(wall_vel_)});
-    sort_walls();
-  }
-
   void build_grid(const StepControl* control = nullptr) {
-    if (moving_walls_ && control) move_walls(control);
+    if (control) walls_.move(obstacles_.view, control);
     parallel_for("fluid_keys", n_, KeyOf<Float4>{grid_, raw(pos_), raw(keys_)});
     sort_and_offsets(grid_, n_, keys_, order_, fine_offsets_, &offsets_);
     // Particles outside the grid (only possible through an open top: Advance
@@ -297,8 +220,8 @@ class SolverImpl final : public Solver {
     // The pair masks of the next step's pair loop (nsearch/pair_masks.h), at these positions.
     const float support2 = prm_.kernel.support() * prm_.kernel.support();
     parallel_for("fluid_pair_masks", n_, BuildPairMask{grid_, raw(fine_offsets_), raw(pos_), raw(pos_), support2, true, fluid_pairs()});
-    parallel_for("wall_pair_masks", n_, BuildPairMask{grid_, raw(boundary_offsets_), raw(boundary_), raw(pos_), support2, false,
-                                   boundary_pairs(), raw(boundary_near_)});
+    parallel_for("wall_pair_masks", n_, BuildPairMask{grid_, walls_.offsets(), walls_.pos(), raw(pos_), support2, false,
+                                   boundary_pairs(), walls_.near()});
   }
 
   // The viscous limit of dt: 0.125 h^2 / nu with the 3D equivalent viscosity of
@@ -368,13 +291,7 @@ class SolverImpl final : public Solver {
   size_t removed_ = 0;
   uint64_t clamped_total_ = 0;
   ObstacleSet obstacles_;
-  // Moving obstacles' wall particles (move_walls): each wall particle's t = 0
-  // pose and owner in the walls' current order, and scratch for the re-sort.
-  bool moving_walls_ = false;
-  Vector<Float4> wall_body_, wall_pos_tmp_, wall_body_tmp_, wall_vel_, wall_vel_tmp_;
-  Vector<uint8_t> wall_owner_, wall_owner_tmp_;
-  Vector<float> wall_alpha_tmp_;
-  Vector<uint32_t> wall_keys_, wall_order_;
+  WallParticles walls_;  // the tank's and the obstacles' (boundary.h)
   StepLimits limits_;
   StageTimes times_;
   StageClock clock_;
@@ -385,19 +302,19 @@ class SolverImpl final : public Solver {
 
   // vel_: the exact velocity; flow_: what the pair loop reads of a neighbour,
   // u (the predicted kicked velocity) and p / rho^2 (integrate.h).
-  Vector<Float4> pos_, vel_, flow_, pos_tmp_, vel_tmp_, flow_tmp_, accel_, rate_grad_, boundary_;
-  Vector<float> presence_, presence_tmp_, boundary_alpha_;
+  Vector<Float4> pos_, vel_, flow_, pos_tmp_, vel_tmp_, flow_tmp_, accel_, rate_grad_;
+  Vector<float> presence_, presence_tmp_;
   Vector<float> pressure_out_;  // device_pressure
   Vector<WallState> wall_;
   // offsets_: coarse cell table (view(), the field builder, the raycaster);
-  // fine_offsets_ and boundary_offsets_: slab tables of the neighbour loops (grid.h).
-  Vector<uint32_t> id_, id_tmp_, keys_, order_, offsets_, fine_offsets_, boundary_offsets_;
+  // fine_offsets_: slab table of the neighbour loops (grid.h).
+  Vector<uint32_t> id_, id_tmp_, keys_, order_, offsets_, fine_offsets_;
   // Pair masks of every fluid particle against the fluid and the walls (nsearch/pair_masks.h).
   uint32_t mask_words_ = 0;
   Vector<PairWord> fluid_pairs_, boundary_pairs_;
   Vector<uint32_t> fluid_pair_count_, boundary_pair_count_;
   Vector<uint8_t> status_, status_tmp_;
-  // Per grid cell: whether fluid (updated with the grid) or wall particles
-  // (static) lie in the 27 cells around it (CellsNear, grid.h).
-  Vector<uint8_t> fluid_near_, boundary_near_;
+  // Per grid cell: whether fluid (updated with the grid) lies in the 27
+  // cells around it (CellsNear, grid.h; the walls' flags: walls_.near()).
+  Vector<uint8_t> fluid_near_;
 };

@@ -1,0 +1,55 @@
+// The obstacles' wall particles as the incompressible solvers (PBF, pbf.h;
+// DFSPH, dfsph.h) see them: the points of the particle lattice inside each
+// mesh within one support of its surface (pipeline/setup.cpp), static wall
+// particles of the fluid's rest density and volume V_b = dx^3 (the model of
+// Akinci et al., "Versatile Rigid-Fluid Coupling for Incompressible SPH",
+// 2012, with the volume of a filled lattice in place of their per-particle
+// sum, as the lattice fills the skin evenly). They add to a particle's
+// density and to the gradient of its constraint, and push it with its own
+// pressure only (the walls do not take part in the solve). The tank's planes
+// stay mirrors (mirror_walls.h); the meshes' paths test (obstacles.h) stays
+// the guarantee that nothing leaks. Their walls are free-slip.
+#pragma once
+
+#include <cstdint>
+
+#include "nsearch/grid.h"
+#include "core/vec.h"
+
+namespace sphray {
+
+// The wall particles sorted by the solver's grid.
+struct WallsView {
+  const uint32_t* offsets = nullptr;  // slab table (nsearch/grid.h)
+  const Float4* pos = nullptr;        // x, y, z, volume
+  const Float4* vel = nullptr;        // velocity over the step; null where no wall moves
+  const uint8_t* near = nullptr;      // per cell: wall particles within the 27 around it; null: no walls
+
+  // Whether wall particles may lie within a support of x (a cell of the
+  // incompressible solvers' grid is two supports wide).
+  SPHRAY_HD SPHRAY_FORCEINLINE bool near_point(const GridGeom& g, Vec3f x) const {
+    return near != nullptr && cell_near(g, near, x);
+  }
+
+  // f(b, p_b, r, r2) for each wall particle b within `support` of x, r =
+  // x - x_b, the grid's candidate rows culled to the support (the cells are
+  // wider, grid.h). One exactly at x (r = 0, possible only for a particle on
+  // the surface over a lattice point) is left out: its gradient has no
+  // direction.
+  template <class F>
+  SPHRAY_HD SPHRAY_FORCEINLINE void for_each_near(const GridGeom& g, Vec3f x, float support, F&& f) const {
+    const float s2 = support * support;
+    for (int row = 0; row < kCandidateRows; ++row) {
+      uint32_t begin = 0, end = 0;
+      if (!candidate_row(g, offsets, x, row, begin, end, support)) continue;
+      for (uint32_t b = begin; b < end; ++b) {
+        const Float4 pb = load(pos + b);
+        const Vec3f r = x - xyz(pb);
+        const float r2 = length2(r);
+        if (r2 < s2 && r2 > 0.0f) f(b, pb, r, r2);
+      }
+    }
+  }
+};
+
+}  // namespace sphray
