@@ -385,7 +385,15 @@ struct DfsphKick {
     Vec3f v = xyz(vel[i]) + dt * xyz(acc[i]);
     Vec3f x{0.0f, 0.0f, 0.0f};
     if (Advect) {
-      x = inside_tank(prm, xyz(pos[i]) + dt * v);
+      // A particle the projection holds at a tank face loses its velocity
+      // into it, as one a mesh stops does: kept, it would grow by g dt a
+      // step wherever the liquid is not dense enough to push back (a corner
+      // beside a mesh thinner than the support).
+      const Vec3f want = xyz(pos[i]) + dt * v;
+      x = inside_tank(prm, want);
+      if (x.x != want.x) v.x = 0.0f;
+      if (x.y != want.y) v.y = 0.0f;
+      if (x.z != want.z) v.z = 0.0f;
       const Stop stop = stop_at_obstacles(obstacles, xyz(pos[i]), x, obstacles.time, obstacles.time + dt);
       if (stop.hit()) x = inside_tank(prm, x);
       v = velocity_after(v, stop);

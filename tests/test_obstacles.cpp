@@ -401,8 +401,8 @@ void check_piston(const std::string& solver, Backend backend) {
 
 }  // namespace
 
-TEST_CASE("a piston paddle drives the liquid and no particle enters it, under WCSPH and PBF", "[mesh][cpu]") {
-  for (const char* solver : {"wcsph", "pbf"}) check_piston(solver, Backend::Cpu);
+TEST_CASE("a piston paddle drives the liquid and no particle enters it, under every solver", "[mesh][cpu]") {
+  for (const char* solver : {"wcsph", "pbf", "dfsph"}) check_piston(solver, Backend::Cpu);
   const Scene s = parse_scene(wave_tank("wcsph"), "t.json");
   REQUIRE(s.obstacles[0].motion.moves());
   // WCSPH's paddle has wall particles, marked with their obstacle.
