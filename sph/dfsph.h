@@ -146,7 +146,7 @@ struct DfsphDensity {
     });
     float d = df.volume * w_sum;
     Vec3f wall_grad = {0.0f, 0.0f, 0.0f};
-    if (P != kInterior && near_mesh) {
+    if (with_mesh_walls(P) && near_mesh) {
       WallSum ws{{0.0f, 0.0f, 0.0f}, {0.0f, 0.0f, 0.0f}, 0.0f, 0.0f, 0.0f};
       const float dt = control ? float(control->limits.dt) : 0.0f;
       const float p_last = dt > 0.0f ? warm[i].x / (dt * dt) : 0.0f;
@@ -222,7 +222,7 @@ struct DfsphAccel {
       a -= (pi + o.p) * g;
       if (WithSource) rate += dot(vi - Mirrors::flip(o.v, set), g);
     });
-    if (P != kInterior && near_mesh) {
+    if (with_mesh_walls(P) && near_mesh) {
       const WallSum ws = wall_sum[i];
       a -= (2.0f * pi) * ws.grad;
       if (WithSource) rate += dot(vi, ws.grad) - ws.rate;
@@ -269,7 +269,7 @@ struct DfsphUpdate {
                                     [&](Vec3f r, float r2, Vec3f aj, uint32_t set) {
       ap += dot(ai - Mirrors::flip(aj, set), volume_grad(df, r, r2));
     });
-    if (P != kInterior && near_mesh) ap += dot(ai, wall_sum[i].grad);  // the walls do not accelerate
+    if (with_mesh_walls(P) && near_mesh) ap += dot(ai, wall_sum[i].grad);  // the walls do not accelerate
     const float dt = float(control->limits.dt), dt2 = dt * dt;
     const float s = Divergence ? -dt * source[i] : 1.0f - source[i];
     const float r = dt2 * ap - s;

@@ -175,12 +175,14 @@ class DfsphSolverImpl final : public Solver {
   void forces() {
     const FlowControl* control = raw(control_);
     if (df_.viscosity <= 0) {
-      parallel_for("dfsph_gravity", n_, DfsphGravity{prm_, grid_, control, raw(pos_), raw(vel_), walls_.view(), raw(wall_sum_)});
+      parallel_for("dfsph_gravity", n_,
+                   DfsphGravity{prm_, grid_, control, raw(pos_), raw(vel_), walls_.view(), raw(wall_sum_)});
       return;
     }
-    static constexpr const char* kNames[3] = {"dfsph_viscosity", "dfsph_viscosity_walls", "dfsph_viscosity_direct"};
-    mirror_pass_launches<DfsphViscosity>(kNames, n_, prm_, df_, grid_, raw(fine_offsets_), pairs(), control, raw(pos_),
-                                         raw(vel_), raw(vel_tmp_), walls_.view(), raw(wall_sum_));
+    static constexpr const char* kNames[4] = {"dfsph_viscosity", "dfsph_viscosity_walls",
+                                              "dfsph_viscosity_direct", "dfsph_viscosity_mesh"};
+    mirror_pass_launches<DfsphViscosity>(kNames, n_, false, prm_, df_, grid_, raw(fine_offsets_), pairs(), control,
+                                         raw(pos_), raw(vel_), raw(vel_tmp_), walls_.view(), raw(wall_sum_));
     vel_.swap(vel_tmp_);
   }
 
@@ -188,14 +190,15 @@ class DfsphSolverImpl final : public Solver {
   // source_, sparse_, error_ and, when asked for, presence_.
   void density(bool presence, const FlowControl* control = nullptr) {
     presence_valid_ = presence;
-    static constexpr const char* kNames[3] = {"dfsph_density", "dfsph_density_walls", "dfsph_density_direct"};
+    static constexpr const char* kNames[4] = {"dfsph_density", "dfsph_density_walls",
+                                              "dfsph_density_direct", "dfsph_density_mesh"};
     float* pr = presence ? raw(presence_) : nullptr;
     auto launch = [&](auto pass) {
       using P = decltype(pass);
-      mirror_pass_launches<P::template pass>(kNames, n_, prm_, df_, grid_, raw(fine_offsets_), pairs(), raw(pos_),
-                                             raw(vel_), raw(pos_tmp_), raw(factor_), raw(source_), raw(sparse_),
-                                             raw(error_), pr, n_, walls_.view(), raw(wall_sum_), raw(warm_),
-                                             control);
+      mirror_pass_launches<P::template pass>(kNames, n_, walls_.size() > 0, prm_, df_, grid_, raw(fine_offsets_),
+                                             pairs(), raw(pos_), raw(vel_), raw(pos_tmp_), raw(factor_), raw(source_),
+                                             raw(sparse_), raw(error_), pr, n_, walls_.view(), raw(wall_sum_),
+                                             raw(warm_), control);
     };
     if (presence) launch(WithFlag<true, DfsphDensity>{});
     else launch(WithFlag<false, DfsphDensity>{});
@@ -204,12 +207,13 @@ class DfsphSolverImpl final : public Solver {
 
   template <bool WithSource>
   void accel() {
-    static constexpr const char* kNames[3] = {"dfsph_accel", "dfsph_accel_walls", "dfsph_accel_direct"};
-    static constexpr const char* kSourceNames[3] = {"dfsph_accel_source", "dfsph_accel_source_walls",
-                                                    "dfsph_accel_source_direct"};
+    static constexpr const char* kNames[4] = {"dfsph_accel", "dfsph_accel_walls",
+                                              "dfsph_accel_direct", "dfsph_accel_mesh"};
+    static constexpr const char* kSourceNames[4] = {"dfsph_accel_source", "dfsph_accel_source_walls",
+                                                    "dfsph_accel_source_direct", "dfsph_accel_source_mesh"};
     mirror_pass_launches<WithFlag<WithSource, DfsphAccel>::template pass>(
-        WithSource ? kSourceNames : kNames, n_, prm_, df_, grid_, raw(fine_offsets_), pairs(), raw(control_), raw(pos_),
-        raw(vel_), raw(press_), raw(acc_), raw(source_), walls_.view(), raw(wall_sum_));
+        WithSource ? kSourceNames : kNames, n_, walls_.size() > 0, prm_, df_, grid_, raw(fine_offsets_), pairs(),
+        raw(control_), raw(pos_), raw(vel_), raw(press_), raw(acc_), raw(source_), walls_.view(), raw(wall_sum_));
   }
 
   // The iterations of one solve (dfsph.h): at least min_it, at most max_it,
@@ -217,16 +221,18 @@ class DfsphSolverImpl final : public Solver {
   // also computes the density the velocities lead to.
   template <bool Divergence>
   SolveResult iterate(int min_it, int max_it, double tol) {
-    static constexpr const char* kNames[3] = {"dfsph_update", "dfsph_update_walls", "dfsph_update_direct"};
-    static constexpr const char* kDivNames[3] = {"dfsph_update_div", "dfsph_update_div_walls", "dfsph_update_div_direct"};
+    static constexpr const char* kNames[4] = {"dfsph_update", "dfsph_update_walls",
+                                              "dfsph_update_direct", "dfsph_update_mesh"};
+    static constexpr const char* kDivNames[4] = {"dfsph_update_div", "dfsph_update_div_walls",
+                                                 "dfsph_update_div_direct", "dfsph_update_div_mesh"};
     SolveResult r;
     for (int k = 0; k < max_it;) {
       if (!Divergence && k == 0) accel<true>();
       else accel<false>();
       mirror_pass_launches<WithFlag<Divergence, DfsphUpdate>::template pass>(
-          Divergence ? kDivNames : kNames, n_, prm_, df_, grid_, raw(fine_offsets_), pairs(), raw(control_),
-          raw(pos_), raw(acc_), raw(factor_), raw(source_), raw(sparse_), raw(press_), raw(residual_), walls_.view(),
-          raw(wall_sum_));
+          Divergence ? kDivNames : kNames, n_, walls_.size() > 0, prm_, df_, grid_, raw(fine_offsets_), pairs(),
+          raw(control_), raw(pos_), raw(acc_), raw(factor_), raw(source_), raw(sparse_), raw(press_), raw(residual_),
+          walls_.view(), raw(wall_sum_));
       ++k;
       // The residual is read on the host: one reduction per iteration.
       const double mean = n_ ? thrust::reduce(policy(), residual_.begin(), residual_.begin() + n_, 0.0) / n_ : 0.0;

@@ -80,20 +80,27 @@ SPHRAY_HD SPHRAY_FORCEINLINE Mirrors mirrors_of(const SphParams& prm, float supp
 // (core/launch_cuda.cuh): the wall images' loop spills under the file-wide 40.
 constexpr int kMirrorPassRegisters = 64;
 
-// Each neighbour pass is three launches, each particle served by one: the
-// pair masks of the particles away from the walls (no image or wall
+// Each neighbour pass is up to four launches, each particle served by one:
+// the pair masks of the particles away from the walls (no image or wall
 // particle code in the loop, which cost the interior particles twice the
-// time when they carried it), the pair masks of those within a support of
-// a wall of the tank or near an obstacle's wall particles (mesh_walls.h),
-// and the direct loop of those whose masks overflowed (nsearch/pair_masks.h).
-enum MirrorPass { kInterior = 0, kNearWalls = 1, kDirect = 2 };
+// time when they carried it), the pair masks of those within a support of a
+// wall of the tank, the direct loop of those whose masks overflowed
+// (nsearch/pair_masks.h), and, where a scene has obstacles, the pair masks
+// of those near an obstacle's wall particles (mesh_walls.h: their code
+// stays out of the tank walls' launch, so a scene without obstacles does
+// not carry it).
+enum MirrorPass { kInterior = 0, kNearWalls = 1, kDirect = 2, kNearMesh = 3 };
 
 // Whether launch P serves particle i; near_mesh: the obstacles' wall
 // particles may be within its support (WallsView::near_point).
 SPHRAY_HD SPHRAY_FORCEINLINE bool serves(int P, const PairMask& m, uint32_t i, const Mirrors& mirrors, bool near_mesh) {
   if (!mask_complete(m, i)) return P == kDirect;
-  return P == (mirrors.axes || near_mesh ? kNearWalls : kInterior);
+  if (near_mesh) return P == kNearMesh;
+  return P == (mirrors.axes ? kNearWalls : kInterior);
 }
+
+// Whether launch P runs the obstacles' wall particle terms (for the particles it serves near them).
+constexpr bool with_mesh_walls(int P) { return P == kNearMesh || P == kDirect; }
 
 // The neighbour loop of launch P with the wall images: f(r, r2, a, set) for
 // every neighbour j within the support s2 of particle i at xi (set 0, a =

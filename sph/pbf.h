@@ -105,7 +105,7 @@ struct Lambda {
       if (set == 0u) g2 += length2(g);
     });
     float wall_volume = 0.0f;
-    if (P != kInterior && near_mesh) {
+    if (with_mesh_walls(P) && near_mesh) {
       Vec3f gw = {0.0f, 0.0f, 0.0f};
       walls.for_each_near(grid, xi, k.s, [&](uint32_t, Float4 pb, Vec3f r, float r2) {
         wall_volume += pb.w * k.W(r2);
@@ -161,7 +161,7 @@ struct Correct {
       }
       dx += (scale * pbf.volume * k.dW_over_r(std::sqrt(r2))) * r;
     });
-    if (P != kInterior && near_mesh) dx += pi.w * xyz(wall_grad[i]);  // lambda_i only, as the images
+    if (with_mesh_walls(P) && near_mesh) dx += pi.w * xyz(wall_grad[i]);  // lambda_i only, as the images
     // At most pbf.max_correction per iteration (pbf_params.h).
     const float len2 = length2(dx);
     if (pbf.max_correction > 0.0f && len2 > pbf.max_correction * pbf.max_correction)
@@ -224,7 +224,7 @@ struct Finish {
       }
     });
     float wall_volume = 0.0f;
-    if (P != kInterior && near_mesh)
+    if (with_mesh_walls(P) && near_mesh)
       walls.for_each_near(grid, xi, k.s, [&](uint32_t, Float4 pb, Vec3f, float r2) { wall_volume += pb.w * k.W(r2); });
     const float rho_rel = pbf.volume * w_sum + wall_volume;
     const float rho = prm.rest_density * rho_rel;

@@ -147,22 +147,25 @@ class PbfSolverImpl final : public Solver {
     parallel_for("pbf_pair_masks", n_, b);
   }
 
-  static constexpr const char* kLambdaNames[3] = {"pbf_lambda", "pbf_lambda_walls", "pbf_lambda_direct"};
-  static constexpr const char* kCorrectNames[3] = {"pbf_correct", "pbf_correct_walls", "pbf_correct_direct"};
+  static constexpr const char* kLambdaNames[4] = {"pbf_lambda", "pbf_lambda_walls",
+                                                  "pbf_lambda_direct", "pbf_lambda_mesh"};
+  static constexpr const char* kCorrectNames[4] = {"pbf_correct", "pbf_correct_walls",
+                                                   "pbf_correct_direct", "pbf_correct_mesh"};
 
   // The constraint iterations; returns how many corrections were applied.
   int solve() {
     for (int k = 0; k < pbf_.iterations; ++k) {
-      mirror_pass_launches<Lambda>(kLambdaNames, n_, prm_, pbf_, grid_, raw(fine_offsets_), pairs(), raw(pred_), raw(pred_tmp_),
-                            raw(error_), walls_.view(), raw(wall_grad_));
+      mirror_pass_launches<Lambda>(kLambdaNames, n_, walls_.size() > 0, prm_, pbf_, grid_, raw(fine_offsets_), pairs(),
+                                   raw(pred_), raw(pred_tmp_), raw(error_), walls_.view(), raw(wall_grad_));
       pred_.swap(pred_tmp_);
       if (pbf_.tolerance > 0) {
         // Ending early needs the error on the host: one read per iteration.
         const double sum = thrust::reduce(policy(), error_.begin(), error_.begin() + n_, 0.0);
         if (n_ == 0 || sum / n_ <= pbf_.tolerance) return k;
       }
-      mirror_pass_launches<Correct>(kCorrectNames, n_, prm_, pbf_, grid_, raw(fine_offsets_), pairs(), raw(pred_), raw(pred_tmp_),
-                                    obstacles_.view, raw(control_), walls_.view(), raw(wall_grad_));
+      mirror_pass_launches<Correct>(kCorrectNames, n_, walls_.size() > 0, prm_, pbf_, grid_, raw(fine_offsets_), pairs(),
+                                    raw(pred_), raw(pred_tmp_), obstacles_.view, raw(control_), walls_.view(),
+                                    raw(wall_grad_));
       pred_.swap(pred_tmp_);
     }
     return pbf_.iterations;
@@ -191,15 +194,17 @@ class PbfSolverImpl final : public Solver {
                  Confine<true>{pbf_, grid_, raw(fine_offsets_), pairs(), control, raw(pos_), raw(vel_tmp_), raw(vel_)});
   }
 
-  // The finishing pass's three launches (pbf.h, MirrorPass), with or without presence.
-  static constexpr const char* kFinishNames[3] = {"pbf_finish", "pbf_finish_walls", "pbf_finish_direct"};
+  // The finishing pass's launches (pbf.h, MirrorPass), with or without presence.
+  static constexpr const char* kFinishNames[4] = {"pbf_finish", "pbf_finish_walls",
+                                                  "pbf_finish_direct", "pbf_finish_mesh"};
   template <bool Presence>
   void finish_launches() {
     const FlowControl* control = raw(control_);
     float* presence = Presence ? raw(presence_) : nullptr;
-    mirror_pass_launches<FinishOf<Presence>::template pass>(kFinishNames, n_, prm_, pbf_, grid_, raw(fine_offsets_), pairs(),
-                                                     control, raw(pred_), raw(pos_), raw(pos_tmp_), raw(vel_tmp_),
-                                                     raw(error_), presence, n_, walls_.view());
+    mirror_pass_launches<FinishOf<Presence>::template pass>(kFinishNames, n_, walls_.size() > 0, prm_, pbf_, grid_,
+                                                            raw(fine_offsets_), pairs(), control, raw(pred_), raw(pos_),
+                                                            raw(pos_tmp_), raw(vel_tmp_), raw(error_), presence, n_,
+                                                            walls_.view());
   }
 
   // Speed, density error and finiteness of the current state, into the
