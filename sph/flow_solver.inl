@@ -55,15 +55,15 @@ inline void check_flow_state(const char* solver, const char* remedy, const FlowS
   throw SimulationError(os.str());
 }
 
-// The launches of a neighbour pass (mirror_walls.h, MirrorPass), each
-// particle served by one; the obstacles' launch only where there are
-// obstacles' wall particles (`mesh`).
+// The three launches of a neighbour pass (mirror_walls.h, MirrorPass), each
+// particle served by one; the near-walls launch with the obstacles' wall
+// terms where the scene has obstacles' wall particles (`mesh`).
 template <template <int> class Pass, class... Args>
 void mirror_pass_launches(const char* const (&names)[4], uint32_t n, bool mesh, Args... args) {
   parallel_for(names[kInterior], n, Pass<kInterior>{args...});
-  parallel_for(names[kNearWalls], n, Pass<kNearWalls>{args...});
-  parallel_for(names[kDirect], n, Pass<kDirect>{args...});
   if (mesh) parallel_for(names[kNearMesh], n, Pass<kNearMesh>{args...});
+  else parallel_for(names[kNearWalls], n, Pass<kNearWalls>{args...});
+  parallel_for(names[kDirect], n, Pass<kDirect>{args...});
 }
 
 // The message of a step below run.min_dt.

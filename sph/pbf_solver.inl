@@ -148,9 +148,9 @@ class PbfSolverImpl final : public Solver {
   }
 
   static constexpr const char* kLambdaNames[4] = {"pbf_lambda", "pbf_lambda_walls",
-                                                  "pbf_lambda_direct", "pbf_lambda_mesh"};
+                                                  "pbf_lambda_direct", "pbf_lambda_walls_mesh"};
   static constexpr const char* kCorrectNames[4] = {"pbf_correct", "pbf_correct_walls",
-                                                   "pbf_correct_direct", "pbf_correct_mesh"};
+                                                   "pbf_correct_direct", "pbf_correct_walls_mesh"};
 
   // The constraint iterations; returns how many corrections were applied.
   int solve() {
@@ -196,7 +196,7 @@ class PbfSolverImpl final : public Solver {
 
   // The finishing pass's launches (pbf.h, MirrorPass), with or without presence.
   static constexpr const char* kFinishNames[4] = {"pbf_finish", "pbf_finish_walls",
-                                                  "pbf_finish_direct", "pbf_finish_mesh"};
+                                                  "pbf_finish_direct", "pbf_finish_walls_mesh"};
   template <bool Presence>
   void finish_launches() {
     const FlowControl* control = raw(control_);
