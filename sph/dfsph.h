@@ -380,20 +380,26 @@ struct DfsphKick {
   const Float4* pos;
   Float4* pos_out;
   Obstacles obstacles;  // the advection is stopped at them (obstacles.h)
+  GridGeom grid;
+  WallsView walls;  // the obstacles' wall particles
   SPHRAY_HD void operator()(uint32_t i) const {
     const float dt = float(control->limits.dt);
     Vec3f v = xyz(vel[i]) + dt * xyz(acc[i]);
     Vec3f x{0.0f, 0.0f, 0.0f};
     if (Advect) {
-      // A particle the projection holds at a tank face loses its velocity
-      // into it, as one a mesh stops does: kept, it would grow by g dt a
-      // step wherever the liquid is not dense enough to push back (a corner
-      // beside a mesh thinner than the support).
-      const Vec3f want = xyz(pos[i]) + dt * v;
+      // Beside an obstacle's wall particles, a particle the projection holds
+      // at a tank face it already lay on loses its velocity into it: in a
+      // corner between the floor and a mesh thinner than the support the
+      // liquid is not dense enough to push back, and the velocity grew by
+      // g dt a step. Elsewhere the mirror images turn it (zeroed there too,
+      // the Martin & Moyce front at a/20 erred by 6.0% instead of 4.9%).
+      const Vec3f x0 = xyz(pos[i]), want = x0 + dt * v;
       x = inside_tank(prm, want);
-      if (x.x != want.x) v.x = 0.0f;
-      if (x.y != want.y) v.y = 0.0f;
-      if (x.z != want.z) v.z = 0.0f;
+      if (walls.near_point(grid, x0)) {
+        if (x.x != want.x && x.x == x0.x) v.x = 0.0f;
+        if (x.y != want.y && x.y == x0.y) v.y = 0.0f;
+        if (x.z != want.z && x.z == x0.z) v.z = 0.0f;
+      }
       const Stop stop = stop_at_obstacles(obstacles, xyz(pos[i]), x, obstacles.time, obstacles.time + dt);
       if (stop.hit()) x = inside_tank(prm, x);
       v = velocity_after(v, stop);

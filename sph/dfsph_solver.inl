@@ -250,7 +250,7 @@ class DfsphSolverImpl final : public Solver {
     accel<false>();
     parallel_for(Advect ? "dfsph_advect" : "dfsph_kick", n_,
                  DfsphKick<Advect>{prm_, raw(control_), raw(acc_), raw(press_), raw(vel_), raw(warm_), raw(pos_), raw(pos_tmp_),
-                                   obstacles_.view});
+                                   obstacles_.view, grid_, walls_.view()});
   }
 
   // Speed, density error and finiteness of the current state, into the
