@@ -533,10 +533,10 @@ TEST_CASE("a skin under a still pool dents by its compliance times the hydrostat
 }
 
 TEST_CASE("a skin under DFSPH dents by its compliance times the hydrostatic pressure", "[mesh][cpu]") {
-  check_dent(Backend::Cpu, "dfsph", 0, 0.05);
+  check_dent(Backend::Cpu, "dfsph", 0, 0.02);
 }
 
 TEST_CASE("cuda: a skin under a still pool dents by its compliance times the hydrostatic pressure", "[gpu]") {
   check_dent(Backend::Cuda, "wcsph", 0.02, 0.02);
-  check_dent(Backend::Cuda, "dfsph", 0, 0.05);
+  check_dent(Backend::Cuda, "dfsph", 0, 0.02);
 }
