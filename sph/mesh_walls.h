@@ -1,14 +1,15 @@
 // The obstacles' wall particles as the incompressible solvers (PBF, pbf.h;
 // DFSPH, dfsph.h) see them: the points of the particle lattice inside each
 // mesh within one support of its surface (pipeline/setup.cpp), static wall
-// particles of the fluid's rest density and volume V_b = dx^3 (the model of
-// Akinci et al., "Versatile Rigid-Fluid Coupling for Incompressible SPH",
-// 2012, with the volume of a filled lattice in place of their per-particle
-// sum, as the lattice fills the skin evenly). They add to a particle's
-// density and to the gradient of its constraint, and push it with its own
-// pressure only (the walls do not take part in the solve). The tank's planes
-// stay mirrors (mirror_walls.h); the meshes' paths test (obstacles.h) stays
-// the guarantee that nothing leaks. Their walls are free-slip.
+// particles with the volume of the fluid's own lattice (the model of Akinci
+// et al., "Versatile Rigid-Fluid Coupling for Incompressible SPH", 2012,
+// with that volume in place of their per-particle sum, as the lattice fills
+// the skin evenly). They add to a particle's density and to the gradient of
+// its constraint and push it, but take no part in the solve: PBF's with
+// lambda_i alone, DFSPH's with the particle's pressure continued
+// hydrostatically (dfsph.h). The tank's planes stay mirrors
+// (mirror_walls.h); the paths' test against the meshes (obstacles.h) stays
+// the guarantee that nothing leaks. These walls are free-slip.
 #pragma once
 
 #include <cstdint>
