@@ -42,14 +42,16 @@ struct SolverInput {
   GridGeom grid;
   std::vector<Float4> fluid_pos_rho;  // x, y, z, initial density
   std::vector<Float4> fluid_vel;      // vx, vy, vz, - (the solver keeps p / rho^2 in w)
-  std::vector<Float4> boundary;       // x, y, z, volume (WCSPH; PBF's and DFSPH's walls are the tank's planes)
-  std::vector<float> boundary_alpha;  // wall viscosity per boundary particle (0 = free slip)
+  // x, y, z, volume: WCSPH's tank walls and every solver's obstacle skins
+  // (PBF's and DFSPH's tank walls are its planes, mirror_walls.h).
+  std::vector<Float4> boundary;
+  std::vector<float> boundary_alpha;  // WCSPH's wall viscosity per boundary particle (0 = free slip)
   // Per boundary particle: the moving obstacle it belongs to (its index in
   // `obstacles`), or kStaticWall. Empty: all static. A moving one's position
   // above is its pose at t = 0; the solver moves it with the obstacle.
   std::vector<uint8_t> boundary_obstacle;
   // Triangle meshes the particles' paths stop at (obstacles.h), at most
-  // kMaxObstacles; WCSPH's wall particles inside them are in `boundary`.
+  // kMaxObstacles; the wall particles inside them are in `boundary`.
   std::vector<MeshInput> obstacles;
   // Obstacles whose skins carry waves (sph/skin.h); the solver is then
   // wrapped (with_skins) so that its steps also advance them.
@@ -151,7 +153,7 @@ class Solver {
   virtual size_t device_bytes() const = 0;    // buffers this solver holds
   virtual HostParticles download() const = 0;
   virtual void download_raw(RawParticles& out, bool velocity, bool presence) const = 0;
-  virtual std::vector<Vec3f> boundary_positions() const = 0;  // the static wall particles
+  virtual std::vector<Vec3f> boundary_positions() const = 0;  // the wall particles, where they are now
   // Per particle in the order of download(), the pressure [Pa] of the last
   // step's solves (DFSPH: the pressure and the divergence solve's, which
   // both act over the step); empty for a solver without one (WCSPH's
