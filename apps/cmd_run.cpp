@@ -66,12 +66,14 @@ void print_start(const ResolvedScene& rs, const std::string& scene_path, const S
       }
     }
   }
+  // PBF's and DFSPH's tank walls are its planes; the wall particles counted above are the obstacles'.
+  const char* walls = scene.obstacles.empty() ? "the tank's planes" : "the tank's planes and the obstacles' wall particles";
   if (solver.kind() == SolverKind::Pbf)
-    std::cout << ", " << scene.sph.pbf.iterations << " iterations, walls: the tank's planes";
+    std::cout << ", " << scene.sph.pbf.iterations << " iterations, walls: " << walls;
   else if (solver.kind() == SolverKind::Dfsph)
     std::cout << ", tolerance " << 100 * scene.sph.dfsph.tolerance << "% (divergence "
               << 100 * scene.sph.dfsph.divergence_tolerance << "%), viscosity " << rs.dfsph.viscosity / 10
-              << " m^2/s, walls: the tank's planes";
+              << " m^2/s, walls: " << walls;
   else
     std::cout << ", c0 = " << prm.speed_of_sound << " m/s";
   std::cout << ", to t = " << scene.run.end_time << " s\n";

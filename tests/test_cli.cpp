@@ -501,6 +501,14 @@ TEST_CASE("a run with a skinned obstacle names its skin and the skins' cost", "[
   const Result pbf = run_cli("run " + sphray::test::source_path("scenes/dam_break_bunny.json") + " --set sph.solver=pbf");
   CHECK(pbf.code == 2);
   CHECK(has(pbf.output, "obstacles.0.skin"));
+  // DFSPH fills the bunny's skin with wall particles too, and says so.
+  const Result df = run_cli("run " + sphray::test::source_path("scenes/dam_break_bunny.json") +
+                            " --backend cpu --set sph.solver=dfsph --set sph.spacing=0.04 --set run.end_time=0.02"
+                            " --set obstacles.0.skin.resolution=16");
+  INFO(df.output);
+  CHECK(df.code == 0);
+  CHECK(has(df.output, "walls: the tank's planes and the obstacles' wall particles"));
+  CHECK_FALSE(has(df.output, " 0 wall particles"));
 }
 
 TEST_CASE("an export carries the skins' heights and render --from draws them", "[cli][cpu]") {
