@@ -8,6 +8,7 @@
 // point (wall particles). bvh_build.inl builds it once per backend.
 #pragma once
 
+#include <cmath>
 #include <cstdint>
 #include <memory>
 #include <vector>
@@ -29,10 +30,63 @@ struct alignas(16) BvhNode {
 };
 constexpr uint32_t kLeafBit = 0x80000000u;
 
-// A triangle as v0 and its two edges (Moeller-Trumbore), w unused.
+// A triangle as v0 and its two edges (Moeller-Trumbore); the w of each holds
+// the shading normal of its corner (v0, v0 + e1, v0 + e2), octahedron-encoded
+// (pack_normal): the mesh's vertex normal where it is within kCreaseCos of
+// the triangle's own, else the triangle's (a cube keeps its edges).
 struct alignas(16) BvhTriangle {
   Float4 v0, e1, e2;
 };
+
+// A corner's shading normal is the vertex normal only within about 40
+// degrees of the triangle's normal.
+constexpr float kCreaseCos = 0.766f;
+
+SPHRAY_HD SPHRAY_FORCEINLINE float bits_to_float(uint32_t u) {
+#if defined(__CUDA_ARCH__)
+  return __uint_as_float(u);
+#else
+  float f;
+  __builtin_memcpy(&f, &u, sizeof f);
+  return f;
+#endif
+}
+SPHRAY_HD SPHRAY_FORCEINLINE uint32_t float_to_bits(float f) {
+#if defined(__CUDA_ARCH__)
+  return __float_as_uint(f);
+#else
+  uint32_t u;
+  __builtin_memcpy(&u, &f, sizeof u);
+  return u;
+#endif
+}
+
+// A unit vector in 32 bits (octahedral map, 16 bits per coordinate: about
+// 0.005 degrees), carried as a float's bits.
+SPHRAY_HD inline float pack_normal(Vec3f n) {
+  const float l1 = std::fabs(n.x) + std::fabs(n.y) + std::fabs(n.z);
+  float u = n.x / l1, v = n.y / l1;
+  if (n.z < 0.0f) {
+    const float pu = (1.0f - std::fabs(v)) * (u >= 0.0f ? 1.0f : -1.0f);
+    const float pv = (1.0f - std::fabs(u)) * (v >= 0.0f ? 1.0f : -1.0f);
+    u = pu;
+    v = pv;
+  }
+  auto q = [](float x) { return uint32_t(fminf(fmaxf((x * 0.5f + 0.5f) * 65535.0f + 0.5f, 0.0f), 65535.0f)); };
+  return bits_to_float(q(u) | (q(v) << 16));
+}
+SPHRAY_HD inline Vec3f unpack_normal(float packed) {
+  const uint32_t b = float_to_bits(packed);
+  const float u = float(b & 0xffffu) * (2.0f / 65535.0f) - 1.0f, v = float(b >> 16) * (2.0f / 65535.0f) - 1.0f;
+  Vec3f n{u, v, 1.0f - std::fabs(u) - std::fabs(v)};
+  if (n.z < 0.0f) {
+    const float nu = (1.0f - std::fabs(v)) * (u >= 0.0f ? 1.0f : -1.0f);
+    const float nv = (1.0f - std::fabs(u)) * (v >= 0.0f ? 1.0f : -1.0f);
+    n.x = nu;
+    n.y = nv;
+  }
+  return n * (1.0f / std::sqrt(dot(n, n)));
+}
 
 // What queries read; device pointers on CUDA, host pointers on the CPU.
 struct MeshView {
@@ -46,6 +100,19 @@ struct MeshView {
 SPHRAY_HD SPHRAY_FORCEINLINE Vec3f triangle_normal(const BvhTriangle& t) {
   const Vec3f n = cross(xyz(t.e1), xyz(t.e2));
   return n * (1.0f / std::sqrt(dot(n, n)));
+}
+
+// The shading normal at a point p of the triangle: its corners' normals
+// interpolated by p's barycentric coordinates (Phong), unit length.
+SPHRAY_HD inline Vec3f shading_normal(const BvhTriangle& t, Vec3f p) {
+  const Vec3f e1 = xyz(t.e1), e2 = xyz(t.e2), w = p - xyz(t.v0);
+  const float d00 = dot(e1, e1), d01 = dot(e1, e2), d11 = dot(e2, e2), d20 = dot(w, e1), d21 = dot(w, e2);
+  const float inv = 1.0f / (d00 * d11 - d01 * d01);
+  const float b1 = fminf(fmaxf((d11 * d20 - d01 * d21) * inv, 0.0f), 1.0f);
+  const float b2 = fminf(fmaxf((d00 * d21 - d01 * d20) * inv, 0.0f), 1.0f - b1);
+  const Vec3f n = unpack_normal(t.v0.w) * (1.0f - b1 - b2) + unpack_normal(t.e1.w) * b1 + unpack_normal(t.e2.w) * b2;
+  const float l2 = dot(n, n);
+  return l2 > 0.0f ? n * (1.0f / std::sqrt(l2)) : triangle_normal(t);
 }
 
 // o + s d against a triangle, both faces: true with s in (0, s_max). The

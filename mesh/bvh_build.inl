@@ -33,16 +33,39 @@ struct MortonOf {
   }
 };
 
-// The triangles in sorted order, as v0 and edges.
+// The triangles in sorted order, as v0 and edges, each corner with its
+// shading normal (BvhTriangle): the area-weighted normals of the corner
+// vertex's triangles that lie within the crease angle of this one's.
 struct TrianglesOf {
   const Vec3f* vertices;
   const uint32_t* indices;
   const uint32_t* order;
+  const uint32_t* vertex_offsets;  // per vertex: its triangles' range in vertex_tris
+  const uint32_t* vertex_tris;
   BvhTriangle* tris;
+  SPHRAY_HD Vec3f area_normal(uint32_t t) const {  // twice the area times the unit normal
+    const Vec3f a = vertices[indices[3 * t]];
+    return cross(vertices[indices[3 * t + 1]] - a, vertices[indices[3 * t + 2]] - a);
+  }
   SPHRAY_HD void operator()(uint32_t i) const {
     const uint32_t t = order[i];
-    const Vec3f a = vertices[indices[3 * t]], b = vertices[indices[3 * t + 1]], c = vertices[indices[3 * t + 2]];
-    tris[i] = {{a.x, a.y, a.z, 0.0f}, {b.x - a.x, b.y - a.y, b.z - a.z, 0.0f}, {c.x - a.x, c.y - a.y, c.z - a.z, 0.0f}};
+    const uint32_t ia = indices[3 * t], ib = indices[3 * t + 1], ic = indices[3 * t + 2];
+    const Vec3f a = vertices[ia], b = vertices[ib], c = vertices[ic];
+    const Vec3f fn = area_normal(t);
+    const float fl = std::sqrt(dot(fn, fn));
+    const Vec3f face = fl > 0.0f ? fn * (1.0f / fl) : Vec3f{0.0f, 0.0f, 1.0f};
+    auto corner = [&](uint32_t v) {
+      Vec3f sum{0.0f, 0.0f, 0.0f};
+      for (uint32_t k = vertex_offsets[v]; k < vertex_offsets[v + 1]; ++k) {
+        const Vec3f n = area_normal(vertex_tris[k]);
+        const float l = std::sqrt(dot(n, n));
+        if (l > 0.0f && dot(n, face) >= kCreaseCos * l) sum += n;
+      }
+      const float l = std::sqrt(dot(sum, sum));
+      return pack_normal(l > 0.0f ? sum * (1.0f / l) : face);
+    };
+    tris[i] = {{a.x, a.y, a.z, corner(ia)}, {b.x - a.x, b.y - a.y, b.z - a.z, corner(ib)},
+               {c.x - a.x, c.y - a.y, c.z - a.z, corner(ic)}};
   }
 };
 
@@ -135,6 +158,7 @@ class BvhImpl final : public Bvh {
     if (n_ == 0) return;
     upload(indices_, indices);
     take_vertices(vertices);
+    take_adjacency(vertices.size(), indices);
     const Vec3f lo = lo_, e = hi_ - lo_;
     auto s = [](float x) { return x > 0 ? 1023.0f / x : 0.0f; };
     keys_.resize(n_);
@@ -146,7 +170,7 @@ class BvhImpl final : public Bvh {
     clock_.start();
     parallel_for("bvh_morton", n_, MortonOf{raw(vertices_), raw(indices_), lo, {s(e.x), s(e.y), s(e.z)}, raw(keys_), raw(order_)});
     sort_pairs(keys_, order_, n_, 30);
-    parallel_for("bvh_triangles", n_, TrianglesOf{raw(vertices_), raw(indices_), raw(order_), raw(tris_)});
+    triangles();
     if (n_ > 1) parallel_for("bvh_nodes", n_ - 1, InternalNodes{raw(keys_), n_, raw(nodes_), raw(parent_)});
     boxes();
     clock_.end_of("build");
@@ -172,7 +196,7 @@ class BvhImpl final : public Bvh {
     if (n_ == 0) return;
     take_vertices(vertices);
     clock_.start();
-    parallel_for("bvh_triangles", n_, TrianglesOf{raw(vertices_), raw(indices_), raw(order_), raw(tris_)});
+    triangles();
     boxes();
     clock_.end_of("refit");
     clock_.finish();
@@ -190,6 +214,23 @@ class BvhImpl final : public Bvh {
     upload(vertices_, vertices);
   }
 
+  // The sorted triangles from the current vertices, with their corners' normals.
+  void triangles() {
+    parallel_for("bvh_triangles", n_, TrianglesOf{raw(vertices_), raw(indices_), raw(order_), raw(vertex_offsets_),
+                                                  raw(vertex_tris_), raw(tris_)});
+  }
+
+  // Each vertex's triangles (for the corners' normals), once: counted, then listed.
+  void take_adjacency(size_t num_vertices, const std::vector<uint32_t>& indices) {
+    std::vector<uint32_t> offsets(num_vertices + 1, 0), tris(indices.size());
+    for (const uint32_t v : indices) ++offsets[v + 1];
+    for (size_t v = 0; v < num_vertices; ++v) offsets[v + 1] += offsets[v];
+    std::vector<uint32_t> fill(offsets.begin(), offsets.end() - 1);
+    for (size_t k = 0; k < indices.size(); ++k) tris[fill[indices[k]]++] = uint32_t(k / 3);
+    upload(vertex_offsets_, offsets);
+    upload(vertex_tris_, tris);
+  }
+
   void boxes() {
     if (n_ < 2) return;
     thrust::fill(policy(), arrivals_.begin(), arrivals_.end(), 0u);
@@ -201,6 +242,7 @@ class BvhImpl final : public Bvh {
   double ms_ = 0;
   StageClock clock_;
   Vector<Vec3f> vertices_;
+  Vector<uint32_t> vertex_offsets_, vertex_tris_;  // each vertex's triangles (take_adjacency)
   Vector<uint32_t> indices_, keys_, order_, parent_, arrivals_;
   Vector<BvhTriangle> tris_;
   Vector<BvhNode> nodes_;

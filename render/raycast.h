@@ -189,26 +189,40 @@ struct MeshHits {
   }
 
   // The nearest mesh along p + t d (voxel units) with t < t_max: its t, and
-  // the normal facing the ray; t_max when none.
+  // the shading normal there (mesh/bvh.h, shading_normal) on the side the
+  // ray comes from; t_max when none.
   SPHRAY_HD float hit(Vec3f p, Vec3f d, float t_max, Vec3f& n) const {
     if (obstacles.count == 0) return t_max;
     const Vec3f w = origin + p * voxel;
     float best = t_max * voxel;
     bool any = false;
+    Vec3f face{0, 0, 1};
     for (uint32_t k = 0; k < obstacles.count; ++k) {
       const bool moves = obstacles.motion[k].moves();
+      const Vec3f o = moves ? pose[k].to_body(w) : w, db = moves ? pose[k].dir_to_body(d) : d;
       float s;
       uint32_t slot;
-      if (first_hit(obstacles.mesh[k], moves ? pose[k].to_body(w) : w, moves ? pose[k].dir_to_body(d) : d, best, s,
-                    slot)) {
+      if (first_hit(obstacles.mesh[k], o, db, best, s, slot)) {
         best = s;
-        n = triangle_normal(obstacles.mesh[k].tris[slot]);
-        if (moves) n = pose[k].dir_to_world(n);
+        const BvhTriangle& t = obstacles.mesh[k].tris[slot];
+        face = triangle_normal(t);
+        n = shading_normal(t, o + s * db);
+        if (moves) {
+          face = pose[k].dir_to_world(face);
+          n = pose[k].dir_to_world(n);
+        }
         any = true;
       }
     }
     if (!any) return t_max;
-    if (dot(n, d) > 0.0f) n = -n;
+    // The side comes from the triangle itself; a shading normal that turns
+    // away from the ray there (a grazing ray near a rounded edge) gives way
+    // to the triangle's.
+    if (dot(face, d) > 0.0f) {
+      face = -face;
+      n = -n;
+    }
+    if (dot(n, d) >= 0.0f) n = face;
     return best / voxel;
   }
   // Lambert under the sun, with the sky's light from above as the ambient part.
