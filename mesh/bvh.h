@@ -42,27 +42,8 @@ struct alignas(16) BvhTriangle {
 // degrees of the triangle's normal.
 constexpr float kCreaseCos = 0.766f;
 
-SPHRAY_HD SPHRAY_FORCEINLINE float bits_to_float(uint32_t u) {
-#if defined(__CUDA_ARCH__)
-  return __uint_as_float(u);
-#else
-  float f;
-  __builtin_memcpy(&f, &u, sizeof f);
-  return f;
-#endif
-}
-SPHRAY_HD SPHRAY_FORCEINLINE uint32_t float_to_bits(float f) {
-#if defined(__CUDA_ARCH__)
-  return __float_as_uint(f);
-#else
-  uint32_t u;
-  __builtin_memcpy(&u, &f, sizeof u);
-  return u;
-#endif
-}
-
-// A unit vector in 32 bits (octahedral map, 16 bits per coordinate: about
-// 0.005 degrees), carried as a float's bits.
+// A unit vector in 32 bits (octahedral map, 16 bits per coordinate: under
+// 0.01 degrees), carried as a float's bits.
 SPHRAY_HD inline float pack_normal(Vec3f n) {
   const float l1 = std::fabs(n.x) + std::fabs(n.y) + std::fabs(n.z);
   float u = n.x / l1, v = n.y / l1;

@@ -40,25 +40,6 @@ namespace sphray {
 constexpr uint32_t kNoFront = 0x7f800000u;  // +infinity: no liquid at this pixel
 constexpr uint32_t kNoBack = 0u;
 
-SPHRAY_HD SPHRAY_FORCEINLINE float depth_of(uint32_t bits) {
-#if defined(__CUDA_ARCH__)
-  return __uint_as_float(bits);
-#else
-  float f;
-  std::memcpy(&f, &bits, sizeof f);
-  return f;
-#endif
-}
-SPHRAY_HD SPHRAY_FORCEINLINE uint32_t bits_of(float depth) {
-#if defined(__CUDA_ARCH__)
-  return __float_as_uint(depth);
-#else
-  uint32_t u;
-  std::memcpy(&u, &depth, sizeof u);
-  return u;
-#endif
-}
-
 // The camera's view frame and its projection (the inverse of Camera::direction).
 struct ViewFrame {
   Camera cam;
@@ -128,7 +109,7 @@ struct SplatSpheres {
         if (disc < 0.0f) continue;
         const float s = std::sqrt(disc), cz = dot(d, cam.forward);
         const size_t k = size_t(y) * size_t(cam.width) + size_t(x);
-        const uint32_t zf_bits = bits_of((b - s) * cz), zb_bits = bits_of((b + s) * cz);
+        const uint32_t zf_bits = float_to_bits((b - s) * cz), zb_bits = float_to_bits((b + s) * cz);
         atomic_min(front + k, zf_bits);
         atomic_max(back + k, zb_bits);
       }
@@ -166,7 +147,7 @@ struct BilateralDepth {
       out_back[k] = kNoBack;
       return;
     }
-    const float zf = depth_of(in_front[k]), zb = depth_of(in_back[k]);
+    const float zf = bits_to_float(in_front[k]), zb = bits_to_float(in_back[k]);
     float sf = 0, wf = 0, sb = 0, wb = 0;
     for (int n = -w; n <= w; ++n) {
       const int j = y + n;
@@ -177,7 +158,7 @@ struct BilateralDepth {
         const size_t q = size_t(j) * size_t(width) + size_t(i);
         if (in_front[q] == kNoFront) continue;
         const float g = spatial[m < 0 ? -m : m] * spatial[n < 0 ? -n : n];
-        const float f = depth_of(in_front[q]), b = depth_of(in_back[q]);
+        const float f = bits_to_float(in_front[q]), b = bits_to_float(in_back[q]);
         const float gf = g * std::exp(-(f - zf) * (f - zf) * inv_2s2);
         const float gb = g * std::exp(-(b - zb) * (b - zb) * inv_2s2);
         sf += gf * f;
@@ -186,8 +167,8 @@ struct BilateralDepth {
         wb += gb;
       }
     }
-    out_front[k] = bits_of(sf / wf);  // the pixel itself has weight 1
-    out_back[k] = bits_of(sb / wb);
+    out_front[k] = float_to_bits(sf / wf);  // the pixel itself has weight 1
+    out_back[k] = float_to_bits(sb / wb);
   }
 };
 
@@ -209,7 +190,7 @@ struct ShadeTwoSided {
            front[size_t(y) * size_t(view.cam.width) + size_t(x)] != kNoFront;
   }
   SPHRAY_HD SPHRAY_FORCEINLINE float depth(const uint32_t* map, int x, int y) const {
-    return depth_of(map[size_t(y) * size_t(view.cam.width) + size_t(x)]);
+    return bits_to_float(map[size_t(y) * size_t(view.cam.width) + size_t(x)]);
   }
   // Unit normal of the layer `map` at pixel (x, y) (filled), from the view
   // positions of its neighbours: on each axis the one-sided difference with

@@ -87,7 +87,7 @@ TEST_CASE("screen space: the front and back depths are the spheres' nearest entr
       }
       ++hit;
       REQUIRE(front[k] != kNoFront);
-      worst = std::max({worst, std::abs(depth_of(front[k]) - zf) / zf, std::abs(depth_of(back[k]) - zb) / zb});
+      worst = std::max({worst, std::abs(bits_to_float(front[k]) - zf) / zf, std::abs(bits_to_float(back[k]) - zb) / zb});
     }
   INFO(hit << " pixels on spheres, " << miss << " off; worst relative depth error " << worst);
   CHECK(hit > 300);
@@ -116,7 +116,7 @@ TEST_CASE("screen space: the bilateral filter keeps ramps and edges, smooths noi
   auto map = [&](auto depth) {
     std::vector<uint32_t> m(size_t(W) * H);
     for (int y = 0; y < H; ++y)
-      for (int x = 0; x < W; ++x) m[size_t(y) * W + x] = bits_of(float(depth(x, y)));
+      for (int x = 0; x < W; ++x) m[size_t(y) * W + x] = float_to_bits(float(depth(x, y)));
     return m;
   };
   auto interior = [&](int x, int y, int margin) { return x >= margin && y >= margin && x < W - margin && y < H - margin; };
@@ -128,8 +128,8 @@ TEST_CASE("screen space: the bilateral filter keeps ramps and edges, smooths noi
   for (int y = 0; y < H; ++y)
     for (int x = 0; x < W; ++x)
       if (interior(x, y, w)) {
-        worst = std::max(worst, std::abs(depth_of(ramp.first[size_t(y) * W + x]) - (2.0 + 0.004 * x + 0.002 * y)));
-        worst = std::max(worst, std::abs(depth_of(ramp.second[size_t(y) * W + x]) - (2.1 + 0.003 * x - 0.001 * y)));
+        worst = std::max(worst, std::abs(bits_to_float(ramp.first[size_t(y) * W + x]) - (2.0 + 0.004 * x + 0.002 * y)));
+        worst = std::max(worst, std::abs(bits_to_float(ramp.second[size_t(y) * W + x]) - (2.1 + 0.003 * x - 0.001 * y)));
       }
   CHECK(worst < 2e-6);
 
@@ -140,7 +140,7 @@ TEST_CASE("screen space: the bilateral filter keeps ramps and edges, smooths noi
   worst = 0;
   for (int y = 0; y < H; ++y)
     for (int x = 0; x < W; ++x)
-      worst = std::max(worst, std::abs(depth_of(edge.first[size_t(y) * W + x]) - (x < W / 2 ? near : far)));
+      worst = std::max(worst, std::abs(bits_to_float(edge.first[size_t(y) * W + x]) - (x < W / 2 ? near : far)));
   CHECK(worst < 1e-4 * s2);
 
   // Noise well below sigma_2 falls; every value stays within its window's range; empty pixels stay empty and
@@ -159,8 +159,8 @@ TEST_CASE("screen space: the bilateral filter keeps ramps and edges, smooths noi
       for (int x = 0; x < W; ++x) {
         const uint32_t v = m[size_t(y) * W + x];
         if (!interior(x, y, w) || v == kNoFront) continue;
-        s += depth_of(v);
-        s2v += double(depth_of(v)) * depth_of(v);
+        s += bits_to_float(v);
+        s2v += double(bits_to_float(v)) * bits_to_float(v);
         ++n;
       }
     return std::sqrt(s2v / n - (s / n) * (s / n));
@@ -177,10 +177,10 @@ TEST_CASE("screen space: the bilateral filter keeps ramps and edges, smooths noi
       for (int j = std::max(0, y - w); j <= std::min(H - 1, y + w); ++j)
         for (int i = std::max(0, x - w); i <= std::min(W - 1, x + w); ++i)
           if (noisy[size_t(j) * W + i] != kNoFront) {
-            lo = std::min(lo, depth_of(noisy[size_t(j) * W + i]));
-            hi = std::max(hi, depth_of(noisy[size_t(j) * W + i]));
+            lo = std::min(lo, bits_to_float(noisy[size_t(j) * W + i]));
+            hi = std::max(hi, bits_to_float(noisy[size_t(j) * W + i]));
           }
-      const float v = depth_of(once.first[k]);
+      const float v = bits_to_float(once.first[k]);
       in_range = in_range && v >= lo - 1e-6f && v <= hi + 1e-6f;
     }
   INFO("noise: " << spread(noisy) << " -> " << spread(smooth.first) << " after 4 passes");
@@ -211,7 +211,7 @@ TEST_CASE("screen space on one sphere: the depth normals are the sphere's, the s
       for (int x = 0; x < cam.width; ++x) {
         if (!sh.filled(x, y)) continue;
         const Vec3d d = direction_d(cam, x + 0.5, y + 0.5);
-        const double zf = depth_of(front[size_t(y) * cam.width + x]);
+        const double zf = bits_to_float(front[size_t(y) * cam.width + x]);
         const Vec3d pf = dbl(cam.eye) + d * (zf / dot(d, dbl(cam.forward)));
         if (angle(c - dbl(cam.eye), pf - dbl(cam.eye)) > 0.7 * std::asin(R / length(c - dbl(cam.eye)))) continue;
         ++n;
@@ -226,7 +226,7 @@ TEST_CASE("screen space on one sphere: the depth normals are the sphere's, the s
         t_dir = normalized(t_dir);
         int bx = x, by = y;
         const float t = sh.back_distance(Vec3f{float(pf.x), float(pf.y), float(pf.z)}, t_dir, float(zf),
-                                         depth_of(back[size_t(y) * cam.width + x]), bx, by);
+                                         bits_to_float(back[size_t(y) * cam.width + x]), bx, by);
         const Vec3d td = dbl(t_dir), oc = pf - c;
         const double b = dot(oc, td), chord = -b + std::sqrt(b * b - (dot(oc, oc) - R * R));
         worst_t = std::max(worst_t, std::abs(t - chord) / R);
