@@ -71,15 +71,14 @@ SPHRAY_HD SPHRAY_FORCEINLINE Vec3f volume_grad(const DfsphParams& df, Vec3f r, f
 }
 
 // What the obstacles' wall particles add to a particle's sums at the
-// positions of the grid: sum_b V_b grad W_ib, sum_b V_b W_ib (its share of
-// the density d), sum_b V_b v_b . grad W_ib (moving walls) and how many lie
-// within the support. Written by the density pass, read by the forces and the solves.
+// positions of the grid, as the forces and the solves read them: sum_b V_b
+// grad W_ib, the hydrostatic push and sum_b V_b v_b . grad W_ib (moving
+// walls). Written by the density pass, which also adds their share of the
+// density and their count itself.
 struct WallSum {
   Vec3f grad;
   Vec3f push;  // sum_b V_b max(g . (x_b - x_i), -p_i) grad W_ib: the walls' hydrostatic part
-  float volume;
   float rate;
-  float count;
 };
 
 // A pass with its flag fixed, as a template of the launch alone (the solver
@@ -147,22 +146,22 @@ struct DfsphDensity {
     float d = df.volume * w_sum;
     Vec3f wall_grad = {0.0f, 0.0f, 0.0f};
     if (with_mesh_walls(P) && near_mesh) {
-      WallSum ws{{0.0f, 0.0f, 0.0f}, {0.0f, 0.0f, 0.0f}, 0.0f, 0.0f, 0.0f};
+      WallSum ws{{0.0f, 0.0f, 0.0f}, {0.0f, 0.0f, 0.0f}, 0.0f};
+      float wall_volume = 0.0f;
       const float dt = control ? float(control->limits.dt) : 0.0f;
       const float p_last = dt > 0.0f ? warm[i].x / (dt * dt) : 0.0f;
       walls.for_each_near(grid, xi, k.support(), [&](uint32_t b, Float4 pb, Vec3f r, float r2) {
         const float dist = std::sqrt(r2);
-        ws.volume += pb.w * k.W(dist);
+        wall_volume += pb.w * k.W(dist);
         const Vec3f g = (pb.w * k.dW_over_r(dist)) * r;
         ws.grad += g;
         ws.push += fmaxf(-dot(prm.gravity, r), -p_last) * g;  // r = x_i - x_b
         if (walls.vel) ws.rate += dot(xyz(load(walls.vel + b)), g);
-        ws.count += 1.0f;
+        ++count;
       });
       wall_sum[i] = ws;
-      d += ws.volume;
+      d += wall_volume;
       rate += dot(vi, ws.grad) - ws.rate;
-      count += uint32_t(ws.count);
       wall_grad = ws.grad;
     }
     if (WithPresence) write_presence_lobes(presence, n, i, df.presence_scale, lobes, ux, uy, uz);  // rest volume: presence.h
