@@ -460,7 +460,7 @@ SolverInput make_solver_input(const ResolvedScene& r, PresenceMode presence) {
                             : s.sph.solver == SolverKind::Dfsph ? r.dfsph.volume
                                                                 : volume;
   in.boundary.reserve(z.boundary);
-  in.boundary_alpha.reserve(z.boundary);
+  if (L > 0) in.boundary_alpha.reserve(z.boundary);
   // A wall particle is viscous unless every face it belongs to is free-slip
   // (an edge between a free-slip and a viscous face stays viscous).
   const float wall_alpha = float(s.sph.wall_viscosity_alpha < 0 ? s.sph.viscosity_alpha : s.sph.wall_viscosity_alpha);
@@ -498,7 +498,7 @@ SolverInput make_solver_input(const ResolvedScene& r, PresenceMode presence) {
           const Vec3d p{ax.c[i], ay.c[j], az.c[k]};
           if (pr.distance(p, depth) < depth && pr.inside(p)) {
             in.boundary.push_back({float(p.x), float(p.y), float(p.z), mesh_volume});
-            in.boundary_alpha.push_back(moves ? 0.0f : wall_alpha);
+            if (L > 0) in.boundary_alpha.push_back(moves ? 0.0f : wall_alpha);  // WCSPH's wall viscosity
             if (any_moving) in.boundary_obstacle.push_back(moves ? uint8_t(o) : kStaticWall);
           }
         }

@@ -45,7 +45,7 @@ struct SolverInput {
   // x, y, z, volume: WCSPH's tank walls and every solver's obstacle skins
   // (PBF's and DFSPH's tank walls are its planes, mirror_walls.h).
   std::vector<Float4> boundary;
-  std::vector<float> boundary_alpha;  // WCSPH's wall viscosity per boundary particle (0 = free slip)
+  std::vector<float> boundary_alpha;  // WCSPH's wall viscosity per boundary particle (0 = free slip); PBF, DFSPH: empty
   // Per boundary particle: the moving obstacle it belongs to (its index in
   // `obstacles`), or kStaticWall. Empty: all static. A moving one's position
   // above is its pose at t = 0; the solver moves it with the obstacle.
