@@ -41,7 +41,7 @@ std::vector<BenchFrameRow> bench_frame(Backend b, const BenchFrameOptions& opt, 
     const ResolvedScene rs = resolve_scene(frame_scene(target, opt.width, opt.height, opt.interfaces, opt.overrides));
     const Scene& s = rs.scene;
     const bool with_field = method_needs_field(s.render.method);  // screen_space draws the particles
-    const bool presence = with_field && kind == FieldKind::Presence;
+    const bool presence = with_field && field_needs_presence_step(s, kind, s.field.kernel == FieldKernel::Anisotropic);
     const StageNeeds needs{presence ? PresenceMode::AtUntil : PresenceMode::Off, true};
     auto solver = make_solver(rs, b, needs);
     const FieldSetup fs = make_field_setup(rs);  // the environment's frame, with or without a field

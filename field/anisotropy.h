@@ -26,6 +26,7 @@
 #include "core/hd.h"
 #include "core/vec.h"
 #include "nsearch/grid.h"
+#include "sph/covariance.h"
 #include "volume.h"
 
 namespace sphray {
@@ -92,6 +93,22 @@ SPHRAY_HD SPHRAY_FORCEINLINE void ellipsoid_axes(const AnisotropyParams& ap, con
   e.half = {std::sqrt(M(0, 0)), std::sqrt(M(1, 1)), std::sqrt(M(2, 2))};
 }
 
+// The ellipsoid of particle i at xi from its neighbour sums (sph/covariance.h).
+SPHRAY_HD SPHRAY_FORCEINLINE Ellipsoid ellipsoid_of(const AnisotropyParams& ap, const VolumeGeom& vol, Vec3f xi,
+                                                    const CovarianceSums& s) {
+  const float iw = 1.0f / s.w;  // W >= 1: the particle itself
+  const float mx = s.mx * iw, my = s.my * iw, mz = s.mz * iw;
+  Eigen::Matrix3f cov;
+  cov << s.sxx * iw - mx * mx, s.sxy * iw - mx * my, s.sxz * iw - mx * mz,
+         s.sxy * iw - mx * my, s.syy * iw - my * my, s.syz * iw - my * mz,
+         s.sxz * iw - mx * mz, s.syz * iw - my * mz, s.szz * iw - mz * mz;
+  Ellipsoid e;
+  ellipsoid_axes(ap, cov, uint32_t(s.count), e);
+  const float shift = ap.smoothing * ap.radius;
+  e.centre = vol.to_voxels(Vec3f{xi.x + shift * mx, xi.y + shift * my, xi.z + shift * mz});
+  return e;
+}
+
 // One thread per particle: the weighted covariance of its neighbours (the
 // solver's grid, candidate rows culled to the radius), its kernel and centre.
 struct ComputeAnisotropy {
@@ -106,37 +123,33 @@ struct ComputeAnisotropy {
   SPHRAY_HD void operator()(uint32_t i) const {
     const Vec3f xi = xyz(pos[i]);
     const float inv_r = 1.0f / ap.radius;
-    float W = 0.0f, mx = 0.0f, my = 0.0f, mz = 0.0f;
-    float sxx = 0.0f, syy = 0.0f, szz = 0.0f, sxy = 0.0f, sxz = 0.0f, syz = 0.0f;
-    uint32_t count = 0;
+    CovarianceSums s;
     for (int row = 0; row < kCandidateRows; ++row) {
       uint32_t begin = 0, end = 0;
       if (!candidate_row(grid, fine_offsets, xi, row, begin, end, ap.radius)) continue;
       for (uint32_t j = begin; j < end; ++j) {
+        if (j == i) continue;
         const Vec3f pj = xyz(pos[j]);
-        // Offsets in units of the radius: the covariance stays O(1) in float.
         const float dx = (pj.x - xi.x) * inv_r, dy = (pj.y - xi.y) * inv_r, dz = (pj.z - xi.z) * inv_r;
         const float q2 = dx * dx + dy * dy + dz * dz;
         if (!(q2 < 1.0f)) continue;
-        const float w = 1.0f - q2 * std::sqrt(q2);
-        W += w;
-        mx += w * dx; my += w * dy; mz += w * dz;
-        sxx += w * dx * dx; syy += w * dy * dy; szz += w * dz * dz;
-        sxy += w * dx * dy; sxz += w * dx * dz; syz += w * dy * dz;
-        count += j != i;
+        s.add(dx, dy, dz, q2);
       }
     }
-    const float iw = 1.0f / W;  // W >= 1: the particle itself
-    mx *= iw; my *= iw; mz *= iw;
-    Eigen::Matrix3f cov;
-    cov << sxx * iw - mx * mx, sxy * iw - mx * my, sxz * iw - mx * mz,
-           sxy * iw - mx * my, syy * iw - my * my, syz * iw - my * mz,
-           sxz * iw - mx * mz, syz * iw - my * mz, szz * iw - mz * mz;
-    Ellipsoid e;
-    ellipsoid_axes(ap, cov, count, e);
-    const float shift = ap.smoothing * ap.radius;
-    e.centre = vol.to_voxels(Vec3f{xi.x + shift * mx, xi.y + shift * my, xi.z + shift * mz});
-    e.store(out, n, i);
+    ellipsoid_of(ap, vol, xi, s).store(out, n, i);
+  }
+};
+
+// The same kernels from sums the solver's neighbour loop left (ParticleView::covariance).
+struct AnisotropyFromSums {
+  const Float4* pos;
+  const Float4* sums;  // [3][n]
+  uint32_t n;
+  VolumeGeom vol;
+  AnisotropyParams ap;
+  Float4* out;  // [3][n]
+  SPHRAY_HD void operator()(uint32_t i) const {
+    ellipsoid_of(ap, vol, xyz(pos[i]), CovarianceSums::load(sums, n, i)).store(out, n, i);
   }
 };
 

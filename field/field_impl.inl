@@ -76,8 +76,14 @@ class FieldBuilderImpl final : public FieldBuilder {
     if (aniso && ellipsoids_.size() < 3 * size_t(pv.n)) ellipsoids_.resize(3 * size_t(pv.n));
     clock_.start();
     if (aniso) {
-      parallel_for("field_anisotropy", pv.n,
-                   ComputeAnisotropy{pv.grid, pv.fine_offsets, pv.pos, pv.n, vol, setup_.aniso, raw(ellipsoids_)});
+      // The solver's neighbour loop may have summed the covariance already
+      // (ParticleView::covariance): only the ellipsoids are left to compute.
+      if (pv.covariance && pv.covariance_radius == setup_.aniso.radius)
+        parallel_for("field_anisotropy_from_sums", pv.n,
+                     AnisotropyFromSums{pv.pos, pv.covariance, pv.n, vol, setup_.aniso, raw(ellipsoids_)});
+      else
+        parallel_for("field_anisotropy", pv.n,
+                     ComputeAnisotropy{pv.grid, pv.fine_offsets, pv.pos, pv.n, vol, setup_.aniso, raw(ellipsoids_)});
       ell = raw(ellipsoids_);
     }
     clock_.end_of("anisotropy");

@@ -35,8 +35,10 @@ StageNeeds needs_of(const Scene& s, const std::vector<OutputSink*>& sinks) {
   n.field = s.field.given || ever.field;
   // The presence builder reads presence once per frame: only the step that
   // reaches the frame computes it (sph.presence forces every step, for studies).
+  const bool for_field =
+      n.field && field_needs_presence_step(s, s.field.builder, s.field.kernel == FieldKernel::Anisotropic);
   if (s.sph.presence) n.presence = PresenceMode::EveryStep;
-  else if ((n.field && s.field.builder == FieldKind::Presence) || ever.presence) n.presence = PresenceMode::AtUntil;
+  else if (for_field || ever.presence) n.presence = PresenceMode::AtUntil;
   return n;
 }
 

@@ -406,6 +406,20 @@ void check_fits(const ResolvedScene& r, Backend backend, bool field) {
   }
 }
 
+// The field's radius as make_field_setup computes it: the solver's sums and
+// the field's parameters must name the same float.
+static float anisotropy_radius(const Scene& s) { return float(s.field.anisotropy.radius * s.sph.spacing); }
+
+float pair_loop_covariance_radius(const Scene& s) {
+  if (s.field.kernel != FieldKernel::Anisotropic || s.sph.solver != SolverKind::Wcsph) return 0.0f;
+  const float radius = anisotropy_radius(s);
+  return radius <= float(s.sph.support_radius()) ? radius : 0.0f;
+}
+
+bool field_needs_presence_step(const Scene& s, FieldKind builder, bool anisotropic) {
+  return builder == FieldKind::Presence || (anisotropic && pair_loop_covariance_radius(s) > 0);
+}
+
 SolverInput make_solver_input(const ResolvedScene& r, PresenceMode presence) {
   const Scene& s = r.scene;
   const SceneSize& z = r.size;
@@ -419,6 +433,7 @@ SolverInput make_solver_input(const ResolvedScene& r, PresenceMode presence) {
   in.min_dt = float(s.run.min_dt);
   in.max_dt = float(s.run.max_dt);
   in.presence = presence;
+  in.covariance_radius = pair_loop_covariance_radius(s);
   const double dx = s.sph.spacing;
   const double rho0 = s.sph.rest_density, b_tait = in.params.tait_b, g = length(s.gravity);
   const Vec3d up = up_of(s);
@@ -559,7 +574,7 @@ FieldSetup make_field_setup(const ResolvedScene& r) {
   out.full_fill = f.full_value_clip ? sh.clip : sh.coarse;
   AnisotropyParams& an = out.aniso;
   an.on = f.kernel == FieldKernel::Anisotropic;
-  an.radius = float(f.anisotropy.radius * s.sph.spacing);
+  an.radius = anisotropy_radius(s);
   an.stretch = float(f.anisotropy.stretch);
   an.smoothing = float(f.anisotropy.smoothing);
   an.min_neighbours = uint32_t(f.anisotropy.min_neighbours);

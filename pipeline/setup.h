@@ -58,6 +58,16 @@ DfsphParams make_dfsph_params(const Scene& s);
 double auto_dfsph_viscosity(const Scene& s);
 SceneSize measure_scene(const Scene& s);  // counts only; generates nothing
 SolverInput make_solver_input(const ResolvedScene& r, PresenceMode presence);
+// [m] The anisotropic field's neighbourhood radius when the solver's own
+// neighbour loop can sum its covariance (WCSPH, radius within its support:
+// SolverInput::covariance_radius), else 0 (the field builder's own pass).
+float pair_loop_covariance_radius(const Scene& s);
+// Whether the step that reaches a frame must run the solver's neighbour loop
+// with presence for a field built by `builder` with or without ellipsoids:
+// for the presence builder, and for ellipsoids where that step also sums
+// their covariance (pair_loop_covariance_radius; the field's own neighbour
+// pass is then skipped).
+bool field_needs_presence_step(const Scene& s, FieldKind builder, bool anisotropic);
 
 // The volume over the SPH grid cells that overlap the tank, and the falloff,
 // from the scene's "field" section (defaults when it has none).

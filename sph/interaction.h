@@ -1,5 +1,6 @@
 // The pair stage: one neighbour loop per step computes the acceleration, the
-// terms of the density rate and, when asked for, the particle presence.
+// terms of the density rate and, when asked for, the particle presence and
+// the anisotropic field's covariance sums (sph/covariance.h).
 //
 // Momentum: symmetric pressure gradient with the Tait equation of state,
 // Monaghan (1992) artificial viscosity, gravity, and wall forces from boundary
@@ -53,6 +54,7 @@
 #include <cstdint>
 
 #include "boundary.h"
+#include "covariance.h"
 #include "nsearch/pair_masks.h"
 #include "presence.h"
 
@@ -72,6 +74,8 @@ struct PairOut {
   Float4* accel;      // ax, ay, az, R
   Float4* rate_grad;  // G, -
   float* presence;    // [6][n] direction-major (+x,-x,+y,-y,+z,-z); null without presence
+  Float4* covariance = nullptr;  // [3][n] (sph/covariance.h); null without it
+  float covariance_inv_radius = 0;  // 1 / the sums' radius [1/m]
 };
 
 // What the masked loops fetch of a neighbour (for_each_masked).
@@ -84,10 +88,17 @@ struct WallNeighbour {
   float alpha;
 };
 
+// What the pair loop computes besides the forces and the density rate:
+// nothing, presence, or presence and the anisotropic kernels' covariance
+// sums (sph/covariance.h) on the steps that reach an output frame.
+enum PairExtras { kPairPlain = 0, kPairPresence = 1, kPairPresenceCovariance = 2 };
+
 // Direct: the launch for the particles whose pair masks overflowed (nsearch/pair_masks.h).
 // K: the scene's kernel (prm.kernel.type), fixed at compile time in the loop.
-template <bool WithPresence, bool Direct, KernelType K>
+template <int Extras, bool Direct, KernelType K>
 struct Interaction {
+  static constexpr bool WithPresence = Extras != kPairPlain;
+  static constexpr bool WithCovariance = Extras == kPairPresenceCovariance;
   // The loop's constants, computed once on the host: they reach the GPU as
   // kernel parameters and cost the loop no registers (computed per thread,
   // the three of hydro_g spilled the cubic spline's loop).
@@ -113,7 +124,9 @@ struct Interaction {
   // under which both variants spill (presence's three more accumulators; the
   // fetched neighbour structs); measured against 40, 48, 56 and 64 in
   // docs/notebook/benchmarks-history.md.
-  static constexpr int kMaxRegisters = WithPresence ? 56 : 48;
+  // With the covariance's eleven accumulators it takes 68 (no spills at
+  // 72; it runs on the steps that reach an output frame only).
+  static constexpr int kMaxRegisters = WithCovariance ? 72 : WithPresence ? 56 : 48;
   SphParams prm;
   GridGeom grid;
   FluidIn fluid;
@@ -143,6 +156,7 @@ struct Interaction {
     // Presence's U_a in registers (named scalars, not an indexed array, so the
     // GPU keeps them out of local memory).
     float ux = 0, uy = 0, uz = 0;
+    CovarianceSums cov;
 
     for_each_pair<Direct>(grid, fluid.offsets, fluid.pos_rho, xi, support2, i, fluid_pairs, i,
                           [&](uint32_t j) { return FluidNeighbour{load(fluid.pos_rho + j), load(fluid.flow + j)}; },
@@ -174,8 +188,13 @@ struct Interaction {
         uy += m_dwr * std::fabs(r.y);
         uz += m_dwr * std::fabs(r.z);
       }
+      if (WithCovariance) {  // offsets x_j - x_i in units of the radius
+        const float ir = -out.covariance_inv_radius;
+        cov.add(ir * r.x, ir * r.y, ir * r.z, r2 * (ir * ir));
+      }
     });
     if (WithPresence) write_presence(i, prm.presence_scale / pi.w, grad, ux, uy, uz);  // fluid sums only
+    if (WithCovariance) cov.store(out.covariance, n, i);
 
     // Walls (boundary particles of volume V_b): the wall pressure and
     // viscosity push; approaching a wall compresses the particle (Adami et

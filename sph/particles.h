@@ -18,6 +18,7 @@ struct ParticleArrays {
   uint32_t* id;      // index in the initial particle list
   uint8_t* status;   // integrate.h
   float* presence;   // [6][n]; null when there is none
+  Float4* covariance = nullptr;  // [3][n] (sph/covariance.h); null when there is none
 };
 struct ConstParticleArrays {
   const Float4* pos;
@@ -26,6 +27,7 @@ struct ConstParticleArrays {
   const uint32_t* id;
   const uint8_t* status;
   const float* presence;
+  const Float4* covariance = nullptr;
 };
 
 // The sorted fluid as the neighbour loops read it.

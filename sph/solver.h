@@ -63,6 +63,11 @@ struct SolverInput {
   float min_dt = 0;  // a step below this is an error
   float max_dt = 0;
   PresenceMode presence = PresenceMode::Off;  // only when a later stage needs it
+  // [m] The anisotropic field's neighbourhood radius (field/anisotropy.h)
+  // when the solver's neighbour loop sums its covariance on the steps that
+  // compute presence (ParticleView::covariance); 0: it does not. WCSPH
+  // only, and only within its support (make_solver_input).
+  float covariance_radius = 0;
   // Words per particle kept in each pair mask (nsearch/pair_masks.h); -1:
   // pair_mask_capacity of the support. A particle needing more is served by
   // the direct loop (the tests use 0 and 1 to check that path).
@@ -89,6 +94,11 @@ struct ParticleView {
   const float* presence = nullptr;    // [6][n] (+x,-x,+y,-y,+z,-z); null unless the last step computed it
   GridGeom grid{};
   const uint32_t* fine_offsets = nullptr;  // the x-slab table (nsearch/grid.h): neighbour queries (field/anisotropy.h)
+  // The anisotropic kernels' neighbour sums within covariance_radius [m]
+  // (sph/covariance.h, [3][n]), where the last step's neighbour loop summed
+  // them (SolverInput::covariance_radius); null otherwise.
+  const Float4* covariance = nullptr;
+  float covariance_radius = 0;
 };
 
 // Device buffers copied as they are (sorted order, no conversion), for sinks

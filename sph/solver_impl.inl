@@ -16,7 +16,8 @@
 
 // The particle data into the new sorted order, one kernel for all of it
 // (one read of the order): out[i] = in[order[i]] for the first n_new sorted
-// particles. Presence, when there is one, [6][n_old] -> [6][n_new].
+// particles. Presence and the covariance sums, when there are any, [6][n_old]
+// -> [6][n_new] and [3][n_old] -> [3][n_new].
 struct GatherParticles {
   const uint32_t* order;
   ConstParticleArrays in;  // presence null: none to carry
@@ -32,6 +33,8 @@ struct GatherParticles {
     out.status[i] = in.status[j];
     if (in.presence)
       for (uint32_t k = 0; k < 6; ++k) out.presence[k * n_new + i] = in.presence[k * n_old + j];
+    if (in.covariance)
+      for (uint32_t k = 0; k < 3; ++k) out.covariance[k * n_new + i] = in.covariance[k * n_old + j];
   }
 };
 
@@ -39,8 +42,10 @@ class SolverImpl final : public Solver {
  public:
   explicit SolverImpl(const SolverInput& in)
       : prm_(in.params), grid_(in.grid), cfl_(in.cfl), min_dt_(in.min_dt), max_dt_(in.max_dt),
-        n_(uint32_t(in.fluid_pos_rho.size())), obstacles_(make_obstacle_set(kBackend, in.obstacles, in.params.spacing)),
-        walls_(in, in.grid) {
+        n_(uint32_t(in.fluid_pos_rho.size())), covariance_radius_(in.covariance_radius),
+        obstacles_(make_obstacle_set(kBackend, in.obstacles, in.params.spacing)), walls_(in, in.grid) {
+    if (covariance_radius_ > prm_.kernel.support())
+      throw std::invalid_argument("WCSPH: the covariance radius exceeds the kernel's support");
     const size_t n = n_, cells = size_t(grid_.num_cells()) + 1, slabs = size_t(grid_.num_fine_cells()) + 1;
     upload(pos_, in.fluid_pos_rho);
     upload(vel_, in.fluid_vel);
@@ -86,15 +91,24 @@ class SolverImpl final : public Solver {
       presence_.resize(6 * size_t(n_));
       presence_tmp_.resize(6 * size_t(n_));
     }
+    if (mode != PresenceMode::Off && covariance_radius_ > 0 && covariance_.size() < 3 * size_t(n_)) {
+      covariance_.resize(3 * size_t(n_));
+      covariance_tmp_.resize(3 * size_t(n_));
+    }
   }
   ParticleView view() const override {
-    return {kBackend, n_, raw(pos_), raw(offsets_), presence_valid_ ? raw(presence_) : nullptr, grid_,
-            raw(fine_offsets_)};
+    ParticleView v{kBackend, n_, raw(pos_), raw(offsets_), presence_valid_ ? raw(presence_) : nullptr, grid_,
+                   raw(fine_offsets_)};
+    if (covariance_valid()) {
+      v.covariance = raw(covariance_);
+      v.covariance_radius = covariance_radius_;
+    }
+    return v;
   }
 
   size_t device_bytes() const override {
     auto b = [](const auto& v) { return v.size() * sizeof(typename std::decay_t<decltype(v)>::value_type); };
-    return b(pos_) + b(vel_) + b(flow_) + b(pos_tmp_) + b(vel_tmp_) + b(flow_tmp_) + b(accel_) + b(rate_grad_) + b(presence_) + b(presence_tmp_) + b(id_) +
+    return b(pos_) + b(vel_) + b(flow_) + b(pos_tmp_) + b(vel_tmp_) + b(flow_tmp_) + b(accel_) + b(rate_grad_) + b(presence_) + b(presence_tmp_) + b(covariance_) + b(covariance_tmp_) + b(id_) +
            b(id_tmp_) + b(status_) + b(status_tmp_) + b(keys_) + b(order_) + b(offsets_) + b(fine_offsets_) + b(wall_) +
            b(fluid_pairs_) + b(boundary_pairs_) + b(fluid_pair_count_) + b(boundary_pair_count_) + b(fluid_near_) +
            walls_.bytes() + raw_copies_.bytes();
@@ -110,8 +124,9 @@ class SolverImpl final : public Solver {
                               (presence_mode_ == PresenceMode::AtUntil && t_ + dt_bound() >= until - 1e-12);
     obstacles_.view.time = float(t_);
     clock_.start();
-    if (prm_.kernel.type == KernelType::WendlandC2) pairs<KernelType::WendlandC2>(presence_now);
-    else pairs<KernelType::CubicSpline>(presence_now);
+    const int extras = !presence_now ? kPairPlain : covariance_radius_ > 0 ? kPairPresenceCovariance : kPairPresence;
+    if (prm_.kernel.type == KernelType::WendlandC2) pairs<KernelType::WendlandC2>(extras);
+    else pairs<KernelType::CubicSpline>(extras);
     presence_valid_ = presence_now;
     clock_.end_of("pairs");
     // The step's size is chosen on the device (integrate.h, ChooseStep), so
@@ -158,39 +173,46 @@ class SolverImpl final : public Solver {
   }
 
  private:
-  template <bool P, bool Direct, KernelType K>
-  Interaction<P, Direct, K> pair_stage() {
+  template <int E, bool Direct, KernelType K>
+  Interaction<E, Direct, K> pair_stage() {
     const WallsIn walls{walls_.offsets(), walls_.pos(), raw(wall_), walls_.alpha(), walls_.vel()};
-    const PairOut out{raw(accel_), raw(rate_grad_), P ? raw(presence_) : nullptr};
+    const PairOut out{raw(accel_), raw(rate_grad_), E != kPairPlain ? raw(presence_) : nullptr,
+                      E == kPairPresenceCovariance ? raw(covariance_) : nullptr,
+                      covariance_radius_ > 0 ? 1.0f / covariance_radius_ : 0.0f};
     return {prm_, grid_, fluid_in(), walls, fluid_pairs(), boundary_pairs(), out, n_};
   }
 
   // The views of the particle arrays that the kernels take (particles.h).
   FluidIn fluid_in() const { return {raw(fine_offsets_), raw(pos_), raw(flow_)}; }
   ParticleArrays state() {
-    return {raw(pos_), raw(vel_), raw(flow_), raw(id_), raw(status_), presence_valid_ ? raw(presence_) : nullptr};
+    return {raw(pos_), raw(vel_), raw(flow_), raw(id_), raw(status_), presence_valid_ ? raw(presence_) : nullptr,
+            covariance_valid() ? raw(covariance_) : nullptr};
   }
   ConstParticleArrays const_state() const {
-    return {raw(pos_), raw(vel_), raw(flow_), raw(id_), raw(status_), presence_valid_ ? raw(presence_) : nullptr};
+    return {raw(pos_), raw(vel_), raw(flow_), raw(id_), raw(status_), presence_valid_ ? raw(presence_) : nullptr,
+            covariance_valid() ? raw(covariance_) : nullptr};
   }
+  // The covariance sums are summed with presence where the solver has a radius for them.
+  bool covariance_valid() const { return presence_valid_ && covariance_radius_ > 0; }
   PairIn pair_results() const { return {raw(accel_), raw(rate_grad_)}; }
 
   // The pairs stage: the wall pressure, then the pair loop. The kernel type K
   // is a template parameter of both loops (kernel.h, W_for and dW_over_r_for).
   template <KernelType K>
-  void pairs(bool presence) {
+  void pairs(int extras) {
     parallel_for("wall_pressure", walls_.size(),
                  WallPressure<K>{prm_, grid_, fluid_in(), raw(fluid_near_), walls_.pos(), raw(wall_)});
-    if (presence) pair_launches<true, K>();
-    else pair_launches<false, K>();
+    if (extras == kPairPresenceCovariance) pair_launches<kPairPresenceCovariance, K>();
+    else if (extras == kPairPresence) pair_launches<kPairPresence, K>();
+    else pair_launches<kPairPlain, K>();
   }
 
   // The pair loop is two launches: the pair masks, then the direct loop for
   // the particles whose masks overflowed (nsearch/pair_masks.h; usually none).
-  template <bool P, KernelType K>
+  template <int E, KernelType K>
   void pair_launches() {
-    parallel_for("pair_loop", n_, pair_stage<P, false, K>());
-    parallel_for("pair_loop_direct", n_, pair_stage<P, true, K>());
+    parallel_for("pair_loop", n_, pair_stage<E, false, K>());
+    parallel_for("pair_loop_direct", n_, pair_stage<E, true, K>());
   }
 
   PairMask fluid_pairs() { return {raw(fluid_pairs_), raw(fluid_pair_count_), n_, mask_words_}; }
@@ -206,7 +228,7 @@ class SolverImpl final : public Solver {
     // closed tank does not.
     const uint32_t active = prm_.open_top ? read_one(offsets_, grid_.num_cells()) : n_;
     const ParticleArrays out{raw(pos_tmp_), raw(vel_tmp_), raw(flow_tmp_), raw(id_tmp_), raw(status_tmp_),
-                             raw(presence_tmp_)};
+                             raw(presence_tmp_), raw(covariance_tmp_)};
     parallel_for("gather_particles", active, GatherParticles{raw(order_), const_state(), n_, out, active});
     pos_.swap(pos_tmp_);
     vel_.swap(vel_tmp_);
@@ -214,6 +236,7 @@ class SolverImpl final : public Solver {
     id_.swap(id_tmp_);
     status_.swap(status_tmp_);
     if (presence_valid_) presence_.swap(presence_tmp_);
+    if (covariance_valid()) covariance_.swap(covariance_tmp_);
     removed_ += n_ - active;
     n_ = active;
     parallel_for("fluid_cells_near", grid_.num_cells(), CellsNear{grid_, raw(fine_offsets_), raw(fluid_near_)});
@@ -284,6 +307,7 @@ class SolverImpl final : public Solver {
   GridGeom grid_;
   double cfl_, min_dt_, max_dt_;
   uint32_t n_;
+  float covariance_radius_;  // [m] SolverInput::covariance_radius
   PresenceMode presence_mode_ = PresenceMode::Off;
   bool presence_valid_ = false;
   double t_ = 0;
@@ -304,6 +328,7 @@ class SolverImpl final : public Solver {
   // u (the predicted kicked velocity) and p / rho^2 (integrate.h).
   Vector<Float4> pos_, vel_, flow_, pos_tmp_, vel_tmp_, flow_tmp_, accel_, rate_grad_;
   Vector<float> presence_, presence_tmp_;
+  Vector<Float4> covariance_, covariance_tmp_;  // [3][n] (sph/covariance.h), with presence
   Vector<float> pressure_out_;  // device_pressure
   Vector<WallState> wall_;
   // offsets_: coarse cell table (view(), the field builder, the raycaster);

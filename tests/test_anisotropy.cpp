@@ -143,6 +143,83 @@ TEST_CASE("anisotropic kernels equal a double brute-force covariance with anothe
   CHECK(worst_half < 2e-3);
 }
 
+TEST_CASE("WCSPH's pair loop sums the anisotropic covariance of a double brute force, and the field uses it",
+          "[field][sph]") {
+  const Scene s = aniso_scene({"fluid.0.velocity=[0.3,0,-0.2]"});
+  const ResolvedScene r = resolve_scene(s);
+  const FieldSetup fs = make_field_setup(r);
+  const SolverInput in = make_solver_input(r, PresenceMode::AtUntil);
+  REQUIRE(in.covariance_radius == fs.aniso.radius);  // 3 spacings: within WCSPH's support of 4
+  auto solver = make_cpu_solver(in);
+  for (int k = 0; k < 20; ++k) solver->step(1.0);  // presence (and with it the sums) off: not reaching 1 s
+  CHECK_FALSE(solver->view().covariance);
+  const HostParticles before = solver->download();
+  solver->step(solver->time() + 1e-4);  // reaches its time: the loop sums them, at the positions of `before`
+  const ParticleView pv = solver->view();
+  REQUIRE(pv.covariance);
+  CHECK(pv.covariance_radius == fs.aniso.radius);
+  const HostParticles after = solver->download();
+  REQUIRE(after.id.size() == before.id.size());
+  std::vector<size_t> where(before.id.size());
+  for (size_t k = 0; k < before.id.size(); ++k) where[before.id[k]] = k;
+  std::vector<Vec3f> start(after.id.size());  // the step's start positions, in the view's order
+  for (size_t i = 0; i < after.id.size(); ++i) start[i] = before.pos[where[after.id[i]]];
+
+  // The sums against double ones over every particle at the step's start.
+  const double radius = fs.aniso.radius;
+  double worst = 0, worst_count = 0;
+  for (size_t i = 0; i < start.size(); ++i) {
+    double ref[11] = {1, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0};
+    for (size_t j = 0; j < start.size(); ++j) {
+      if (j == i) continue;
+      const double d[3] = {(double(start[j].x) - start[i].x) / radius, (double(start[j].y) - start[i].y) / radius,
+                           (double(start[j].z) - start[i].z) / radius};
+      const double q2 = d[0] * d[0] + d[1] * d[1] + d[2] * d[2];
+      if (q2 >= 1) continue;
+      const double w = 1 - q2 * std::sqrt(q2);
+      const double add[11] = {w, w * d[0], w * d[1], w * d[2], w * d[0] * d[0], w * d[1] * d[1],
+                              w * d[2] * d[2], w * d[0] * d[1], w * d[0] * d[2], w * d[1] * d[2], 1};
+      for (int k = 0; k < 11; ++k) ref[k] += add[k];
+    }
+    const CovarianceSums c = CovarianceSums::load(pv.covariance, pv.n, uint32_t(i));
+    const double got[11] = {c.w, c.mx, c.my, c.mz, c.sxx, c.syy, c.szz, c.sxy, c.sxz, c.syz, c.count};
+    for (int k = 0; k < 10; ++k) worst = std::max(worst, std::abs(got[k] - ref[k]) / ref[0]);
+    worst_count = std::max(worst_count, std::abs(got[10] - ref[10]));
+  }
+  INFO("worst difference of a sum, relative to W: " << worst << "; of a count: " << worst_count);
+  CHECK(worst < 1e-5);
+  CHECK(worst_count == 0);
+
+  // Their kernels: the reference's shape at the start, centred from where the particle is now.
+  double worst_form = 0, worst_centre = 0;
+  std::vector<Float4> ell(3 * size_t(pv.n));
+  const AnisotropyFromSums from{pv.pos, pv.covariance, pv.n, fs.geom, fs.aniso, ell.data()};
+  for (uint32_t i = 0; i < pv.n; ++i) {
+    from(i);
+    const Ellipsoid e = Ellipsoid::load(ell.data(), pv.n, i);
+    const RefKernel k = reference_kernel(start, i, fs);
+    const Vec3f moved = (xyz(pv.pos[i]) - start[i]) * (1.0f / fs.geom.voxel);
+    worst_form = std::max(worst_form, (form_of(e) - k.A).norm() / k.A.norm());
+    worst_centre = std::max(worst_centre, (Eigen::Vector3d(e.centre.x - moved.x, e.centre.y - moved.y,
+                                                           e.centre.z - moved.z) - k.centre).norm());
+  }
+  INFO("worst relative form error " << worst_form << ", centre " << worst_centre << " voxels");
+  CHECK(worst_form < 2e-3);
+  CHECK(worst_centre < 1e-4);
+
+  // The builder takes them: its field differs from the one of its own pass
+  // (at the positions after the step) by that step's motion only.
+  const std::vector<float> with_sums = test::cpu_field(fs, pv, FieldKind::Naive);
+  ParticleView own = pv;
+  own.covariance = nullptr;
+  const std::vector<float> with_pass = test::cpu_field(fs, own, FieldKind::Naive);
+  double differ = 0;
+  for (size_t v = 0; v < with_sums.size(); ++v) differ = std::max(differ, double(std::abs(with_sums[v] - with_pass[v])));
+  INFO("largest difference of the two fields " << differ << " (iso " << fs.shape.iso << ")");
+  CHECK(differ > 0);
+  CHECK(differ < 0.02 * fs.shape.iso);
+}
+
 TEST_CASE("anisotropic kernels: spheres inside and alone, flat at a surface, stretch and volume as set", "[field]") {
   const Scene s = aniso_scene();
   const FieldSetup fs = make_field_setup(resolve_scene(s));

@@ -368,6 +368,9 @@ TEST_CASE("cuda field builders agree with the cpu builders", "[gpu]") {
     gpu->step(1.0);
   }
   const FieldSetup fs = make_field_setup(resolve_scene(s));
+  // Ellipsoids from the sums of WCSPH's pair loop on both backends (sph/covariance.h).
+  CHECK(bool(cpu->view().covariance) == fs.aniso.on);
+  CHECK(bool(gpu->view().covariance) == fs.aniso.on);
   for (FieldKind kind : {FieldKind::Naive, FieldKind::Presence, FieldKind::Gather}) {
     if (fs.aniso.on && kind == FieldKind::Gather) continue;  // spheres only
     auto fc = make_cpu_field_builder(fs, kind), fg = make_cuda_field_builder(fs, kind);

@@ -347,11 +347,12 @@ std::unique_ptr<FieldBuilder> switch_field(const ResolvedScene& rscene, Backend 
 // paused): the steps that bring it to the previous frame's wall time (real-
 // time playback, at most `max_sim` seconds), or `substeps` steps. A run
 // stopped by a guard pauses with its message.
-void simulate(Solver& solver, PanelState& s, Controls& ctl, double end_time, double max_sim) {
+void simulate(const Scene& scene, Solver& solver, PanelState& s, Controls& ctl, double max_sim) {
+  const double end_time = scene.run.end_time;
   s.steps = 0;
   s.sim_advance_s = 0;
   if ((ctl.paused && !ctl.step_once) || solver.time() >= end_time) return;
-  const bool presence = s.kind == FieldKind::Presence && s.draws_field;
+  const bool presence = s.draws_field && field_needs_presence_step(scene, s.kind, s.anisotropic);
   const double t0 = solver.time();
   try {
     if (s.realtime && !ctl.step_once) {
@@ -437,7 +438,7 @@ int run_viewer(const ViewOptions& opt, std::ostream& log) {
     }
     const double t_before = solver->time();
     s.draws_field = method_needs_field(rs.method);
-    simulate(*solver, s, ctl, scene.run.end_time, opt.max_sim_per_frame);
+    simulate(scene, *solver, s, ctl, opt.max_sim_per_frame);
     s.sim_advance_s = solver->time() - t_before;
     const ParticleView pv = solver->view();
     if (field->kind() != s.kind || field->setup().aniso.on != s.anisotropic)  // switched in the panel
