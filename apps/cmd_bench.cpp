@@ -138,6 +138,7 @@ void add_field(CLI::App* bench, int& exit_code) {
   f->add_option("--collapse", a->opt.collapse, "build at T = t sqrt(2g/a) (column collapsed)")
       ->check(CLI::Range(0.0, 100.0));
   f->add_option("--set", a->opt.overrides, "override a value of the generated scene, e.g. --set field.clip=2");
+  f->add_flag("--kernels", a->opt.kernels, "also time every named launch (ms per build by name, over further builds)");
   f->callback([a, &exit_code] {
     run_bench(a->c, [&](Backend b) {
       a->opt.sizes = parse_sizes(!a->c.sizes.empty() ? a->c.sizes

@@ -117,6 +117,14 @@ std::vector<BenchFieldRow> bench_field(Backend b, const BenchFieldOptions& opt, 
       row.min_ms = *std::min_element(ms.begin(), ms.end());
       row.max_ms = *std::max_element(ms.begin(), ms.end());
       row.sim_time = solver->time();
+      if (opt.kernels) {  // apart from the medians: the events around each launch cost a little
+        take_kernel_times();
+        set_kernel_timing(true);
+        for (int k = 0; k < opt.frames; ++k) builder->build(view, false, v.group);
+        set_kernel_timing(false);
+        row.kernels = take_kernel_times();
+        for (KernelTime& t : row.kernels) t.ms /= opt.frames;
+      }
       builder->build(view, /*count=*/true, v.group);
       row.counts = builder->last_counts();
       const std::vector<float> field = builder->download();
@@ -157,6 +165,9 @@ nlohmann::json to_json(const std::vector<BenchFieldRow>& rows, Backend b, const 
                          {"surface_distance_mean", r.error.mean_distance},
                          {"surface_distance_max", r.error.max_distance},
                          {"surface_points_unmatched", r.error.unmatched}});
+  for (size_t k = 0; k < rows.size(); ++k)
+    for (const KernelTime& kt : rows[k].kernels)
+      j["rows"][k]["kernels_ms_per_build"][kt.name] = {{"ms", kt.ms}, {"launches", kt.launches}};
   return j;
 }
 
@@ -175,6 +186,12 @@ void print_table(const std::vector<BenchFieldRow>& rows, std::ostream& out) {
         << std::setw(12) << r.counts.atomics << std::setw(12) << r.counts.skipped << std::setprecision(3)
         << std::setw(10) << 100.0 * r.error.misclassified_share() << std::setw(9) << r.error.misclassified_other
         << std::setw(9) << r.error.mean_distance << std::setw(8) << r.error.max_distance << std::defaultfloat << "\n";
+  }
+  for (const auto& r : rows) {
+    if (r.kernels.empty()) continue;
+    out << "  launches at " << r.particles << " particles, " << r.builder << " (ms per build):";
+    for (const KernelTime& kt : r.kernels) out << " " << kt.name << " " << std::fixed << std::setprecision(3) << kt.ms;
+    out << std::defaultfloat << "\n";
   }
   out << "  (median ms per build; speedup against the faster naive variant; touched/atomics/skipped from one counted build;\n"
          "   miscl.% = voxels within 2 voxels of the naive surface classified differently; holes = differing\n"

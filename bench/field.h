@@ -11,6 +11,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include "core/kernel_times.h"
 #include "field/field.h"
 #include "io/metrics.h"
 #include "io/scene.h"
@@ -25,6 +26,7 @@ struct BenchFieldOptions {
   int frames = 30;
   double collapse = 2.5;      // fields are built at T = t sqrt(2g/a) = collapse (front near 3a)
   std::vector<std::string> overrides;  // --set key.path=value on the generated scene (field.*, sph.*)
+  bool kernels = false;  // also time every named launch (ms per build by name, over further builds)
 };
 
 struct BenchFieldRow {
@@ -35,6 +37,7 @@ struct BenchFieldRow {
   FieldCounts counts;
   FieldError error;  // against naive
   double sim_time = 0;
+  std::vector<KernelTime> kernels;  // ms per build by launch name (--kernels)
 };
 
 // The generated scene of one size (JSON text), for the record and for tests.
