@@ -22,6 +22,7 @@
 // Eigen's fixed-size 3x3 closed-form eigensolver runs in host and device code.
 #include <Eigen/Core>
 #include <Eigen/Eigenvalues>
+#include <Eigen/Geometry>  // cross
 
 #include "core/hd.h"
 #include "core/vec.h"
@@ -62,15 +63,43 @@ struct Ellipsoid {
   }
 };
 
+// The unit eigenvector of the symmetric C for its eigenvalue l: the longest
+// of the cross products of two rows of C - l I, which span the plane
+// orthogonal to it; (1, 0, 0) where all three vanish (l is C's only
+// eigenvalue). Ill-conditioned where l is nearly repeated, and only used
+// where that does not matter (ellipsoid_axes).
+SPHRAY_HD SPHRAY_FORCEINLINE Eigen::Vector3f eigenvector_of(const Eigen::Matrix3f& C, float l) {
+  const Eigen::Matrix3f B = C - l * Eigen::Matrix3f::Identity();
+  const Eigen::Vector3f r0 = B.row(0), r1 = B.row(1), r2 = B.row(2);
+  const Eigen::Vector3f c01 = r0.cross(r1), c02 = r0.cross(r2), c12 = r1.cross(r2);
+  const float n01 = c01.squaredNorm(), n02 = c02.squaredNorm(), n12 = c12.squaredNorm();
+  Eigen::Vector3f v = n01 >= n02 ? c01 : c02;
+  float n = n01 >= n02 ? n01 : n02;
+  if (n12 > n) {
+    v = c12;
+    n = n12;
+  }
+  return n > 0.0f ? Eigen::Vector3f(v / std::sqrt(n)) : Eigen::Vector3f(1.0f, 0.0f, 0.0f);
+}
+
 // The kernel from a covariance (normalised units) and a neighbour count.
 // Separate from the neighbour loop so that tests can check it alone.
+// Eigen's closed form gives the eigenvalues; the forms A = R diag(1/s^2) R^T
+// and R diag(s^2) R^T need only the eigenvectors of the smallest and the
+// largest one: with l1 <= l2 <= l3 and v1, v3 theirs, R diag(f) R^T =
+// f2 I + (f1 - f2) v1 v1^T + (f3 - f2) v3 v3^T. Each vector is ill-defined
+// exactly where its coefficient vanishes (a repeated eigenvalue), so the
+// form stays accurate. Eigen's own eigenvectors (computeDirect) pick a
+// column by a run-time index, which on the GPU put 136 bytes per thread in
+// local memory: the pass took 0.333 ms at 4M particles on the H100
+// (docs/field.md).
 SPHRAY_HD SPHRAY_FORCEINLINE void ellipsoid_axes(const AnisotropyParams& ap, const Eigen::Matrix3f& cov,
                                                  uint32_t neighbours, Ellipsoid& e) {
   float s[3] = {1.0f, 1.0f, 1.0f};
-  Eigen::Matrix3f axes = Eigen::Matrix3f::Identity();
+  Eigen::Vector3f v1 = Eigen::Vector3f::Zero(), v3 = Eigen::Vector3f::Zero();
   if (neighbours >= ap.min_neighbours && ap.stretch > 1.0f) {
     Eigen::SelfAdjointEigenSolver<Eigen::Matrix3f> es;
-    es.computeDirect(cov);
+    es.computeDirect(cov, Eigen::EigenvaluesOnly);
     const Eigen::Vector3f l = es.eigenvalues();  // ascending
     const float top = std::sqrt(l(2) > 0.0f ? l(2) : 0.0f);
     if (top > 0.0f) {
@@ -81,13 +110,15 @@ SPHRAY_HD SPHRAY_FORCEINLINE void ellipsoid_axes(const AnisotropyParams& ap, con
       }
       const float g = std::cbrt(s[0] * s[1] * s[2]);
       for (int k = 0; k < 3; ++k) s[k] /= g;
-      axes = es.eigenvectors();
+      v1 = eigenvector_of(cov, l(0));
+      v3 = eigenvector_of(cov, l(2));
     }
   }
-  const Eigen::Vector3f inv2(1.0f / (s[0] * s[0]), 1.0f / (s[1] * s[1]), 1.0f / (s[2] * s[2]));
-  const Eigen::Vector3f sq(s[0] * s[0], s[1] * s[1], s[2] * s[2]);
-  const Eigen::Matrix3f A = axes * inv2.asDiagonal() * axes.transpose();
-  const Eigen::Matrix3f M = axes * sq.asDiagonal() * axes.transpose();
+  auto form = [&](float f1, float f2, float f3) -> Eigen::Matrix3f {
+    return f2 * Eigen::Matrix3f::Identity() + (f1 - f2) * (v1 * v1.transpose()) + (f3 - f2) * (v3 * v3.transpose());
+  };
+  const Eigen::Matrix3f A = form(1.0f / (s[0] * s[0]), 1.0f / (s[1] * s[1]), 1.0f / (s[2] * s[2]));
+  const Eigen::Matrix3f M = form(s[0] * s[0], s[1] * s[1], s[2] * s[2]);
   e.axx = A(0, 0); e.ayy = A(1, 1); e.azz = A(2, 2);
   e.axy = A(0, 1); e.axz = A(0, 2); e.ayz = A(1, 2);
   e.half = {std::sqrt(M(0, 0)), std::sqrt(M(1, 1)), std::sqrt(M(2, 2))};
