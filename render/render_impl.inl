@@ -73,17 +73,23 @@ class RendererImpl final : public Renderer {
       occ.occ = raw(occupancy_);
     }
     mark("occupancy");
-    MeshHits meshes;
-    meshes.obstacles = obstacles_.view;
-    meshes.origin = vol.origin;
-    meshes.voxel = vol.voxel;
-    meshes.at_time(float(time));
-    Tracer<TrilinearField> tracer{TrilinearField{field, vol.nx, vol.ny, vol.nz}, occ,
-                                  Vec3f{float(vol.nx), float(vol.ny), float(vol.nz)}, env,
-                                  make_trace_settings(rs, fs, cam), meshes};
-    parallel_for(rs.method == RenderMethod::Slices ? "render_slices" : "render_raycast",
-                 PixelTiles{width_, height_}.items(),
-                 RaycastPixels<TrilinearField>{cam, tracer, vol.origin, 1.0f / vol.voxel, out});
+    const TrilinearField tri{field, vol.nx, vol.ny, vol.nz};
+    const Vec3f box{float(vol.nx), float(vol.ny), float(vol.nz)};
+    const TraceSettings ts = make_trace_settings(rs, fs, cam);
+    const char* name = rs.method == RenderMethod::Slices ? "render_slices" : "render_raycast";
+    const uint32_t items = PixelTiles{width_, height_}.items();
+    if (obstacles_.view.count > 0) {
+      MeshHits meshes;
+      meshes.obstacles = obstacles_.view;
+      meshes.origin = vol.origin;
+      meshes.voxel = vol.voxel;
+      meshes.at_time(float(time));
+      const Tracer<TrilinearField, 16, MeshHits> tracer{tri, occ, box, env, ts, meshes};
+      parallel_for(name, items, RaycastPixels<TrilinearField, MeshHits>{cam, tracer, vol.origin, 1.0f / vol.voxel, out});
+    } else {
+      const Tracer<TrilinearField, 16, NoMeshes> tracer{tri, occ, box, env, ts};
+      parallel_for(name, items, RaycastPixels<TrilinearField, NoMeshes>{cam, tracer, vol.origin, 1.0f / vol.voxel, out});
+    }
     mark("trace");
   }
 
