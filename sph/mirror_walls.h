@@ -27,11 +27,17 @@ struct Mirrors {
   // non-empty subset of the walls in reach (one wall: 1 image; an edge: 3; a
   // corner: 7); bit a of set says the image is reflected across the wall of
   // axis a, so that a vector of the original (a velocity) is the image's
-  // after flip(v, set).
+  // after flip(v, set). The subsets are enumerated directly (set = (set - 1)
+  // & axes, from axes down), so the loop runs once per image: a loop over all
+  // seven sets that skipped the others was unrolled on the GPU into seven
+  // copies of the pass's pair physics per neighbour, and the near-wall
+  // launches cost several times the interior ones per particle.
   template <class F>
   SPHRAY_HD SPHRAY_FORCEINLINE void images(Vec3f p, F&& f) const {
-    for (uint32_t set = 1; set < 8u; ++set) {
-      if ((set & ~axes) != 0u) continue;
+#if defined(__CUDA_ARCH__)
+#pragma unroll 1
+#endif
+    for (uint32_t set = axes; set != 0u; set = (set - 1u) & axes) {
       Vec3f m = p;
       if (set & 1u) m.x = 2.0f * plane[0] - p.x;
       if (set & 2u) m.y = 2.0f * plane[1] - p.y;
