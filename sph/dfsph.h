@@ -120,7 +120,6 @@ struct DfsphDensity {
     const Vec3f xi = xyz(pos[i]), vi = xyz(vel[i]);
     const Mirrors mirrors = mirrors_of(prm, k.support(), xi);
     const bool near_mesh = walls.near_point(grid, xi);
-    if (!serves(P, pairs, i, mirrors, near_mesh)) return;
     float w_sum = k.W(0.0f), g2 = 0.0f, rate = 0.0f, ux = 0.0f, uy = 0.0f, uz = 0.0f;
     Vec3f grad = {0.0f, 0.0f, 0.0f}, lobes = {0.0f, 0.0f, 0.0f};
     uint32_t count = 0;
@@ -202,7 +201,6 @@ struct DfsphAccel {
     const Vec3f xi = xyz(pi4);
     const Mirrors mirrors = mirrors_of(prm, k.support(), xi);
     const bool near_mesh = walls.near_point(grid, xi);
-    if (!serves(P, pairs, i, mirrors, near_mesh)) return;
     const float pi = press[i];
     const Vec3f vi = WithSource ? xyz(vel[i]) : Vec3f{0.0f, 0.0f, 0.0f};
     Vec3f a = {0.0f, 0.0f, 0.0f};
@@ -260,7 +258,6 @@ struct DfsphUpdate {
     const Vec3f xi = xyz(pos[i]);
     const Mirrors mirrors = mirrors_of(prm, k.support(), xi);
     const bool near_mesh = walls.near_point(grid, xi);
-    if (!serves(P, pairs, i, mirrors, near_mesh)) return;
     const Vec3f ai = xyz(acc[i]);
     float ap = 0.0f;
     auto accel = [&](uint32_t j, Float4) { return xyz(load(acc + j)); };
@@ -300,7 +297,6 @@ struct DfsphViscosity {
     const float s2 = k.support() * k.support();
     const Vec3f xi = xyz(pos[i]), vi = xyz(vel[i]);
     const Mirrors mirrors = mirrors_of(prm, k.support(), xi);
-    if (!serves(P, pairs, i, mirrors, false)) return;  // the obstacles' walls are free-slip: no term here
     Vec3f lap = {0.0f, 0.0f, 0.0f};
     auto velocity = [&](uint32_t j, Float4) { return xyz(load(vel + j)); };
     for_each_neighbour_and_image<P>(grid, offsets, pairs, pos, i, xi, s2, mirrors, vi, velocity,

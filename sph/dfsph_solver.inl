@@ -70,7 +70,7 @@ class DfsphSolverImpl final : public Solver {
     return b(pos_) + b(vel_) + b(warm_) + b(pos_tmp_) + b(vel_tmp_) + b(warm_tmp_) + b(acc_) + b(presence_) +
            b(presence_tmp_) + b(press_) + b(factor_) + b(source_) + b(residual_) + b(error_) + b(sparse_) + b(id_) +
            b(id_tmp_) + b(status_) + b(status_tmp_) + b(keys_) + b(order_) + b(offsets_) + b(fine_offsets_) +
-           b(pairs_) + b(pair_count_) + b(wall_sum_) + walls_.bytes() + raw_copies_.bytes();
+           b(pairs_) + b(pair_count_) + b(wall_sum_) + walls_.bytes() + raw_copies_.bytes() + lists_.bytes();
   }
 
   void step(double until) override {
@@ -168,6 +168,8 @@ class DfsphSolverImpl final : public Solver {
     BuildPairMask b{grid_, raw(fine_offsets_), raw(pos_), raw(pos_), s * s, true, pairs()};
     b.search_radius = s;
     parallel_for("dfsph_pair_masks", n_, b);
+    // Every neighbour pass until the next sort reads these positions.
+    lists_.classify(n_, prm_, s, 0.0f, grid_, walls_.view(), pairs(), raw(pos_));
   }
 
 
@@ -181,7 +183,7 @@ class DfsphSolverImpl final : public Solver {
     }
     static constexpr const char* kNames[4] = {"dfsph_viscosity", "dfsph_viscosity_walls",
                                               "dfsph_viscosity_direct", "dfsph_viscosity_walls_mesh"};
-    mirror_pass_launches<DfsphViscosity>(kNames, n_, false, prm_, df_, grid_, raw(fine_offsets_), pairs(), control,
+    mirror_pass_launches<DfsphViscosity>(kNames, lists_, false, prm_, df_, grid_, raw(fine_offsets_), pairs(), control,
                                          raw(pos_), raw(vel_), raw(vel_tmp_), walls_.view(), raw(wall_sum_));
     vel_.swap(vel_tmp_);
   }
@@ -195,7 +197,7 @@ class DfsphSolverImpl final : public Solver {
     float* pr = presence ? raw(presence_) : nullptr;
     auto launch = [&](auto pass) {
       using P = decltype(pass);
-      mirror_pass_launches<P::template pass>(kNames, n_, walls_.size() > 0, prm_, df_, grid_, raw(fine_offsets_),
+      mirror_pass_launches<P::template pass>(kNames, lists_, walls_.size() > 0, prm_, df_, grid_, raw(fine_offsets_),
                                              pairs(), raw(pos_), raw(vel_), raw(pos_tmp_), raw(factor_), raw(source_),
                                              raw(sparse_), raw(error_), pr, n_, walls_.view(), raw(wall_sum_),
                                              raw(warm_), control);
@@ -212,7 +214,7 @@ class DfsphSolverImpl final : public Solver {
     static constexpr const char* kSourceNames[4] = {"dfsph_accel_source", "dfsph_accel_source_walls",
                                                     "dfsph_accel_source_direct", "dfsph_accel_source_walls_mesh"};
     mirror_pass_launches<WithFlag<WithSource, DfsphAccel>::template pass>(
-        WithSource ? kSourceNames : kNames, n_, walls_.size() > 0, prm_, df_, grid_, raw(fine_offsets_), pairs(),
+        WithSource ? kSourceNames : kNames, lists_, walls_.size() > 0, prm_, df_, grid_, raw(fine_offsets_), pairs(),
         raw(control_), raw(pos_), raw(vel_), raw(press_), raw(acc_), raw(source_), walls_.view(), raw(wall_sum_));
   }
 
@@ -230,7 +232,7 @@ class DfsphSolverImpl final : public Solver {
       if (!Divergence && k == 0) accel<true>();
       else accel<false>();
       mirror_pass_launches<WithFlag<Divergence, DfsphUpdate>::template pass>(
-          Divergence ? kDivNames : kNames, n_, walls_.size() > 0, prm_, df_, grid_, raw(fine_offsets_), pairs(),
+          Divergence ? kDivNames : kNames, lists_, walls_.size() > 0, prm_, df_, grid_, raw(fine_offsets_), pairs(),
           raw(control_), raw(pos_), raw(acc_), raw(factor_), raw(source_), raw(sparse_), raw(press_), raw(residual_),
           walls_.view(), raw(wall_sum_));
       ++k;
@@ -292,4 +294,5 @@ class DfsphSolverImpl final : public Solver {
   uint32_t mask_words_ = 0;
   Vector<PairWord> pairs_;
   Vector<uint32_t> pair_count_;
+  LaunchLists lists_;  // the neighbour passes' particles per launch (flow_solver.inl), with the masks
 };

@@ -55,15 +55,127 @@ inline void check_flow_state(const char* solver, const char* remedy, const FlowS
   throw SimulationError(os.str());
 }
 
-// The three launches of a neighbour pass (mirror_walls.h, MirrorPass), each
-// particle served by one; the near-walls launch with the obstacles' wall
-// terms where the scene has obstacles' wall particles (`mesh`).
+// The class of each particle (mirror_walls.h, launch_class) at its position.
+struct ClassifyLaunch {
+  SphParams prm;
+  float support, margin;
+  GridGeom grid;
+  WallsView walls;
+  PairMask pairs;
+  const Float4* pos;
+  uint8_t* cls;
+  SPHRAY_HD void operator()(uint32_t i) const {
+    cls[i] = launch_class(prm, support, margin, grid, walls, pairs, i, xyz(pos[i]));
+  }
+};
+
+// Counts of the interior and the near-wall particles before a position.
+struct LaunchCounts {
+  uint32_t interior, near;
+};
+struct CountLaunch {
+  SPHRAY_HD LaunchCounts operator()(uint8_t c) const {
+    return {c == kClassInterior ? 1u : 0u, c == kClassNearWalls ? 1u : 0u};
+  }
+};
+struct AddLaunchCounts {
+  SPHRAY_HD LaunchCounts operator()(const LaunchCounts& a, const LaunchCounts& b) const {
+    return {a.interior + b.interior, a.near + b.near};
+  }
+};
+
+// Each interior and near-wall particle into its list, in grid order; the
+// last particle writes the lists' lengths.
+struct ScatterLaunchLists {
+  const uint8_t* cls;
+  const LaunchCounts* before;
+  uint32_t n;
+  uint32_t* interior;
+  uint32_t* near;
+  uint32_t* counts;  // [2]: interior, near
+  SPHRAY_HD void operator()(uint32_t i) const {
+    const uint8_t c = cls[i];
+    const LaunchCounts b = before[i];
+    if (c == kClassInterior) interior[b.interior] = i;
+    else if (c == kClassNearWalls) near[b.near] = i;
+    if (i + 1 == n) {
+      counts[0] = b.interior + (c == kClassInterior ? 1u : 0u);
+      counts[1] = b.near + (c == kClassNearWalls ? 1u : 0u);
+    }
+  }
+};
+
+// The particles of a launch: the k-th thread serves list[k] (a length on the
+// device, so the host need not wait for it), or, without a list, particle k
+// where its class is the launch's.
+template <class Pass>
+struct LaunchOf {
+  static constexpr int kMaxRegisters = Pass::kMaxRegisters;
+  Pass pass;
+  const uint32_t* list;   // null: every particle, by class
+  const uint32_t* count;  // the list's length
+  const uint8_t* cls;
+  uint8_t serves;         // the class, without a list
+  SPHRAY_HD void operator()(uint32_t k) const {
+    if (list) {
+      if (k < *count) pass(list[k]);
+    } else if (cls[k] == serves) {
+      pass(k);
+    }
+  }
+};
+
+// The launches' particles over the passes that share one grid (mirror_walls.h).
+class LaunchLists {
+ public:
+  // Classifies the n particles at pos, which move at most `margin` over
+  // those passes, and compacts the interior and near-wall lists.
+  void classify(uint32_t n, const SphParams& prm, float support, float margin, const GridGeom& grid,
+                const WallsView& walls, const PairMask& pairs, const Float4* pos) {
+    n_ = n;
+    if (cls_.size() < n) {
+      cls_.resize(n);
+      before_.resize(n);
+      interior_.resize(n);
+      near_.resize(n);
+    }
+    if (n == 0) return;
+    parallel_for("launch_classes", n, ClassifyLaunch{prm, support, margin, grid, walls, pairs, pos, raw(cls_)});
+    thrust::transform_exclusive_scan(policy(), cls_.begin(), cls_.begin() + n, before_.begin(), CountLaunch{},
+                                     LaunchCounts{0u, 0u}, AddLaunchCounts{});
+    parallel_for("launch_lists", n,
+                 ScatterLaunchLists{raw(cls_), raw(before_), n, raw(interior_), raw(near_), raw(counts_)});
+  }
+  uint32_t size() const { return n_; }
+  template <class Pass>
+  LaunchOf<Pass> interior(const Pass& p) const { return {p, raw(interior_), raw(counts_), raw(cls_), kClassInterior}; }
+  template <class Pass>
+  LaunchOf<Pass> near(const Pass& p) const { return {p, raw(near_), raw(counts_) + 1, raw(cls_), kClassNearWalls}; }
+  template <class Pass>
+  LaunchOf<Pass> direct(const Pass& p) const { return {p, nullptr, nullptr, raw(cls_), kClassDirect}; }
+  size_t bytes() const {
+    return cls_.size() * (sizeof(uint8_t) + sizeof(LaunchCounts) + 2 * sizeof(uint32_t)) + 2 * sizeof(uint32_t);
+  }
+
+ private:
+  uint32_t n_ = 0;
+  Vector<uint8_t> cls_;
+  Vector<LaunchCounts> before_;
+  Vector<uint32_t> interior_, near_;
+  Vector<uint32_t> counts_ = Vector<uint32_t>(2);
+};
+
+// The three launches of a neighbour pass (mirror_walls.h, MirrorPass) over
+// the particles `lists` gives each; the near-walls launch with the
+// obstacles' wall terms where the scene has obstacles' wall particles
+// (`mesh`).
 template <template <int> class Pass, class... Args>
-void mirror_pass_launches(const char* const (&names)[4], uint32_t n, bool mesh, Args... args) {
-  parallel_for(names[kInterior], n, Pass<kInterior>{args...});
-  if (mesh) parallel_for(names[kNearMesh], n, Pass<kNearMesh>{args...});
-  else parallel_for(names[kNearWalls], n, Pass<kNearWalls>{args...});
-  parallel_for(names[kDirect], n, Pass<kDirect>{args...});
+void mirror_pass_launches(const char* const (&names)[4], const LaunchLists& lists, bool mesh, Args... args) {
+  const uint32_t n = lists.size();
+  parallel_for(names[kInterior], n, lists.interior(Pass<kInterior>{args...}));
+  if (mesh) parallel_for(names[kNearMesh], n, lists.near(Pass<kNearMesh>{args...}));
+  else parallel_for(names[kNearWalls], n, lists.near(Pass<kNearWalls>{args...}));
+  parallel_for(names[kDirect], n, lists.direct(Pass<kDirect>{args...}));
 }
 
 // The message of a step below run.min_dt.

@@ -11,6 +11,7 @@
 #include <cmath>
 #include <cstdint>
 
+#include "mesh_walls.h"
 #include "nsearch/pair_masks.h"
 #include "params.h"
 
@@ -92,20 +93,35 @@ constexpr int kMirrorPassRegisters = 64;
 // time when they carried it), the pair masks of those within a support of a
 // wall of the tank or, in a scene with obstacles, near an obstacle's wall
 // particles (mesh_walls.h), and the direct loop of those whose masks
-// overflowed (nsearch/pair_masks.h). The second launch is compiled twice,
+// overflowed (nsearch/pair_masks.h). Which launch serves a particle is
+// decided once per grid (launch_class) and the first two launches run over
+// compacted lists of their particles (flow_solver.inl, LaunchLists): in grid
+// order a cell row at a wall holds particles of both kinds (the cells are
+// two supports wide), and launched over all particles each launch left the
+// other's lanes idle in those warps. The second launch is compiled twice,
 // without the obstacles' wall terms (kNearWalls) and with them (kNearMesh),
 // and a scene runs the one it needs: carried in a scene without obstacles,
 // their code made the launch 1-2% slower; a launch of their own cost a
 // scene with obstacles 10%.
 enum MirrorPass { kInterior = 0, kNearWalls = 1, kDirect = 2, kNearMesh = 3 };
 
-// Whether launch P serves particle i; near_mesh: the obstacles' wall
-// particles may be within its support (WallsView::near_point; false in a
-// scene without them).
-SPHRAY_HD SPHRAY_FORCEINLINE bool serves(int P, const PairMask& m, uint32_t i, const Mirrors& mirrors, bool near_mesh) {
-  if (!mask_complete(m, i)) return P == kDirect;
-  if (mirrors.axes || near_mesh) return P == kNearWalls || P == kNearMesh;
-  return P == kInterior;
+// The launch that serves a particle over the passes that share its grid.
+enum LaunchClass : uint8_t { kClassInterior = 0, kClassNearWalls = 1, kClassDirect = 2 };
+
+// The class of particle i at x, for passes over which it moves at most
+// `margin` from x (PBF's corrections; 0 where the positions stay): near the
+// walls if a wall of the tank lies within support + margin or the obstacles'
+// wall particles may lie within two supports (their cell flags,
+// WallsView::near_point), so that an interior particle meets neither in any
+// of those passes. A margin of a support or more makes every particle near
+// (the near-wall launch serves any particle; the cell flags reach only that
+// far).
+SPHRAY_HD SPHRAY_FORCEINLINE uint8_t launch_class(const SphParams& prm, float support, float margin, const GridGeom& grid,
+                                                  const WallsView& walls, const PairMask& pairs, uint32_t i, Vec3f x) {
+  if (!mask_complete(pairs, i)) return kClassDirect;
+  if (margin >= support || mirrors_of(prm, support + margin, x).axes != 0u || walls.near_point(grid, x))
+    return kClassNearWalls;
+  return kClassInterior;
 }
 
 // Whether launch P runs the obstacles' wall particle terms (for the particles it serves near them).

@@ -93,7 +93,6 @@ struct Lambda {
     const Vec3f xi = xyz(pred[i]);
     const Mirrors mirrors = mirrors_of(prm, k.s, xi);
     const bool near_mesh = walls.near_point(grid, xi);
-    if (!serves(P, pairs, i, mirrors, near_mesh)) return;
     float w_sum = k.W(0.0f), g2 = 0.0f;
     Vec3f grad = {0.0f, 0.0f, 0.0f};
     // The images are static: they add nothing to the sum over the neighbours' gradients.
@@ -143,7 +142,6 @@ struct Correct {
     const Vec3f xi = xyz(pi);
     const Mirrors mirrors = mirrors_of(prm, k.s, xi);
     const bool near_mesh = walls.near_point(grid, xi);
-    if (!serves(P, pairs, i, mirrors, near_mesh)) return;
     Vec3f dx = {0.0f, 0.0f, 0.0f};
     // An image is a static wall particle: lambda_i only, no s_corr.
     auto lambda = [](uint32_t, Float4 pj) { return pj.w; };
@@ -201,7 +199,6 @@ struct Finish {
     const Vec3f xi = xyz(pred[i]);
     const Mirrors mirrors = mirrors_of(prm, k.s, xi);
     const bool near_mesh = walls.near_point(grid, xi);
-    if (!serves(P, pairs, i, mirrors, near_mesh)) return;
     const float inv_dt = float(1.0 / control->limits.dt);
     const Vec3f vi = inv_dt * (xi - xyz(pos[i]));
     float w_sum = k.W(0.0f);

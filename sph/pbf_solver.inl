@@ -70,7 +70,8 @@ class PbfSolverImpl final : public Solver {
     auto b = [](const auto& v) { return v.size() * sizeof(typename std::decay_t<decltype(v)>::value_type); };
     return b(pos_) + b(vel_) + b(pred_) + b(pos_tmp_) + b(vel_tmp_) + b(pred_tmp_) + b(presence_) + b(presence_tmp_) +
            b(id_) + b(id_tmp_) + b(status_) + b(status_tmp_) + b(error_) + b(keys_) + b(order_) + b(offsets_) +
-           b(fine_offsets_) + b(pairs_) + b(pair_count_) + b(wall_grad_) + walls_.bytes() + raw_copies_.bytes();
+           b(fine_offsets_) + b(pairs_) + b(pair_count_) + b(wall_grad_) + walls_.bytes() + raw_copies_.bytes() +
+           lists_.bytes();
   }
 
   void step(double until) override {
@@ -140,11 +141,18 @@ class PbfSolverImpl final : public Solver {
   }
 
   // The pair masks at the predicted positions, searched within the support
-  // only (the grid's cells are wider: pbf_support_cells in setup.cpp).
+  // only (the grid's cells are wider: pbf_support_cells in setup.cpp), and
+  // the launches' particles for the step: the iterations move a particle by
+  // at most max_correction each (and a stop's offset, obstacles.h), so its
+  // class holds within that margin (none without the limit).
   void build_masks() {
     BuildPairMask b{grid_, raw(fine_offsets_), raw(pred_), raw(pred_), pbf_.kernel.s * pbf_.kernel.s, true, pairs()};
     b.search_radius = pbf_.kernel.s;
     parallel_for("pbf_pair_masks", n_, b);
+    const float margin = pbf_.max_correction > 0.0f
+                             ? float(pbf_.iterations) * (pbf_.max_correction + 0.02f * prm_.spacing)
+                             : pbf_.kernel.s;
+    lists_.classify(n_, prm_, pbf_.kernel.s, margin, grid_, walls_.view(), pairs(), raw(pred_));
   }
 
   static constexpr const char* kLambdaNames[4] = {"pbf_lambda", "pbf_lambda_walls",
@@ -155,7 +163,7 @@ class PbfSolverImpl final : public Solver {
   // The constraint iterations; returns how many corrections were applied.
   int solve() {
     for (int k = 0; k < pbf_.iterations; ++k) {
-      mirror_pass_launches<Lambda>(kLambdaNames, n_, walls_.size() > 0, prm_, pbf_, grid_, raw(fine_offsets_), pairs(),
+      mirror_pass_launches<Lambda>(kLambdaNames, lists_, walls_.size() > 0, prm_, pbf_, grid_, raw(fine_offsets_), pairs(),
                                    raw(pred_), raw(pred_tmp_), raw(error_), walls_.view(), raw(wall_grad_));
       pred_.swap(pred_tmp_);
       if (pbf_.tolerance > 0) {
@@ -163,7 +171,7 @@ class PbfSolverImpl final : public Solver {
         const double sum = thrust::reduce(policy(), error_.begin(), error_.begin() + n_, 0.0);
         if (n_ == 0 || sum / n_ <= pbf_.tolerance) return k;
       }
-      mirror_pass_launches<Correct>(kCorrectNames, n_, walls_.size() > 0, prm_, pbf_, grid_, raw(fine_offsets_), pairs(),
+      mirror_pass_launches<Correct>(kCorrectNames, lists_, walls_.size() > 0, prm_, pbf_, grid_, raw(fine_offsets_), pairs(),
                                     raw(pred_), raw(pred_tmp_), obstacles_.view, raw(control_), walls_.view(),
                                     raw(wall_grad_));
       pred_.swap(pred_tmp_);
@@ -201,7 +209,7 @@ class PbfSolverImpl final : public Solver {
   void finish_launches() {
     const FlowControl* control = raw(control_);
     float* presence = Presence ? raw(presence_) : nullptr;
-    mirror_pass_launches<FinishOf<Presence>::template pass>(kFinishNames, n_, walls_.size() > 0, prm_, pbf_, grid_,
+    mirror_pass_launches<FinishOf<Presence>::template pass>(kFinishNames, lists_, walls_.size() > 0, prm_, pbf_, grid_,
                                                             raw(fine_offsets_), pairs(), control, raw(pred_), raw(pos_),
                                                             raw(pos_tmp_), raw(vel_tmp_), raw(error_), presence, n_,
                                                             walls_.view());
@@ -244,4 +252,5 @@ class PbfSolverImpl final : public Solver {
   uint32_t mask_words_ = 0;
   Vector<PairWord> pairs_;
   Vector<uint32_t> pair_count_;
+  LaunchLists lists_;  // the neighbour passes' particles per launch (flow_solver.inl), with the masks
 };
