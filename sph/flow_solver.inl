@@ -105,23 +105,38 @@ struct ScatterLaunchLists {
   }
 };
 
-// The particles of a launch: the k-th thread serves list[k] (a length on the
-// device, so the host need not wait for it), or, without a list, particle k
-// where its class is the launch's.
+// The near-wall and the interior particles of a pass in one launch: the
+// first threads serve the near-wall list, the next the interior list (the
+// lengths on the device, so the host need not wait for them). One launch,
+// so that the near-wall particles' slower work runs beside the interior
+// work instead of after it with too few warps to fill the GPU (at 125k
+// particles a quarter of them are near a wall), and first, so that it does
+// not trail at the end.
+template <class Interior, class Near>
+struct ListedLaunch {
+  static constexpr int kMaxRegisters =
+      Interior::kMaxRegisters > Near::kMaxRegisters ? Interior::kMaxRegisters : Near::kMaxRegisters;
+  Interior interior_pass;
+  Near near_pass;
+  const uint32_t* interior;
+  const uint32_t* near;
+  const uint32_t* counts;  // [2]: interior, near
+  SPHRAY_HD void operator()(uint32_t k) const {
+    const uint32_t n_near = counts[1];
+    if (k < n_near) near_pass(near[k]);
+    else if (k - n_near < counts[0]) interior_pass(interior[k - n_near]);
+  }
+};
+
+// The particles of class `serves` (the direct loop's, usually none).
 template <class Pass>
-struct LaunchOf {
+struct ClassLaunch {
   static constexpr int kMaxRegisters = Pass::kMaxRegisters;
   Pass pass;
-  const uint32_t* list;   // null: every particle, by class
-  const uint32_t* count;  // the list's length
   const uint8_t* cls;
-  uint8_t serves;         // the class, without a list
-  SPHRAY_HD void operator()(uint32_t k) const {
-    if (list) {
-      if (k < *count) pass(list[k]);
-    } else if (cls[k] == serves) {
-      pass(k);
-    }
+  uint8_t serves;
+  SPHRAY_HD void operator()(uint32_t i) const {
+    if (cls[i] == serves) pass(i);
   }
 };
 
@@ -147,12 +162,12 @@ class LaunchLists {
                  ScatterLaunchLists{raw(cls_), raw(before_), n, raw(interior_), raw(near_), raw(counts_)});
   }
   uint32_t size() const { return n_; }
+  template <class Interior, class Near>
+  ListedLaunch<Interior, Near> listed(const Interior& a, const Near& b) const {
+    return {a, b, raw(interior_), raw(near_), raw(counts_)};
+  }
   template <class Pass>
-  LaunchOf<Pass> interior(const Pass& p) const { return {p, raw(interior_), raw(counts_), raw(cls_), kClassInterior}; }
-  template <class Pass>
-  LaunchOf<Pass> near(const Pass& p) const { return {p, raw(near_), raw(counts_) + 1, raw(cls_), kClassNearWalls}; }
-  template <class Pass>
-  LaunchOf<Pass> direct(const Pass& p) const { return {p, nullptr, nullptr, raw(cls_), kClassDirect}; }
+  ClassLaunch<Pass> direct(const Pass& p) const { return {p, raw(cls_), kClassDirect}; }
   size_t bytes() const {
     return cls_.size() * (sizeof(uint8_t) + sizeof(LaunchCounts) + 2 * sizeof(uint32_t)) + 2 * sizeof(uint32_t);
   }
@@ -165,16 +180,15 @@ class LaunchLists {
   Vector<uint32_t> counts_ = Vector<uint32_t>(2);
 };
 
-// The three launches of a neighbour pass (mirror_walls.h, MirrorPass) over
-// the particles `lists` gives each; the near-walls launch with the
-// obstacles' wall terms where the scene has obstacles' wall particles
-// (`mesh`).
+// A neighbour pass (mirror_walls.h, MirrorPass) over the particles `lists`
+// gives each variant: the near-wall and the interior variant in one launch,
+// the near-wall one with the obstacles' wall terms where the scene has
+// obstacles' wall particles (`mesh`), then the direct loop's.
 template <template <int> class Pass, class... Args>
 void mirror_pass_launches(const char* const (&names)[4], const LaunchLists& lists, bool mesh, Args... args) {
   const uint32_t n = lists.size();
-  parallel_for(names[kInterior], n, lists.interior(Pass<kInterior>{args...}));
-  if (mesh) parallel_for(names[kNearMesh], n, lists.near(Pass<kNearMesh>{args...}));
-  else parallel_for(names[kNearWalls], n, lists.near(Pass<kNearWalls>{args...}));
+  if (mesh) parallel_for(names[kNearMesh], n, lists.listed(Pass<kInterior>{args...}, Pass<kNearMesh>{args...}));
+  else parallel_for(names[kInterior], n, lists.listed(Pass<kInterior>{args...}, Pass<kNearWalls>{args...}));
   parallel_for(names[kDirect], n, lists.direct(Pass<kDirect>{args...}));
 }
 
