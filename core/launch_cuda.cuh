@@ -85,9 +85,15 @@ inline uint32_t resident_threads() {
   return n;
 }
 
+// Thrust's algorithms on the default stream without waiting for them: with
+// `par` each one (the grid sort's sequence and table, a scan) ended in a
+// device synchronisation, and at 125k particles the GPU idled at each while
+// the host launched the next kernels. Those that return a value to the host
+// (reduce, count) still wait; the caching allocator hands a freed block to
+// later work on the same stream only.
 inline auto policy() {
   static CachedTempAllocator alloc;
-  return thrust::cuda::par(alloc);
+  return thrust::cuda::par_nosync(alloc);
 }
 
 // Stable sort of keys[0, n) with their values by the key bits [0, end_bit):
