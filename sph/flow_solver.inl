@@ -55,7 +55,33 @@ inline void check_flow_state(const char* solver, const char* remedy, const FlowS
   throw SimulationError(os.str());
 }
 
-// The class of each particle (mirror_walls.h, launch_class) at its position.
+// Appends i to `list` where `take`: on the GPU one atomic per warp, whose
+// taking lanes get consecutive slots in lane order (so a list keeps grid
+// order within each warp's run); on the CPU one per particle. The order of
+// the runs is the device's: nothing computed per particle depends on it.
+SPHRAY_HD SPHRAY_FORCEINLINE void append_if(bool take, uint32_t i, uint32_t* list, uint32_t* count) {
+#if defined(__CUDA_ARCH__)
+  const uint32_t active = __activemask();
+  const uint32_t mask = __ballot_sync(active, take);
+  if (mask == 0u) return;
+  const uint32_t lane = threadIdx.x % 32u, leader = uint32_t(__ffs(int(mask)) - 1);
+  uint32_t base = 0;
+  if (lane == leader) base = atomicAdd(count, uint32_t(__popc(mask)));
+  base = __shfl_sync(active, base, int(leader));
+  if (take) list[base + uint32_t(__popc(mask & ((1u << lane) - 1u)))] = i;
+#else
+  if (take) list[__atomic_fetch_add(count, 1u, __ATOMIC_RELAXED)] = i;
+#endif
+}
+
+// The lists' lengths to zero before they are filled.
+struct ClearLaunchCounts {
+  uint32_t* counts;
+  SPHRAY_HD void operator()(uint32_t) const { counts[0] = counts[1] = counts[2] = 0u; }
+};
+
+// Each particle's class (mirror_walls.h, launch_class) at its position, and
+// the particle into its class's list.
 struct ClassifyLaunch {
   SphParams prm;
   float support, margin;
@@ -63,45 +89,15 @@ struct ClassifyLaunch {
   WallsView walls;
   PairMask pairs;
   const Float4* pos;
-  uint8_t* cls;
-  SPHRAY_HD void operator()(uint32_t i) const {
-    cls[i] = launch_class(prm, support, margin, grid, walls, pairs, i, xyz(pos[i]));
-  }
-};
-
-// Counts of the interior and the near-wall particles before a position.
-struct LaunchCounts {
-  uint32_t interior, near;
-};
-struct CountLaunch {
-  SPHRAY_HD LaunchCounts operator()(uint8_t c) const {
-    return {c == kClassInterior ? 1u : 0u, c == kClassNearWalls ? 1u : 0u};
-  }
-};
-struct AddLaunchCounts {
-  SPHRAY_HD LaunchCounts operator()(const LaunchCounts& a, const LaunchCounts& b) const {
-    return {a.interior + b.interior, a.near + b.near};
-  }
-};
-
-// Each interior and near-wall particle into its list, in grid order; the
-// last particle writes the lists' lengths.
-struct ScatterLaunchLists {
-  const uint8_t* cls;
-  const LaunchCounts* before;
-  uint32_t n;
   uint32_t* interior;
   uint32_t* near;
-  uint32_t* counts;  // [2]: interior, near
+  uint32_t* direct;
+  uint32_t* counts;  // [3]: interior, near, direct
   SPHRAY_HD void operator()(uint32_t i) const {
-    const uint8_t c = cls[i];
-    const LaunchCounts b = before[i];
-    if (c == kClassInterior) interior[b.interior] = i;
-    else if (c == kClassNearWalls) near[b.near] = i;
-    if (i + 1 == n) {
-      counts[0] = b.interior + (c == kClassInterior ? 1u : 0u);
-      counts[1] = b.near + (c == kClassNearWalls ? 1u : 0u);
-    }
+    const uint8_t c = launch_class(prm, support, margin, grid, walls, pairs, i, xyz(pos[i]));
+    append_if(c == kClassInterior, i, interior, counts);
+    append_if(c == kClassNearWalls, i, near, counts + 1);
+    append_if(c == kClassDirect, i, direct, counts + 2);
   }
 };
 
@@ -128,15 +124,19 @@ struct ListedLaunch {
   }
 };
 
-// The particles of class `serves` (the direct loop's, usually none).
+// The direct loop's particles (overflowed masks: usually none), by a few
+// threads that stride over the list, so that the launch costs next to
+// nothing when it is empty.
+constexpr uint32_t kDirectThreads = 4096;
 template <class Pass>
-struct ClassLaunch {
+struct StridedLaunch {
   static constexpr int kMaxRegisters = Pass::kMaxRegisters;
   Pass pass;
-  const uint8_t* cls;
-  uint8_t serves;
-  SPHRAY_HD void operator()(uint32_t i) const {
-    if (cls[i] == serves) pass(i);
+  const uint32_t* list;
+  const uint32_t* count;
+  uint32_t stride;
+  SPHRAY_HD void operator()(uint32_t t) const {
+    for (uint32_t k = t; k < *count; k += stride) pass(list[k]);
   }
 };
 
@@ -144,22 +144,19 @@ struct ClassLaunch {
 class LaunchLists {
  public:
   // Classifies the n particles at pos, which move at most `margin` over
-  // those passes, and compacts the interior and near-wall lists.
+  // those passes, into the interior, near-wall and direct lists.
   void classify(uint32_t n, const SphParams& prm, float support, float margin, const GridGeom& grid,
                 const WallsView& walls, const PairMask& pairs, const Float4* pos) {
     n_ = n;
-    if (cls_.size() < n) {
-      cls_.resize(n);
-      before_.resize(n);
+    if (interior_.size() < n) {
       interior_.resize(n);
       near_.resize(n);
+      direct_.resize(n);
     }
-    if (n == 0) return;
-    parallel_for("launch_classes", n, ClassifyLaunch{prm, support, margin, grid, walls, pairs, pos, raw(cls_)});
-    thrust::transform_exclusive_scan(policy(), cls_.begin(), cls_.begin() + n, before_.begin(), CountLaunch{},
-                                     LaunchCounts{0u, 0u}, AddLaunchCounts{});
+    parallel_for("launch_lists_clear", 1, ClearLaunchCounts{raw(counts_)});
     parallel_for("launch_lists", n,
-                 ScatterLaunchLists{raw(cls_), raw(before_), n, raw(interior_), raw(near_), raw(counts_)});
+                 ClassifyLaunch{prm, support, margin, grid, walls, pairs, pos, raw(interior_), raw(near_), raw(direct_),
+                                raw(counts_)});
   }
   uint32_t size() const { return n_; }
   template <class Interior, class Near>
@@ -167,17 +164,14 @@ class LaunchLists {
     return {a, b, raw(interior_), raw(near_), raw(counts_)};
   }
   template <class Pass>
-  ClassLaunch<Pass> direct(const Pass& p) const { return {p, raw(cls_), kClassDirect}; }
-  size_t bytes() const {
-    return cls_.size() * (sizeof(uint8_t) + sizeof(LaunchCounts) + 2 * sizeof(uint32_t)) + 2 * sizeof(uint32_t);
-  }
+  StridedLaunch<Pass> direct(const Pass& p) const { return {p, raw(direct_), raw(counts_) + 2, direct_threads()}; }
+  uint32_t direct_threads() const { return n_ < kDirectThreads ? n_ : kDirectThreads; }
+  size_t bytes() const { return 3 * interior_.size() * sizeof(uint32_t) + 3 * sizeof(uint32_t); }
 
  private:
   uint32_t n_ = 0;
-  Vector<uint8_t> cls_;
-  Vector<LaunchCounts> before_;
-  Vector<uint32_t> interior_, near_;
-  Vector<uint32_t> counts_ = Vector<uint32_t>(2);
+  Vector<uint32_t> interior_, near_, direct_;
+  Vector<uint32_t> counts_ = Vector<uint32_t>(3);
 };
 
 // A neighbour pass (mirror_walls.h, MirrorPass) over the particles `lists`
@@ -189,7 +183,7 @@ void mirror_pass_launches(const char* const (&names)[4], const LaunchLists& list
   const uint32_t n = lists.size();
   if (mesh) parallel_for(names[kNearMesh], n, lists.listed(Pass<kInterior>{args...}, Pass<kNearMesh>{args...}));
   else parallel_for(names[kInterior], n, lists.listed(Pass<kInterior>{args...}, Pass<kNearWalls>{args...}));
-  parallel_for(names[kDirect], n, lists.direct(Pass<kDirect>{args...}));
+  parallel_for(names[kDirect], lists.direct_threads(), lists.direct(Pass<kDirect>{args...}));
 }
 
 // The message of a step below run.min_dt.

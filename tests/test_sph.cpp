@@ -135,7 +135,13 @@ TEST_CASE("the pair masks change no result: all, one or no mask words stored giv
   // nsearch/pair_masks.h: a particle whose candidates need more words than are kept
   // is served by the direct loop, which visits the same neighbours in the same
   // order, so the runs agree bit for bit. Presence on, so that its loop is covered too.
-  const Scene s = load_scene(test::source_path("scenes/dam_break.json"), {"sph.spacing=0.04", "run.end_time=0.1"});
+  // DFSPH too: its direct launch serves its own list (flow_solver.inl). Not
+  // PBF: its masks stay those of the step's start while the corrections move
+  // the particles, and the direct loop tests the moved positions.
+  const std::string solver_name = GENERATE(std::string("wcsph"), std::string("dfsph"));
+  INFO("sph.solver " << solver_name);
+  const Scene s = load_scene(test::source_path("scenes/dam_break.json"),
+                             {"sph.spacing=0.04", "run.end_time=0.1", "sph.solver=" + solver_name});
   HostParticles ref;
   for (int words : {-1, 1, 0}) {
     SolverInput in = make_solver_input(resolve_scene(s), PresenceMode::EveryStep);
@@ -145,7 +151,7 @@ TEST_CASE("the pair masks change no result: all, one or no mask words stored giv
     const HostParticles p = solver->download();
     INFO("pair_mask_words = " << words << ", steps " << solver->steps());
     if (words == -1) {
-      REQUIRE(solver->steps() > 20);
+      REQUIRE(solver->steps() >= 10);
       ref = p;
       continue;
     }
