@@ -21,6 +21,7 @@
 #include <thrust/fill.h>
 #include <thrust/count.h>
 #include <thrust/transform_reduce.h>
+#include <thrust/transform_scan.h>
 #if defined(_OPENMP)
 #include <thrust/system/omp/execution_policy.h>
 #else

@@ -55,33 +55,7 @@ inline void check_flow_state(const char* solver, const char* remedy, const FlowS
   throw SimulationError(os.str());
 }
 
-// Appends i to `list` where `take`: on the GPU one atomic per warp, whose
-// taking lanes get consecutive slots in lane order (so a list keeps grid
-// order within each warp's run); on the CPU one per particle. The order of
-// the runs is the device's: nothing computed per particle depends on it.
-SPHRAY_HD SPHRAY_FORCEINLINE void append_if(bool take, uint32_t i, uint32_t* list, uint32_t* count) {
-#if defined(__CUDA_ARCH__)
-  const uint32_t active = __activemask();
-  const uint32_t mask = __ballot_sync(active, take);
-  if (mask == 0u) return;
-  const uint32_t lane = threadIdx.x % 32u, leader = uint32_t(__ffs(int(mask)) - 1);
-  uint32_t base = 0;
-  if (lane == leader) base = atomicAdd(count, uint32_t(__popc(mask)));
-  base = __shfl_sync(active, base, int(leader));
-  if (take) list[base + uint32_t(__popc(mask & ((1u << lane) - 1u)))] = i;
-#else
-  if (take) list[__atomic_fetch_add(count, 1u, __ATOMIC_RELAXED)] = i;
-#endif
-}
-
-// The lists' lengths to zero before they are filled.
-struct ClearLaunchCounts {
-  uint32_t* counts;
-  SPHRAY_HD void operator()(uint32_t) const { counts[0] = counts[1] = counts[2] = 0u; }
-};
-
-// Each particle's class (mirror_walls.h, launch_class) at its position, and
-// the particle into its class's list.
+// The class of each particle (mirror_walls.h, launch_class) at its position.
 struct ClassifyLaunch {
   SphParams prm;
   float support, margin;
@@ -89,15 +63,50 @@ struct ClassifyLaunch {
   WallsView walls;
   PairMask pairs;
   const Float4* pos;
+  uint8_t* cls;
+  SPHRAY_HD void operator()(uint32_t i) const {
+    cls[i] = launch_class(prm, support, margin, grid, walls, pairs, i, xyz(pos[i]));
+  }
+};
+
+// Counts of the particles of each class before a position (a scan keeps
+// the lists in grid order: appended by atomics, the warps' runs came in the
+// device's order and the 1M passes lost 4-8% to the scattered reads).
+struct LaunchCounts {
+  uint32_t interior, near, direct;
+};
+struct CountLaunch {
+  SPHRAY_HD LaunchCounts operator()(uint8_t c) const {
+    return {c == kClassInterior ? 1u : 0u, c == kClassNearWalls ? 1u : 0u, c == kClassDirect ? 1u : 0u};
+  }
+};
+struct AddLaunchCounts {
+  SPHRAY_HD LaunchCounts operator()(const LaunchCounts& a, const LaunchCounts& b) const {
+    return {a.interior + b.interior, a.near + b.near, a.direct + b.direct};
+  }
+};
+
+// Each particle into its class's list, in grid order; the last particle
+// writes the lists' lengths.
+struct ScatterLaunchLists {
+  const uint8_t* cls;
+  const LaunchCounts* before;
+  uint32_t n;
   uint32_t* interior;
   uint32_t* near;
   uint32_t* direct;
   uint32_t* counts;  // [3]: interior, near, direct
   SPHRAY_HD void operator()(uint32_t i) const {
-    const uint8_t c = launch_class(prm, support, margin, grid, walls, pairs, i, xyz(pos[i]));
-    append_if(c == kClassInterior, i, interior, counts);
-    append_if(c == kClassNearWalls, i, near, counts + 1);
-    append_if(c == kClassDirect, i, direct, counts + 2);
+    const uint8_t c = cls[i];
+    const LaunchCounts b = before[i];
+    if (c == kClassInterior) interior[b.interior] = i;
+    else if (c == kClassNearWalls) near[b.near] = i;
+    else direct[b.direct] = i;
+    if (i + 1 == n) {
+      counts[0] = b.interior + (c == kClassInterior ? 1u : 0u);
+      counts[1] = b.near + (c == kClassNearWalls ? 1u : 0u);
+      counts[2] = b.direct + (c == kClassDirect ? 1u : 0u);
+    }
   }
 };
 
@@ -125,8 +134,9 @@ struct ListedLaunch {
 };
 
 // The direct loop's particles (overflowed masks: usually none), by a few
-// threads that stride over the list, so that the launch costs next to
-// nothing when it is empty.
+// threads that stride over their list, so that the launch costs next to
+// nothing when it is empty (a full-size grid of idle threads, seven times a
+// step, cost a 125k step several percent).
 constexpr uint32_t kDirectThreads = 4096;
 template <class Pass>
 struct StridedLaunch {
@@ -144,19 +154,23 @@ struct StridedLaunch {
 class LaunchLists {
  public:
   // Classifies the n particles at pos, which move at most `margin` over
-  // those passes, into the interior, near-wall and direct lists.
+  // those passes, and compacts the interior and near-wall lists.
   void classify(uint32_t n, const SphParams& prm, float support, float margin, const GridGeom& grid,
                 const WallsView& walls, const PairMask& pairs, const Float4* pos) {
     n_ = n;
-    if (interior_.size() < n) {
+    if (cls_.size() < n) {
+      cls_.resize(n);
+      before_.resize(n);
       interior_.resize(n);
       near_.resize(n);
       direct_.resize(n);
     }
-    parallel_for("launch_lists_clear", 1, ClearLaunchCounts{raw(counts_)});
+    if (n == 0) return;
+    parallel_for("launch_classes", n, ClassifyLaunch{prm, support, margin, grid, walls, pairs, pos, raw(cls_)});
+    thrust::transform_exclusive_scan(policy(), cls_.begin(), cls_.begin() + n, before_.begin(), CountLaunch{},
+                                     LaunchCounts{0u, 0u, 0u}, AddLaunchCounts{});
     parallel_for("launch_lists", n,
-                 ClassifyLaunch{prm, support, margin, grid, walls, pairs, pos, raw(interior_), raw(near_), raw(direct_),
-                                raw(counts_)});
+                 ScatterLaunchLists{raw(cls_), raw(before_), n, raw(interior_), raw(near_), raw(direct_), raw(counts_)});
   }
   uint32_t size() const { return n_; }
   template <class Interior, class Near>
@@ -166,10 +180,14 @@ class LaunchLists {
   template <class Pass>
   StridedLaunch<Pass> direct(const Pass& p) const { return {p, raw(direct_), raw(counts_) + 2, direct_threads()}; }
   uint32_t direct_threads() const { return n_ < kDirectThreads ? n_ : kDirectThreads; }
-  size_t bytes() const { return 3 * interior_.size() * sizeof(uint32_t) + 3 * sizeof(uint32_t); }
+  size_t bytes() const {
+    return cls_.size() * (sizeof(uint8_t) + sizeof(LaunchCounts) + 3 * sizeof(uint32_t)) + 3 * sizeof(uint32_t);
+  }
 
  private:
   uint32_t n_ = 0;
+  Vector<uint8_t> cls_;
+  Vector<LaunchCounts> before_;
   Vector<uint32_t> interior_, near_, direct_;
   Vector<uint32_t> counts_ = Vector<uint32_t>(3);
 };
