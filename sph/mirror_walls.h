@@ -31,8 +31,8 @@ struct Mirrors {
   // after flip(v, set). The subsets are enumerated directly (set = (set - 1)
   // & axes, from axes down), so the loop runs once per image: a loop over all
   // seven sets that skipped the others was unrolled on the GPU into seven
-  // copies of the pass's pair physics per neighbour, and the near-wall
-  // launches cost several times the interior ones per particle.
+  // copies of the pass's pair physics per neighbour (PBF's near-wall Lambda
+  // took 55 registers instead of 47, and a 1M PBF step 4% longer).
   template <class F>
   SPHRAY_HD SPHRAY_FORCEINLINE void images(Vec3f p, F&& f) const {
 #if defined(__CUDA_ARCH__)
