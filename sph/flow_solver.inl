@@ -154,7 +154,7 @@ struct StridedLaunch {
 class LaunchLists {
  public:
   // Classifies the n particles at pos, which move at most `margin` over
-  // those passes, and compacts the interior and near-wall lists.
+  // those passes, into the interior, near-wall and direct lists (in grid order).
   void classify(uint32_t n, const SphParams& prm, float support, float margin, const GridGeom& grid,
                 const WallsView& walls, const PairMask& pairs, const Float4* pos) {
     n_ = n;
