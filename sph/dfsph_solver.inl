@@ -181,8 +181,8 @@ class DfsphSolverImpl final : public Solver {
                    DfsphGravity{prm_, grid_, control, raw(pos_), raw(vel_), walls_.view(), raw(wall_sum_)});
       return;
     }
-    static constexpr const char* kNames[4] = {"dfsph_viscosity", "dfsph_viscosity_walls",
-                                              "dfsph_viscosity_direct", "dfsph_viscosity_walls_mesh"};
+    static constexpr const char* kNames[3] = {"dfsph_viscosity", "dfsph_viscosity_walls",
+                                              "dfsph_viscosity_direct"};
     mirror_pass_launches<DfsphViscosity>(kNames, lists_, false, prm_, df_, grid_, raw(fine_offsets_), pairs(), control,
                                          raw(pos_), raw(vel_), raw(vel_tmp_), walls_.view(), raw(wall_sum_));
     vel_.swap(vel_tmp_);
@@ -192,8 +192,8 @@ class DfsphSolverImpl final : public Solver {
   // source_, sparse_, error_ and, when asked for, presence_.
   void density(bool presence, const FlowControl* control = nullptr) {
     presence_valid_ = presence;
-    static constexpr const char* kNames[4] = {"dfsph_density", "dfsph_density_walls",
-                                              "dfsph_density_direct", "dfsph_density_walls_mesh"};
+    static constexpr const char* kNames[3] = {"dfsph_density", "dfsph_density_walls",
+                                              "dfsph_density_direct"};
     float* pr = presence ? raw(presence_) : nullptr;
     auto launch = [&](auto pass) {
       using P = decltype(pass);
@@ -209,10 +209,10 @@ class DfsphSolverImpl final : public Solver {
 
   template <bool WithSource>
   void accel() {
-    static constexpr const char* kNames[4] = {"dfsph_accel", "dfsph_accel_walls",
-                                              "dfsph_accel_direct", "dfsph_accel_walls_mesh"};
-    static constexpr const char* kSourceNames[4] = {"dfsph_accel_source", "dfsph_accel_source_walls",
-                                                    "dfsph_accel_source_direct", "dfsph_accel_source_walls_mesh"};
+    static constexpr const char* kNames[3] = {"dfsph_accel", "dfsph_accel_walls",
+                                              "dfsph_accel_direct"};
+    static constexpr const char* kSourceNames[3] = {"dfsph_accel_source", "dfsph_accel_source_walls",
+                                                    "dfsph_accel_source_direct"};
     mirror_pass_launches<WithFlag<WithSource, DfsphAccel>::template pass>(
         WithSource ? kSourceNames : kNames, lists_, walls_.size() > 0, prm_, df_, grid_, raw(fine_offsets_), pairs(),
         raw(control_), raw(pos_), raw(vel_), raw(press_), raw(acc_), raw(source_), walls_.view(), raw(wall_sum_));
@@ -223,10 +223,10 @@ class DfsphSolverImpl final : public Solver {
   // also computes the density the velocities lead to.
   template <bool Divergence>
   SolveResult iterate(int min_it, int max_it, double tol) {
-    static constexpr const char* kNames[4] = {"dfsph_update", "dfsph_update_walls",
-                                              "dfsph_update_direct", "dfsph_update_walls_mesh"};
-    static constexpr const char* kDivNames[4] = {"dfsph_update_div", "dfsph_update_div_walls",
-                                                 "dfsph_update_div_direct", "dfsph_update_div_walls_mesh"};
+    static constexpr const char* kNames[3] = {"dfsph_update", "dfsph_update_walls",
+                                              "dfsph_update_direct"};
+    static constexpr const char* kDivNames[3] = {"dfsph_update_div", "dfsph_update_div_walls",
+                                                 "dfsph_update_div_direct"};
     SolveResult r;
     for (int k = 0; k < max_it;) {
       if (!Divergence && k == 0) accel<true>();

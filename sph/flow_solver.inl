@@ -195,13 +195,14 @@ class LaunchLists {
 // A neighbour pass (mirror_walls.h, MirrorPass) over the particles `lists`
 // gives each variant: the near-wall and the interior variant in one launch,
 // the near-wall one with the obstacles' wall terms where the scene has
-// obstacles' wall particles (`mesh`), then the direct loop's.
+// obstacles' wall particles (`mesh`), then the direct loop's. names: that
+// launch without and with the obstacles' wall terms, and the direct loop's.
 template <template <int> class Pass, class... Args>
-void mirror_pass_launches(const char* const (&names)[4], const LaunchLists& lists, bool mesh, Args... args) {
+void mirror_pass_launches(const char* const (&names)[3], const LaunchLists& lists, bool mesh, Args... args) {
   const uint32_t n = lists.size();
-  if (mesh) parallel_for(names[kNearMesh], n, lists.listed(Pass<kInterior>{args...}, Pass<kNearMesh>{args...}));
-  else parallel_for(names[kInterior], n, lists.listed(Pass<kInterior>{args...}, Pass<kNearWalls>{args...}));
-  parallel_for(names[kDirect], lists.direct_threads(), lists.direct(Pass<kDirect>{args...}));
+  if (mesh) parallel_for(names[1], n, lists.listed(Pass<kInterior>{args...}, Pass<kNearMesh>{args...}));
+  else parallel_for(names[0], n, lists.listed(Pass<kInterior>{args...}, Pass<kNearWalls>{args...}));
+  parallel_for(names[2], lists.direct_threads(), lists.direct(Pass<kDirect>{args...}));
 }
 
 // The message of a step below run.min_dt.

@@ -87,22 +87,20 @@ SPHRAY_HD SPHRAY_FORCEINLINE Mirrors mirrors_of(const SphParams& prm, float supp
 // (core/launch_cuda.cuh): the wall images' loop spills under the file-wide 40.
 constexpr int kMirrorPassRegisters = 64;
 
-// Each neighbour pass is three launches, each particle served by one: the
-// pair masks of the particles away from the walls (no image or wall
-// particle code in the loop, which cost the interior particles twice the
-// time when they carried it), the pair masks of those within a support of a
-// wall of the tank or, in a scene with obstacles, near an obstacle's wall
-// particles (mesh_walls.h), and the direct loop of those whose masks
-// overflowed (nsearch/pair_masks.h). Which launch serves a particle is
-// decided once per grid (launch_class) and the first two launches run over
-// compacted lists of their particles (flow_solver.inl, LaunchLists): in grid
-// order a cell row at a wall holds particles of both kinds (the cells are
-// two supports wide), and launched over all particles each launch left the
-// other's lanes idle in those warps. The second launch is compiled twice,
-// without the obstacles' wall terms (kNearWalls) and with them (kNearMesh),
-// and a scene runs the one it needs: carried in a scene without obstacles,
-// their code made the launch 1-2% slower; a launch of their own cost a
-// scene with obstacles 10%.
+// Each neighbour pass runs three variants of its loop, each particle served
+// by one: the pair masks of the particles away from the walls (no image or
+// wall particle code in the loop, which cost the interior particles twice
+// the time when they carried it), the pair masks of those within a support
+// of a wall of the tank or, in a scene with obstacles, near an obstacle's
+// wall particles (mesh_walls.h), and the direct loop of those whose masks
+// overflowed (nsearch/pair_masks.h). Which variant serves a particle is
+// decided once per grid (launch_class); the first two run in one launch
+// over lists of their particles, the near-wall ones first, and the direct
+// loop in a small launch of its own (flow_solver.inl, LaunchLists). The
+// near-wall variant is compiled without the obstacles' wall terms
+// (kNearWalls) and with them (kNearMesh), and a scene runs the one it needs:
+// carried in a scene without obstacles, their code made the launch 1-2%
+// slower.
 enum MirrorPass { kInterior = 0, kNearWalls = 1, kDirect = 2, kNearMesh = 3 };
 
 // The launch that serves a particle over the passes that share its grid.

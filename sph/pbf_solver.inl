@@ -155,10 +155,10 @@ class PbfSolverImpl final : public Solver {
     lists_.classify(n_, prm_, pbf_.kernel.s, margin, grid_, walls_.view(), pairs(), raw(pred_));
   }
 
-  static constexpr const char* kLambdaNames[4] = {"pbf_lambda", "pbf_lambda_walls",
-                                                  "pbf_lambda_direct", "pbf_lambda_walls_mesh"};
-  static constexpr const char* kCorrectNames[4] = {"pbf_correct", "pbf_correct_walls",
-                                                   "pbf_correct_direct", "pbf_correct_walls_mesh"};
+  static constexpr const char* kLambdaNames[3] = {"pbf_lambda", "pbf_lambda_walls",
+                                                  "pbf_lambda_direct"};
+  static constexpr const char* kCorrectNames[3] = {"pbf_correct", "pbf_correct_walls",
+                                                   "pbf_correct_direct"};
 
   // The constraint iterations; returns how many corrections were applied.
   int solve() {
@@ -203,8 +203,8 @@ class PbfSolverImpl final : public Solver {
   }
 
   // The finishing pass's launches (pbf.h, MirrorPass), with or without presence.
-  static constexpr const char* kFinishNames[4] = {"pbf_finish", "pbf_finish_walls",
-                                                  "pbf_finish_direct", "pbf_finish_walls_mesh"};
+  static constexpr const char* kFinishNames[3] = {"pbf_finish", "pbf_finish_walls",
+                                                  "pbf_finish_direct"};
   template <bool Presence>
   void finish_launches() {
     const FlowControl* control = raw(control_);

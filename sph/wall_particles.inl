@@ -56,7 +56,6 @@ class WallParticles {
   }
 
   uint32_t size() const { return uint32_t(pos_.size()); }
-  bool moving() const { return moving_; }
   const Float4* pos() const { return raw(pos_); }
   const float* alpha() const { return raw(alpha_); }
   const uint32_t* offsets() const { return raw(offsets_); }
