@@ -7,6 +7,7 @@
 
 #include "cli.h"
 #include "commands.h"
+#include "dist/slab_solver.h"
 #include "io/export.h"
 #include "io/frames_h5.h"
 #include "pipeline/pipeline.h"
@@ -166,7 +167,44 @@ void write_stopped_summary(std::ofstream& summary, const std::string& error, con
           << "\n";
 }
 
+// The ranks of this run: MPI's when an MPI launcher started it, else one.
+std::unique_ptr<Comm> run_ranks() {
+  if (!started_by_mpi_launcher()) return make_single_comm();
+  if (!mpi_built())
+    throw std::runtime_error("started by an MPI launcher, but this sphray was built without MPI: each process would "
+                             "run the whole scene (install libopenmpi-dev and rebuild; tools/setup.sh does)");
+  return make_mpi_comm();
+}
+
+// What a run over several ranks cannot do yet, refused before it starts.
+void check_several_ranks(const RunArgs& a, const Scene& scene, const StageNeeds& needs,
+                         const std::set<std::string>& fields) {
+  auto refuse = [](const std::string& what) {
+    throw std::runtime_error(what + " is not available in a run over several ranks (mpirun -np > 1) yet; "
+                             "run it with one rank, or render the export afterwards (sphray render --from)");
+  };
+  if (!a.fa.dir.empty()) refuse("--frames-dir (PNG frames)");
+  for (const char* f : {"field", "presence", "pressure"})
+    if (fields.count(f)) refuse(std::string("--export-fields ") + f);
+  if (scene.field.given || needs.field) refuse("the density field (the scene's \"field\" section)");
+  if (needs.presence != PresenceMode::Off) refuse("particle presence (sph.presence)");
+}
+
+// The CUDA device of this rank: one per rank on each node.
+void pick_rank_device(Backend b) {
+  if (b != Backend::Cuda) return;
+  const int have = cuda_device_count(), ranks_here = local_size();
+  if (ranks_here > have)
+    throw std::runtime_error(std::to_string(ranks_here) + " ranks on this node but " + std::to_string(have) +
+                             " CUDA device(s): a run over several ranks takes one GPU per rank (start fewer ranks "
+                             "per node, or use --backend cpu)");
+  use_cuda_device(local_rank());
+}
+
 int cmd_run(RunArgs a) {
+  const std::unique_ptr<Comm> comm = run_ranks();
+  const bool several = comm->size() > 1, root = comm->rank() == 0;
+  if (!root) std::cout.rdbuf(nullptr);  // rank 0 speaks for the run
   if (a.fa.dir.empty() && (!a.fa.size.empty() || a.fa.every > 0))
     throw std::runtime_error("--size and --frames-every need --frames-dir DIR");
   add_frame_overrides(a.fa, a.sets);
@@ -177,15 +215,32 @@ int cmd_run(RunArgs a) {
     throw std::runtime_error("--export-fields: the pbf solver has no pressure (its density constraint moves positions); "
                              "export density instead");
   check_outputs(a);
+  const std::set<std::string> fields_asked = export_fields;
+  // Rank 0 writes every output (a run over several ranks gathers its particles there at each output frame).
   RunOutputs out;
-  if (!a.ex.path.empty()) out.exporter = std::make_unique<ExportSink>(a.ex.every, std::move(export_fields), rs.params);
-  if (!a.fa.dir.empty()) out.png = std::make_unique<PngSink>(a.fa.dir, scene.render);
-  if (!a.metrics_csv.empty()) out.metrics = std::make_unique<MetricsSink>(a.metrics_csv, scene, rs.params);
-  if (!a.summary_json.empty()) out.summary = open_output("--summary-json", a.summary_json);
+  if (root) {
+    if (!a.ex.path.empty()) out.exporter = std::make_unique<ExportSink>(a.ex.every, std::move(export_fields), rs.params);
+    if (!a.fa.dir.empty()) out.png = std::make_unique<PngSink>(a.fa.dir, scene.render);
+    if (!a.metrics_csv.empty()) out.metrics = std::make_unique<MetricsSink>(a.metrics_csv, scene, rs.params);
+    if (!a.summary_json.empty()) out.summary = open_output("--summary-json", a.summary_json);
+  }
   const Backend b = choose_backend(a.backend, std::cout);
   // The sinks say what they need; the stages follow from that.
   const StageNeeds needs = needs_of(scene, out.sinks());
-  auto solver = make_solver(rs, b, needs);
+  std::unique_ptr<Solver> solver;
+  if (several) {
+    check_several_ranks(a, scene, needs, fields_asked);
+    pick_rank_device(b);
+    const SolverMaker make = b == Backend::Cuda ? SolverMaker(make_cuda_solver) : SolverMaker(make_cpu_solver);
+    const SolverInput in = make_solver_input(rs, needs.presence);
+    const SlabPlan plan = plan_slabs(in, comm->size());
+    std::cout << "ranks: " << comm->size() << " slabs along " << axis_name(plan.axis) << ", cut at";
+    for (double c : plan.cuts) std::cout << " " << c;
+    std::cout << " m, halo " << plan.halo << " m\n";
+    solver = make_slab_solver(in, *comm, make);
+  } else {
+    solver = make_solver(rs, b, needs);
+  }
   auto field = make_field(rs, b, needs);
   if (out.png) out.png->open(scene, b, make_field_setup(rs));
   if (out.exporter) {  // created before the run: an unwritable path fails before any step
@@ -201,6 +256,7 @@ int cmd_run(RunArgs a) {
   opt.progress = !a.quiet;
   opt.field = field.get();
   opt.sinks = out.sinks();
+  opt.gather_frames = !a.ex.path.empty() || !a.metrics_csv.empty();  // alike on every rank
   RunSummary r;
   try {
     r = run_scene(scene, *solver, opt, std::cout);

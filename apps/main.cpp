@@ -6,6 +6,7 @@
 #include "cli.h"
 #include "commands.h"
 #include "core/background.h"
+#include "dist/slab_solver.h"
 #include "io/frames_h5.h"
 #include "io/scene.h"
 #include "sph/solver.h"
@@ -30,26 +31,36 @@ int main(int argc, char** argv) {
     std::fprintf(stderr, "sphray: error: %s\n", unknown.c_str());
     return 2;
   }
+  // In a run over several ranks (dist/): a failed step is raised on every
+  // rank alike (RanksStopped), and rank 0 reports it; any other error may be
+  // this rank's alone, so it is reported with the rank and ends every rank.
+  auto fail = [&](const char* what, const char* message, int code) {
+    if (several_ranks()) {
+      std::fprintf(stderr, "sphray: rank %d: %s: %s\n", world_rank(), what, message);
+      std::fflush(stderr);
+      abort_ranks(code);
+    }
+    std::fprintf(stderr, "sphray: %s: %s\n", what, message);
+    return code;
+  };
   try {
     app.parse(argc, argv);  // runs the command's callback
   } catch (const CLI::ParseError& e) {
     const int rc = app.exit(e);
     return rc == 0 ? 0 : 2;
   } catch (const FrameFileError& e) {
-    std::fprintf(stderr, "sphray: error: %s\n", e.what());
-    return run->parsed() ? 1 : 2;  // a failed write during a run; a bad file given to read (run, render --from)
+    return fail("error", e.what(), run->parsed() ? 1 : 2);  // a failed write during a run; a bad file given to read
   } catch (const OutputError& e) {  // PNG, CSV or JSON not written after the run began (a full disk)
-    std::fprintf(stderr, "sphray: error: %s\n", e.what());
-    return 1;
+    return fail("error", e.what(), 1);
   } catch (const SceneError& e) {
-    std::fprintf(stderr, "sphray: error: %s\n", e.what());
-    return 2;
-  } catch (const SimulationError& e) {
-    std::fprintf(stderr, "sphray: simulation stopped: %s\n", e.what());
+    return fail("error", e.what(), 2);
+  } catch (const RanksStopped& e) {
+    if (world_rank() == 0) std::fprintf(stderr, "sphray: simulation stopped: %s\n", e.what());
     return 1;
+  } catch (const SimulationError& e) {
+    return fail("simulation stopped", e.what(), 1);
   } catch (const std::exception& e) {
-    std::fprintf(stderr, "sphray: error: %s\n", e.what());
-    return 2;
+    return fail("error", e.what(), 2);
   }
   return exit_code;
 }

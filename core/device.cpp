@@ -14,6 +14,8 @@ void throw_no_cuda() {
 bool cuda_available() { return false; }
 std::string cuda_device_name() { return {}; }
 size_t cuda_free_memory() { return 0; }
+int cuda_device_count() { return 0; }
+void use_cuda_device(int) { throw_no_cuda(); }
 #endif
 
 }  // namespace sphray

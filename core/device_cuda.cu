@@ -9,10 +9,19 @@ bool cuda_available() {
   return cudaGetDeviceCount(&count) == cudaSuccess && count > 0;
 }
 
+int cuda_device_count() {
+  int count = 0;
+  return cudaGetDeviceCount(&count) == cudaSuccess ? count : 0;
+}
+
+void use_cuda_device(int k) { SPHRAY_CUDA_CHECK(cudaSetDevice(k)); }
+
 std::string cuda_device_name() {
   if (!cuda_available()) return {};
   cudaDeviceProp prop{};
-  SPHRAY_CUDA_CHECK(cudaGetDeviceProperties(&prop, 0));
+  int device = 0;
+  SPHRAY_CUDA_CHECK(cudaGetDevice(&device));
+  SPHRAY_CUDA_CHECK(cudaGetDeviceProperties(&prop, device));
   return prop.name;
 }
 

@@ -190,6 +190,7 @@ RunSummary run_scene(const Scene& s, Solver& solver, const RunOptions& opt, std:
   };
   const bool presence_by_frame = solver.presence_mode() == PresenceMode::AtUntil;
   auto output = [&] {
+    if (opt.gather_frames) solver.gather_frame();
     if (needs_at(frame).field) {
       const ParticleView v = solver.view();
       if (opt.field->kind() == FieldKind::Presence && !v.presence) ++r.field_without_presence;

@@ -89,6 +89,10 @@ struct RunOptions {
   // "field" section: every frame) or a sink needs it.
   FieldBuilder* field = nullptr;
   std::vector<OutputSink*> sinks;
+  // Solver::gather_frame at every output frame: a decomposed run's ranks
+  // gather their particles on rank 0 for its sinks (every rank must agree;
+  // off where no rank writes outputs).
+  bool gather_frames = true;
 };
 
 // The share of particle-steps the wall guard may put back on a wall face

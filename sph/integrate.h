@@ -26,7 +26,11 @@
 
 namespace sphray {
 
-enum ParticleStatus : uint8_t { kStatusOk = 0, kStatusClamped = 1 };
+// kStatusGhost: a copy of another rank's particle in a decomposed run
+// (dist/slab_solver.h): its neighbours read it, but the step neither moves it
+// nor counts it in the step's extremes (its own sums lack the neighbours
+// beyond the halo); it is replaced by a fresh copy before the next step.
+enum ParticleStatus : uint8_t { kStatusOk = 0, kStatusClamped = 1, kStatusGhost = 2 };
 
 // flow.w = p / rho^2 from the density (params.h); Advance keeps it current.
 // The pressure [Pa] per particle (Solver::device_pressure).
@@ -160,7 +164,7 @@ struct Advance {
   }
 
   SPHRAY_HD void operator()(uint32_t i) const {
-    if (control->outcome != kStepOk) return;
+    if (control->outcome != kStepOk || state.status[i] == kStatusGhost) return;
     const float dt = float(control->limits.dt);
     Float4 p = state.pos[i];
     Float4 v = state.vel[i];
@@ -204,6 +208,7 @@ struct StepStatsOf {
   PairIn pairs;
 
   SPHRAY_HD StepStats operator()(uint32_t i) const {
+    if (state.status[i] == kStatusGhost) return kEmptyStepStats;
     const Float4 p = state.pos[i], v = state.vel[i], a = pairs.accel[i];
     const bool finite = all_finite(xyz(p)) && std::isfinite(p.w) && all_finite(xyz(v)) && p.w > 0.0f;
     const bool derived = all_finite(xyz(a)) && std::isfinite(a.w);

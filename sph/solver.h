@@ -72,6 +72,24 @@ struct SolverInput {
   // pair_mask_capacity of the support. A particle needing more is served by
   // the direct loop (the tests use 0 and 1 to check that path).
   int pair_mask_words = -1;
+  // A decomposed run (dist/slab_solver.h): each fluid particle's index in the
+  // whole run's initial list (empty: 0, 1, ..., n - 1), and a call that
+  // reduces this rank's step statistics over all ranks, made on the host
+  // before the step's size is chosen, so that every rank takes the same dt
+  // (null: none). WCSPH only.
+  std::vector<uint32_t> fluid_id;
+  std::function<void(StepStats&)> reduce_step_stats;
+};
+
+// The fluid state a step hands to the next, on the host (a decomposed run
+// moves particles between ranks with it): pos x, y, z, density; vel; flow
+// (what neighbours read: WCSPH's predicted velocity and p / rho^2); the id;
+// the status (integrate.h: kStatusGhost marks another rank's particle).
+struct FluidState {
+  std::vector<Float4> pos, vel, flow;
+  std::vector<uint32_t> id;
+  std::vector<uint8_t> status;
+  size_t size() const { return pos.size(); }
 };
 
 // Host copy of the fluid state, in the solver's current (sorted) order.
@@ -175,6 +193,14 @@ class Solver {
   // solver's backend into a buffer it keeps (valid until the next step);
   // null for a solver without one (PBF). WCSPH: tait_pressure of the density.
   virtual const float* device_pressure() { return nullptr; }
+  // The fluid state between steps (FluidState), and its replacement: the
+  // particles of put_fluid become the solver's (sorted, with a fresh grid) for
+  // the next step. WCSPH only; the others throw std::logic_error.
+  virtual FluidState take_fluid() const { throw std::logic_error("this solver cannot hand over its particles"); }
+  virtual void put_fluid(const FluidState&) { throw std::logic_error("this solver cannot take particles"); }
+  // Called by the run loop at every output frame before the sinks read the
+  // solver (a decomposed run gathers its ranks' particles then).
+  virtual void gather_frame() {}
   // The skins of the run's obstacles (sph/skin.h), or null.
   virtual SkinSet* skins() { return nullptr; }
   virtual const SkinSet* skins() const { return nullptr; }

@@ -43,26 +43,27 @@ class SolverImpl final : public Solver {
   explicit SolverImpl(const SolverInput& in)
       : prm_(in.params), grid_(in.grid), cfl_(in.cfl), min_dt_(in.min_dt), max_dt_(in.max_dt),
         n_(uint32_t(in.fluid_pos_rho.size())), covariance_radius_(in.covariance_radius),
+        reduce_step_stats_(in.reduce_step_stats),
         obstacles_(make_obstacle_set(kBackend, in.obstacles, in.params.spacing)), walls_(in, in.grid) {
     if (covariance_radius_ > prm_.kernel.support())
       throw std::invalid_argument("WCSPH: the covariance radius exceeds the kernel's support");
     const size_t n = n_, cells = size_t(grid_.num_cells()) + 1, slabs = size_t(grid_.num_fine_cells()) + 1;
+    if (!in.fluid_id.empty() && in.fluid_id.size() != n)
+      throw std::invalid_argument("WCSPH: fluid_id and fluid_pos_rho differ in length");
     upload(pos_, in.fluid_pos_rho);
     upload(vel_, in.fluid_vel);
     flow_ = vel_;  // u = v until there is an acceleration to predict with
-    std::vector<uint32_t> ids(n);
-    for (size_t i = 0; i < n; ++i) ids[i] = uint32_t(i);
+    std::vector<uint32_t> ids(in.fluid_id);
+    if (ids.empty()) {
+      ids.resize(n);
+      for (size_t i = 0; i < n; ++i) ids[i] = uint32_t(i);
+    }
     upload(id_, ids);
-    pos_tmp_.resize(n); vel_tmp_.resize(n); flow_tmp_.resize(n); id_tmp_.resize(n);
-    accel_.resize(n); rate_grad_.resize(n);
-    status_.assign(n, uint8_t(kStatusOk)); status_tmp_.resize(n);
-    keys_.resize(n); order_.resize(n); offsets_.resize(cells); fine_offsets_.resize(slabs);
+    status_.assign(n, uint8_t(kStatusOk));
+    offsets_.resize(cells); fine_offsets_.resize(slabs);
     mask_words_ = in.pair_mask_words >= 0 ? uint32_t(in.pair_mask_words)
                                           : pair_mask_capacity(double(prm_.kernel.support()) / double(prm_.spacing));
-    fluid_pairs_.resize(size_t(mask_words_) * n);
-    boundary_pairs_.resize(size_t(mask_words_) * n);
-    fluid_pair_count_.resize(n);
-    boundary_pair_count_.resize(n);
+    fit(n_);
     parallel_for("pressure_term", n_, PressureTermOf{prm_, raw(pos_), raw(flow_)});
     set_presence(in.presence);
 
@@ -87,14 +88,7 @@ class SolverImpl final : public Solver {
   PresenceMode presence_mode() const override { return presence_mode_; }
   void set_presence(PresenceMode mode) override {
     presence_mode_ = mode;
-    if (mode != PresenceMode::Off && presence_.size() < 6 * size_t(n_)) {  // allocated on first use only
-      presence_.resize(6 * size_t(n_));
-      presence_tmp_.resize(6 * size_t(n_));
-    }
-    if (mode != PresenceMode::Off && covariance_radius_ > 0 && covariance_.size() < 3 * size_t(n_)) {
-      covariance_.resize(3 * size_t(n_));
-      covariance_tmp_.resize(3 * size_t(n_));
-    }
+    fit_presence(n_);
   }
   ParticleView view() const override {
     ParticleView v{kBackend, n_, raw(pos_), raw(offsets_), presence_valid_ ? raw(presence_) : nullptr, grid_,
@@ -136,6 +130,11 @@ class SolverImpl final : public Solver {
     StepControl* control = raw(control_);
     transform_reduce_into(n_, StepStatsOf{const_state(), pair_results()}, CombineStepStats(), kEmptyStepStats,
                           &control->stats);
+    if (reduce_step_stats_) {  // a decomposed run: one dt for all ranks (waits for the reduction)
+      StepControl c = read_one(control_, 0);
+      reduce_step_stats_(c.stats);
+      control_[0] = c;
+    }
     parallel_for("choose_step", 1,
                  ChooseStep{step_rule(), min_dt_, std::max(until - t_, 0.0), control, const_state(), pair_results()});
     parallel_for("advance", n_, Advance{prm_, control, state(), pair_results(), obstacles_.view});
@@ -153,6 +152,29 @@ class SolverImpl final : public Solver {
     times_ = {clock_.ms("grid"), clock_.ms("pairs"), clock_.ms("integrate")};
     t_ += limits_.dt;
     ++steps_;
+  }
+
+  FluidState take_fluid() const override {
+    namespace bk = sphray::SPHRAY_BK;
+    return {bk::download(pos_, n_), bk::download(vel_, n_), bk::download(flow_, n_), bk::download(id_, n_),
+            bk::download(status_, n_)};
+  }
+
+  void put_fluid(const FluidState& s) override {
+    const uint32_t n = uint32_t(s.size());
+    if (s.vel.size() != n || s.flow.size() != n || s.id.size() != n || s.status.size() != n)
+      throw std::invalid_argument("WCSPH: put_fluid's arrays differ in length");
+    fit(n);
+    n_ = n;
+    if (n) {
+      thrust::copy(s.pos.begin(), s.pos.end(), pos_.begin());
+      thrust::copy(s.vel.begin(), s.vel.end(), vel_.begin());
+      thrust::copy(s.flow.begin(), s.flow.end(), flow_.begin());
+      thrust::copy(s.id.begin(), s.id.end(), id_.begin());
+      thrust::copy(s.status.begin(), s.status.end(), status_.begin());
+    }
+    presence_valid_ = false;
+    build_grid();
   }
 
   HostParticles download() const override {
@@ -180,6 +202,33 @@ class SolverImpl final : public Solver {
                       E == kPairPresenceCovariance ? raw(covariance_) : nullptr,
                       covariance_radius_ > 0 ? 1.0f / covariance_radius_ : 0.0f};
     return {prm_, grid_, fluid_in(), walls, fluid_pairs(), boundary_pairs(), out, n_};
+  }
+
+  // Grows every per-particle buffer to hold n particles (never shrinks: a
+  // decomposed run's count changes a little every step).
+  void fit(uint32_t n) {
+    auto grow = [](auto& v, size_t size) {
+      if (v.size() < size) v.resize(size);
+    };
+    for (auto* v : {&pos_, &vel_, &flow_, &pos_tmp_, &vel_tmp_, &flow_tmp_, &accel_, &rate_grad_}) grow(*v, n);
+    for (auto* v : {&id_, &id_tmp_, &keys_, &order_, &fluid_pair_count_, &boundary_pair_count_}) grow(*v, n);
+    grow(status_, n);
+    grow(status_tmp_, n);
+    grow(fluid_pairs_, size_t(mask_words_) * n);
+    grow(boundary_pairs_, size_t(mask_words_) * n);
+    fit_presence(n);
+  }
+  // Presence and the covariance sums: allocated once a mode other than Off asks for them.
+  void fit_presence(uint32_t n) {
+    if (presence_mode_ == PresenceMode::Off) return;
+    if (presence_.size() < 6 * size_t(n)) {
+      presence_.resize(6 * size_t(n));
+      presence_tmp_.resize(6 * size_t(n));
+    }
+    if (covariance_radius_ > 0 && covariance_.size() < 3 * size_t(n)) {
+      covariance_.resize(3 * size_t(n));
+      covariance_tmp_.resize(3 * size_t(n));
+    }
   }
 
   // The views of the particle arrays that the kernels take (particles.h).
@@ -308,6 +357,7 @@ class SolverImpl final : public Solver {
   double cfl_, min_dt_, max_dt_;
   uint32_t n_;
   float covariance_radius_;  // [m] SolverInput::covariance_radius
+  std::function<void(StepStats&)> reduce_step_stats_;  // SolverInput::reduce_step_stats
   PresenceMode presence_mode_ = PresenceMode::Off;
   bool presence_valid_ = false;
   double t_ = 0;

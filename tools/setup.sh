@@ -22,6 +22,9 @@ need libthrust-dev "test -d /usr/local/cuda/include/cccl/thrust || test -f /usr/
 need libeigen3-dev "test -f /usr/include/eigen3/Eigen/Core"
 need libtinyobjloader-dev "test -f /usr/include/tiny_obj_loader.h"
 need libhdf5-dev "test -f /usr/include/hdf5/serial/hdf5.h || test -f /usr/include/hdf5.h"
+# MPI for runs over several ranks (mpirun -np R sphray run ...; dist/) and their tests.
+need libopenmpi-dev "test -f /usr/lib/x86_64-linux-gnu/openmpi/include/mpi.h || command -v mpicxx"
+need openmpi-bin "command -v mpirun"
 # stb (PNG): also found under a prefix in CMAKE_PREFIX_PATH (the GPU machine carries it: tools/gpu-check.sh, .devdeps)
 has_stb() {
   local p

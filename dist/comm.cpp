@@ -1,0 +1,56 @@
+#include "comm.h"
+
+#include <cstdlib>
+#include <stdexcept>
+
+namespace sphray {
+
+namespace {
+
+class SingleComm final : public Comm {
+ public:
+  int rank() const override { return 0; }
+  int size() const override { return 1; }
+  void max(float*, int) override {}
+  void sum(double*, int) override {}
+  void min(int*, int) override {}
+  std::vector<std::vector<char>> all_to_all(const std::vector<std::vector<char>>& send) override { return send; }
+  std::vector<std::vector<char>> gather(const std::vector<char>& mine) override { return {mine}; }
+  void broadcast(std::string&, int) override {}
+};
+
+int env_int(const char* name, int fallback) {
+  const char* v = std::getenv(name);
+  return v && *v ? std::atoi(v) : fallback;
+}
+
+}  // namespace
+
+std::unique_ptr<Comm> make_single_comm() { return std::make_unique<SingleComm>(); }
+
+bool started_by_mpi_launcher() {
+  for (const char* name : {"OMPI_COMM_WORLD_SIZE", "PMI_SIZE", "PMIX_RANK", "MPI_LOCALNRANKS"})
+    if (std::getenv(name)) return true;
+  return false;
+}
+
+int local_rank() {
+  return env_int("OMPI_COMM_WORLD_LOCAL_RANK", env_int("MPI_LOCALRANKID", env_int("SLURM_LOCALID", 0)));
+}
+
+int local_size() {
+  return env_int("OMPI_COMM_WORLD_LOCAL_SIZE", env_int("MPI_LOCALNRANKS", env_int("SLURM_NTASKS_PER_NODE", 1)));
+}
+
+#if !defined(SPHRAY_HAVE_MPI)
+bool mpi_built() { return false; }
+int world_rank() { return 0; }
+bool several_ranks() { return false; }
+void abort_ranks(int) {}
+std::unique_ptr<Comm> make_mpi_comm() {
+  throw std::runtime_error("this sphray was built without MPI (configure with -DSPHRAY_MPI=ON and an MPI installed: "
+                           "Debian/Ubuntu libopenmpi-dev)");
+}
+#endif
+
+}  // namespace sphray

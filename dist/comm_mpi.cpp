@@ -1,0 +1,141 @@
+// Comm over MPI_COMM_WORLD. Errors return (MPI_ERRORS_RETURN) and become
+// exceptions; a rank that dies is reported by the launcher, which ends the
+// others (docs/design.md, "Scale-out").
+#include <mpi.h>
+
+#include <cstdlib>
+#include <stdexcept>
+#include <string>
+
+#include "comm.h"
+
+namespace sphray {
+
+namespace {
+
+void check(int rc, const char* what) {
+  if (rc == MPI_SUCCESS) return;
+  char text[MPI_MAX_ERROR_STRING];
+  int len = 0;
+  MPI_Error_string(rc, text, &len);
+  throw std::runtime_error(std::string("MPI: ") + what + " failed: " + std::string(text, size_t(len)));
+}
+
+// Byte counts and displacements of MPI's "v" calls (int: 2 GiB per rank pair).
+std::vector<int> counts_of(const std::vector<std::vector<char>>& bufs) {
+  std::vector<int> c(bufs.size());
+  for (size_t r = 0; r < bufs.size(); ++r) {
+    if (bufs[r].size() > size_t(INT32_MAX)) throw std::runtime_error("MPI: a message over 2 GiB");
+    c[r] = int(bufs[r].size());
+  }
+  return c;
+}
+std::vector<int> displacements(const std::vector<int>& counts) {
+  std::vector<int> d(counts.size(), 0);
+  long long at = 0;
+  for (size_t r = 0; r < counts.size(); ++r) {
+    if (at > INT32_MAX) throw std::runtime_error("MPI: an exchange over 2 GiB");
+    d[r] = int(at);
+    at += counts[r];
+  }
+  return d;
+}
+
+class MpiComm final : public Comm {
+ public:
+  MpiComm() {
+    int ready = 0;
+    MPI_Initialized(&ready);
+    if (!ready) {
+      check(MPI_Init(nullptr, nullptr), "MPI_Init");
+      std::atexit([] {
+        int done = 0;
+        MPI_Finalized(&done);
+        if (!done) MPI_Finalize();
+      });
+    }
+    MPI_Comm_set_errhandler(MPI_COMM_WORLD, MPI_ERRORS_RETURN);
+    MPI_Comm_rank(MPI_COMM_WORLD, &rank_);
+    MPI_Comm_size(MPI_COMM_WORLD, &size_);
+  }
+  int rank() const override { return rank_; }
+  int size() const override { return size_; }
+  void max(float* v, int n) override {
+    check(MPI_Allreduce(MPI_IN_PLACE, v, n, MPI_FLOAT, MPI_MAX, MPI_COMM_WORLD), "MPI_Allreduce");
+  }
+  void sum(double* v, int n) override {
+    check(MPI_Allreduce(MPI_IN_PLACE, v, n, MPI_DOUBLE, MPI_SUM, MPI_COMM_WORLD), "MPI_Allreduce");
+  }
+  void min(int* v, int n) override {
+    check(MPI_Allreduce(MPI_IN_PLACE, v, n, MPI_INT, MPI_MIN, MPI_COMM_WORLD), "MPI_Allreduce");
+  }
+  std::vector<std::vector<char>> all_to_all(const std::vector<std::vector<char>>& send) override {
+    if (int(send.size()) != size_) throw std::logic_error("all_to_all: one buffer per rank");
+    const std::vector<int> scount = counts_of(send), sdisp = displacements(scount);
+    std::vector<int> rcount(size_t(size_), 0);
+    check(MPI_Alltoall(scount.data(), 1, MPI_INT, rcount.data(), 1, MPI_INT, MPI_COMM_WORLD), "MPI_Alltoall");
+    const std::vector<int> rdisp = displacements(rcount);
+    std::vector<char> out_flat(size_t(rdisp.back()) + size_t(rcount.back())), in_flat;
+    for (const auto& b : send) in_flat.insert(in_flat.end(), b.begin(), b.end());
+    check(MPI_Alltoallv(in_flat.data(), scount.data(), sdisp.data(), MPI_BYTE, out_flat.data(), rcount.data(),
+                        rdisp.data(), MPI_BYTE, MPI_COMM_WORLD),
+          "MPI_Alltoallv");
+    std::vector<std::vector<char>> out(static_cast<size_t>(size_));
+    for (int r = 0; r < size_; ++r) out[size_t(r)].assign(out_flat.begin() + rdisp[r], out_flat.begin() + rdisp[r] + rcount[r]);
+    return out;
+  }
+  std::vector<std::vector<char>> gather(const std::vector<char>& mine) override {
+    if (mine.size() > size_t(INT32_MAX)) throw std::runtime_error("MPI: a message over 2 GiB");
+    int count = int(mine.size());
+    std::vector<int> counts(size_t(size_), 0);
+    check(MPI_Gather(&count, 1, MPI_INT, counts.data(), 1, MPI_INT, 0, MPI_COMM_WORLD), "MPI_Gather");
+    std::vector<int> disp(size_t(size_), 0);
+    if (rank_ == 0) disp = displacements(counts);
+    std::vector<char> flat(rank_ == 0 ? size_t(disp.back()) + size_t(counts.back()) : 0);
+    check(MPI_Gatherv(mine.data(), count, MPI_BYTE, flat.data(), counts.data(), disp.data(), MPI_BYTE, 0,
+                      MPI_COMM_WORLD),
+          "MPI_Gatherv");
+    std::vector<std::vector<char>> out;
+    if (rank_ != 0) return out;
+    out.resize(size_t(size_));
+    for (int r = 0; r < size_; ++r) out[size_t(r)].assign(flat.begin() + disp[r], flat.begin() + disp[r] + counts[r]);
+    return out;
+  }
+  void broadcast(std::string& s, int root) override {
+    int n = int(s.size());
+    check(MPI_Bcast(&n, 1, MPI_INT, root, MPI_COMM_WORLD), "MPI_Bcast");
+    s.resize(size_t(n));
+    check(MPI_Bcast(s.data(), n, MPI_CHAR, root, MPI_COMM_WORLD), "MPI_Bcast");
+  }
+
+ private:
+  int rank_ = 0, size_ = 1;
+};
+
+}  // namespace
+
+bool mpi_built() { return true; }
+
+int world_rank() {
+  int ready = 0, finished = 0, rank = 0;
+  MPI_Initialized(&ready);
+  MPI_Finalized(&finished);
+  if (ready && !finished) MPI_Comm_rank(MPI_COMM_WORLD, &rank);
+  return rank;
+}
+
+bool several_ranks() {
+  int ready = 0, finished = 0, size = 1;
+  MPI_Initialized(&ready);
+  MPI_Finalized(&finished);
+  if (ready && !finished) MPI_Comm_size(MPI_COMM_WORLD, &size);
+  return size > 1;
+}
+
+void abort_ranks(int code) {
+  if (several_ranks()) MPI_Abort(MPI_COMM_WORLD, code);
+}
+
+std::unique_ptr<Comm> make_mpi_comm() { return std::make_unique<MpiComm>(); }
+
+}  // namespace sphray

@@ -1,0 +1,58 @@
+// A simulation over several ranks (MPI processes), one slab of the domain
+// each (slabs.h): each rank steps the particles it owns with the
+// solver of an ordinary run, among copies ("ghosts") of its neighbours'
+// particles within two support radii of its slab. Per step:
+//   1. the inner solver's step; its step statistics are reduced over the
+//      ranks before the step's size is chosen (SolverInput::reduce_step_stats),
+//      so every rank takes the same dt;
+//   2. one exchange: each rank sends every particle it owns that left its
+//      slab to the new owner, and copies every owned particle within the
+//      halo of a neighbouring slab to that rank as a ghost (one all-to-all);
+//      ghosts of the last step are dropped, the new set sorted (put_fluid);
+//   3. every `rebalance_every` steps, the cuts move to the quantiles of the
+//      particles when the counts differ by more than `rebalance_above`.
+// Why two support radii: WCSPH's step reads its neighbours' state (position,
+// density, predicted velocity, p / rho^2: all from the start of the step) and
+// the wall particles' pressure, which each wall particle sums from the fluid
+// within one support of it: an owned particle's step depends on fluid up to
+// two supports away. Ghosts' own results (incomplete sums at the halo's edge)
+// are discarded: they are never moved nor counted (kStatusGhost).
+// Outputs: at each output frame the ranks gather their owned particles on
+// rank 0 (gather_frame), which writes every output.
+#pragma once
+
+#include <functional>
+#include <memory>
+
+#include "comm.h"
+#include "slabs.h"
+#include "sph/solver.h"
+
+namespace sphray {
+
+// A step that failed on some rank, raised on every rank alike (the ranks
+// agree on it before raising: none is left waiting).
+struct RanksStopped : SimulationError {
+  using SimulationError::SimulationError;
+};
+
+struct SlabOptions {
+  int rebalance_every = 100;     // steps between balance checks (0: never)
+  double rebalance_above = 0.1;  // move the cuts when max / mean count - 1 exceeds this
+};
+
+using SolverMaker = std::function<std::unique_ptr<Solver>(const SolverInput&)>;
+
+// The plan of `in`'s run over comm.size() ranks: the domain's longest axis,
+// halo and least slab width two support radii, cuts at the quantiles of the
+// initial particles. Throws std::invalid_argument when the domain cannot hold
+// that many slabs (check_rank_count).
+SlabPlan plan_slabs(const SolverInput& in, int ranks);
+
+// This rank's solver of a decomposed run: `in` holds the whole run's
+// particles (every rank resolves the same scene); the rank keeps its own.
+// Collective: every rank calls it. WCSPH only (std::invalid_argument else).
+std::unique_ptr<Solver> make_slab_solver(SolverInput in, Comm& comm, const SolverMaker& make,
+                                         const SlabOptions& opt = {});
+
+}  // namespace sphray

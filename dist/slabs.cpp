@@ -1,0 +1,84 @@
+#include "slabs.h"
+
+#include <algorithm>
+#include <cmath>
+#include <sstream>
+#include <stdexcept>
+
+namespace sphray {
+
+int SlabPlan::owner(double x) const {
+  return int(std::upper_bound(cuts.begin(), cuts.end(), x) - cuts.begin());
+}
+
+bool SlabPlan::in_halo(int r, double x) const {
+  const double a = slab_lo(r), b = slab_hi(r);
+  // The first and last slabs reach to infinity on their outer side (owner()).
+  if (x < a) return r > 0 && a - x <= halo;
+  if (x >= b) return r < ranks() - 1 && x - b < halo;
+  return false;
+}
+
+AxisHistogram AxisHistogram::over(double lo, double hi, double width) {
+  AxisHistogram h;
+  h.lo = lo;
+  h.width = width;
+  h.counts.assign(size_t(std::max(1.0, std::ceil((hi - lo) / width))), 0.0);
+  return h;
+}
+
+void AxisHistogram::add(double x) {
+  const double k = std::floor((x - lo) / width);
+  const size_t bin = k < 0 ? 0 : std::min(counts.size() - 1, size_t(k));
+  counts[bin] += 1.0;
+}
+
+const char* axis_name(int axis) { return axis == 0 ? "x" : axis == 1 ? "y" : "z"; }
+
+void check_rank_count(int ranks, double lo, double hi, double min_width, const char* axis) {
+  if (ranks < 1) throw std::invalid_argument("a decomposed run needs at least one rank");
+  const double length = hi - lo;
+  if (ranks == 1 || length >= ranks * min_width * (1.0 - 1e-9)) return;
+  std::ostringstream os;
+  os << ranks << " ranks need slabs at least " << min_width << " m thick (two support radii, the halo), "
+     << ranks * min_width << " m along the domain's longest axis (" << axis << "), which is " << length
+     << " m long: at most " << std::max(1, int(std::floor(length / min_width + 1e-9))) << " ranks";
+  throw std::invalid_argument(os.str());
+}
+
+std::vector<double> balanced_cuts(const AxisHistogram& h, int ranks, double lo, double hi, double min_width) {
+  std::vector<double> cuts(size_t(std::max(0, ranks - 1)), 0.0);
+  double total = 0;
+  for (double c : h.counts) total += c;
+  // The k-th cut where the running count passes k / ranks of the total,
+  // interpolated within the bin.
+  double below = 0;
+  size_t bin = 0;
+  for (int k = 1; k < ranks; ++k) {
+    const double target = total * k / ranks;
+    while (bin < h.counts.size() && below + h.counts[bin] < target) below += h.counts[bin++];
+    double x = hi;
+    if (bin < h.counts.size()) {
+      const double in_bin = h.counts[bin] > 0 ? (target - below) / h.counts[bin] : 0.0;
+      x = h.lo + (double(bin) + in_bin) * h.width;
+    }
+    cuts[size_t(k) - 1] = x;
+  }
+  // At least min_width apart and from the ends: up from the left, then down
+  // from the right (feasible when the domain holds ranks * min_width).
+  double prev = lo;
+  for (double& c : cuts) prev = c = std::max(c, prev + min_width);
+  double next = hi;
+  for (auto it = cuts.rbegin(); it != cuts.rend(); ++it) next = *it = std::min(*it, next - min_width);
+  return cuts;
+}
+
+double imbalance(const std::vector<double>& counts) {
+  if (counts.empty()) return 0;
+  double sum = 0, most = 0;
+  for (double c : counts) sum += c, most = std::max(most, c);
+  const double mean = sum / double(counts.size());
+  return mean > 0 ? most / mean - 1.0 : 0.0;
+}
+
+}  // namespace sphray

@@ -1,0 +1,55 @@
+// The cut of a decomposed run's domain into slabs, one per rank, along the
+// domain's longest axis: the fewest cut faces for the most slabs, and a cut
+// plane that only ever needs one coordinate to find a particle's owner.
+// Slabs are at least `min_width` thick (the halo, so that a rank's ghosts
+// come from ranks whose slabs touch its own, and a particle crosses at most
+// one cut per step); the cuts sit at the quantiles of the particles along the
+// axis, so the ranks own about equal counts.
+#pragma once
+
+#include <cstddef>
+#include <string>
+#include <vector>
+
+namespace sphray {
+
+struct SlabPlan {
+  int axis = 0;             // 0 x, 1 y, 2 z
+  double lo = 0, hi = 0;    // the domain along the axis [m]
+  double halo = 0;          // ghost width [m]: particles within it of a slab are copied to its rank
+  double min_width = 0;     // [m]
+  std::vector<double> cuts; // the ranks - 1 interior cuts, ascending
+
+  int ranks() const { return int(cuts.size()) + 1; }
+  // The rank owning coordinate x (along the axis): slab r is [cut r-1, cut r);
+  // outside the domain, the first or last.
+  int owner(double x) const;
+  // Whether x lies within the halo of slab r (outside it; the owner excluded).
+  bool in_halo(int r, double x) const;
+  double slab_lo(int r) const { return r == 0 ? lo : cuts[size_t(r) - 1]; }
+  double slab_hi(int r) const { return r == ranks() - 1 ? hi : cuts[size_t(r)]; }
+};
+
+// Particle counts along the axis in bins of `width` over [lo, hi]: what the cuts
+// are placed by (summed over the ranks for a rebalance).
+struct AxisHistogram {
+  double lo = 0, width = 1;
+  std::vector<double> counts;
+  static AxisHistogram over(double lo, double hi, double width);
+  void add(double x);
+};
+
+// A domain too short for `ranks` slabs of `min_width` (std::invalid_argument
+// with the numbers: the most ranks it holds).
+void check_rank_count(int ranks, double lo, double hi, double min_width, const char* axis_name);
+
+// The cuts at the quantiles k / ranks of the histogram's counts, pushed apart
+// to min_width (and inside [lo, hi]).
+std::vector<double> balanced_cuts(const AxisHistogram& h, int ranks, double lo, double hi, double min_width);
+
+// Largest count over the mean count, minus one (0: balanced).
+double imbalance(const std::vector<double>& counts);
+
+const char* axis_name(int axis);
+
+}  // namespace sphray
