@@ -237,7 +237,7 @@ int cmd_run(RunArgs a) {
     std::cout << "ranks: " << comm->size() << " slabs along " << axis_name(plan.axis) << ", cut at";
     for (double c : plan.cuts) std::cout << " " << c;
     std::cout << " m, halo " << plan.halo << " m\n";
-    solver = make_slab_solver(in, *comm, make);
+    solver = make_slab_solver(in, *comm, b, make);
   } else {
     solver = make_solver(rs, b, needs);
   }

@@ -1,4 +1,5 @@
 #include "comm.h"
+#include "transport.h"
 
 #include <cstdlib>
 #include <stdexcept>
@@ -43,6 +44,10 @@ int local_size() {
 }
 
 #if !defined(SPHRAY_HAVE_MPI)
+std::unique_ptr<ParticleTransport> make_mpi_transport(Comm&) {
+  make_mpi_comm();  // throws: no MPI in this build
+  return nullptr;
+}
 bool mpi_built() { return false; }
 int world_rank() { return 0; }
 bool several_ranks() { return false; }
@@ -50,6 +55,14 @@ void abort_ranks(int) {}
 std::unique_ptr<Comm> make_mpi_comm() {
   throw std::runtime_error("this sphray was built without MPI (configure with -DSPHRAY_MPI=ON and an MPI installed: "
                            "Debian/Ubuntu libopenmpi-dev)");
+}
+#endif
+
+#if !defined(SPHRAY_HAVE_NCCL)
+bool nccl_built() { return false; }
+std::unique_ptr<ParticleTransport> make_nccl_transport(Comm&) {
+  throw std::runtime_error("this sphray was built without NCCL (it comes with the CUDA toolkit or libnccl-dev): a run "
+                           "over several ranks on CUDA needs it; use --backend cpu");
 }
 #endif
 

@@ -8,6 +8,7 @@
 #include <string>
 
 #include "comm.h"
+#include "transport.h"
 
 namespace sphray {
 
@@ -112,7 +113,72 @@ class MpiComm final : public Comm {
   int rank_ = 0, size_ = 1;
 };
 
+// The exchange's messages carry their offset to the receiver, so that the
+// counts and records a rank sends to me + d are received as coming from
+// me - d: tag d + kSelf.
+int send_tag(int k) { return k; }
+int recv_tag(int k) { return kPeers - 1 - k; }
+
+class MpiTransport final : public ParticleTransport {
+ public:
+  explicit MpiTransport(Comm& comm) : rank_(comm.rank()) {
+    check(MPI_Type_contiguous(int(sizeof(ExchangeRecord)), MPI_BYTE, &record_), "MPI_Type_contiguous");
+    check(MPI_Type_commit(&record_), "MPI_Type_commit");
+  }
+  ~MpiTransport() override {
+    int done = 0;
+    MPI_Finalized(&done);
+    if (!done) MPI_Type_free(&record_);
+  }
+  void max(float* v, int n) override {
+    check(MPI_Allreduce(MPI_IN_PLACE, v, n, MPI_FLOAT, MPI_MAX, MPI_COMM_WORLD), "MPI_Allreduce");
+  }
+  void exchange_counts(const SlabBounds& b, const PeerCounts& send, PeerCounts& recv) override {
+    uint32_t out[kPeers][2], in[kPeers][2] = {};
+    std::vector<MPI_Request> req;
+    for (int k = 0; k < kPeers; ++k) {
+      if (k == kSelf || !b.exists[k]) continue;
+      out[k][0] = send.total[k];
+      out[k][1] = send.owned[k];
+      req.emplace_back();
+      check(MPI_Isend(out[k], 2, MPI_UINT32_T, rank_ + k - kSelf, send_tag(k), MPI_COMM_WORLD, &req.back()), "MPI_Isend");
+      req.emplace_back();
+      check(MPI_Irecv(in[k], 2, MPI_UINT32_T, rank_ + k - kSelf, recv_tag(k), MPI_COMM_WORLD, &req.back()), "MPI_Irecv");
+    }
+    check(MPI_Waitall(int(req.size()), req.data(), MPI_STATUSES_IGNORE), "MPI_Waitall");
+    for (int k = 0; k < kPeers; ++k) {
+      recv.total[k] = in[k][0];
+      recv.owned[k] = in[k][1];
+    }
+  }
+  void exchange(const SlabBounds& b, ExchangeRecord* const send[kPeers], const uint32_t send_count[kPeers],
+                ExchangeRecord* const recv[kPeers], const uint32_t recv_count[kPeers]) override {
+    std::vector<MPI_Request> req;
+    for (int k = 0; k < kPeers; ++k) {
+      if (k == kSelf || !b.exists[k]) continue;
+      const int peer = rank_ + k - kSelf;
+      if (send_count[k] > 0) {
+        req.emplace_back();
+        check(MPI_Isend(send[k], int(send_count[k]), record_, peer, send_tag(k), MPI_COMM_WORLD, &req.back()),
+              "MPI_Isend");
+      }
+      if (recv_count[k] > 0) {
+        req.emplace_back();
+        check(MPI_Irecv(recv[k], int(recv_count[k]), record_, peer, recv_tag(k), MPI_COMM_WORLD, &req.back()),
+              "MPI_Irecv");
+      }
+    }
+    check(MPI_Waitall(int(req.size()), req.data(), MPI_STATUSES_IGNORE), "MPI_Waitall");
+  }
+
+ private:
+  int rank_;
+  MPI_Datatype record_{};
+};
+
 }  // namespace
+
+std::unique_ptr<ParticleTransport> make_mpi_transport(Comm& comm) { return std::make_unique<MpiTransport>(comm); }
 
 bool mpi_built() { return true; }
 

@@ -1,20 +1,17 @@
 #include "slab_solver.h"
 
 #include <algorithm>
+#include <cmath>
 #include <cstring>
+#include <limits>
 #include <stdexcept>
 #include <string>
+
+#include "transport.h"
 
 namespace sphray {
 
 namespace {
-
-// A particle as it travels between ranks.
-struct Record {
-  Float4 pos, vel, flow;
-  uint32_t id;
-  uint32_t status;
-};
 
 // A particle as rank 0 gathers it for the outputs.
 struct Owned {
@@ -22,29 +19,36 @@ struct Owned {
   float pos[3], vel[3], density;
 };
 
-template <class T>
-void append(std::vector<char>& buf, const T& v) {
-  const size_t at = buf.size();
-  buf.resize(at + sizeof(T));
-  std::memcpy(buf.data() + at, &v, sizeof(T));
-}
-
-template <class T>
-std::vector<T> records_of(const std::vector<char>& buf) {
-  std::vector<T> out(buf.size() / sizeof(T));
-  if (!out.empty()) std::memcpy(out.data(), buf.data(), out.size() * sizeof(T));
-  return out;
-}
-
 float coordinate(const Float4& p, int axis) { return axis == 0 ? p.x : axis == 1 ? p.y : p.z; }
+double coordinate(const Vec3f& p, int axis) { return axis == 0 ? p.x : axis == 1 ? p.y : p.z; }
+
+// The slabs of ranks rank - 2 .. rank + 2 as the solver's exchange reads them.
+SlabBounds bounds_for(const SlabPlan& p, int rank) {
+  SlabBounds b;
+  b.axis = p.axis;
+  b.halo = float(p.halo);
+  const float inf = std::numeric_limits<float>::infinity();
+  for (int k = 0; k < kPeers; ++k) {
+    const int r = rank + k - kSelf;
+    b.exists[k] = r >= 0 && r < p.ranks();
+    if (!b.exists[k]) continue;
+    b.lo[k] = r == 0 ? -inf : float(p.slab_lo(r));
+    b.hi[k] = r == p.ranks() - 1 ? inf : float(p.slab_hi(r));
+  }
+  return b;
+}
 
 class SlabSolver final : public Solver {
  public:
-  SlabSolver(std::unique_ptr<Solver> inner, Comm& comm, SlabPlan plan, uint32_t total, double bin_width,
+  SlabSolver(std::unique_ptr<ParticleTransport> transport, Comm& comm, SlabPlan plan, double bin_width,
              const SlabOptions& opt)
-      : inner_(std::move(inner)), comm_(comm), plan_(std::move(plan)), opt_(opt), bin_width_(bin_width),
-        ghost_(total, 0) {
-    exchange();  // the first step's ghosts
+      : transport_(std::move(transport)), comm_(comm), plan_(std::move(plan)), opt_(opt), bin_width_(bin_width) {}
+
+  // The inner solver holds this rank's particles; the first exchange gives it its ghosts.
+  void start(std::unique_ptr<Solver> inner) {
+    inner_ = std::move(inner);
+    inner_->set_slab(bounds_for(plan_, comm_.rank()));
+    sum_totals();
   }
 
   Backend backend() const override { return inner_->backend(); }
@@ -58,7 +62,7 @@ class SlabSolver final : public Solver {
   const StageTimes& last_stage_times() const override { return inner_->last_stage_times(); }
   void set_presence(PresenceMode mode) override { inner_->set_presence(mode); }
   PresenceMode presence_mode() const override { return inner_->presence_mode(); }
-  bool has_presence() const override { return false; }  // put_fluid drops it (cmd_run refuses what needs it)
+  bool has_presence() const override { return false; }  // the exchange reorders it (cmd_run refuses what needs it)
   ParticleView view() const override { return inner_->view(); }
   size_t device_bytes() const override { return inner_->device_bytes(); }
   std::vector<Vec3f> boundary_positions() const override { return inner_->boundary_positions(); }
@@ -77,23 +81,28 @@ class SlabSolver final : public Solver {
       comm_.broadcast(error, failed);
       throw RanksStopped("rank " + std::to_string(failed) + " of " + std::to_string(comm_.size()) + ": " + error);
     }
-    exchange();
+    sum_totals();
+    if (opt_.rebalance_every > 0 && steps() % uint64_t(opt_.rebalance_every) == 0) rebalance();
   }
 
-  // Rank 0 receives every rank's owned particles, for the outputs.
+  // Rank 0 receives every rank's own particles, for the outputs.
   void gather_frame() override {
     const HostParticles h = inner_->download();
     std::vector<char> mine;
     mine.reserve(h.id.size() * sizeof(Owned));
     for (size_t i = 0; i < h.id.size(); ++i) {
-      if (ghost_[h.id[i]]) continue;
-      append(mine, Owned{h.id[i], {h.pos[i].x, h.pos[i].y, h.pos[i].z}, {h.vel[i].x, h.vel[i].y, h.vel[i].z},
-                         h.density[i]});
+      if (h.status[i] == kStatusGhost) continue;
+      const Owned o{h.id[i], {h.pos[i].x, h.pos[i].y, h.pos[i].z}, {h.vel[i].x, h.vel[i].y, h.vel[i].z}, h.density[i]};
+      const size_t at = mine.size();
+      mine.resize(at + sizeof(Owned));
+      std::memcpy(mine.data() + at, &o, sizeof(Owned));
     }
     const std::vector<std::vector<char>> all = comm_.gather(mine);
     gathered_ = HostParticles{};
     for (const auto& buf : all)
-      for (const Owned& o : records_of<Owned>(buf)) {
+      for (size_t at = 0; at + sizeof(Owned) <= buf.size(); at += sizeof(Owned)) {
+        Owned o;
+        std::memcpy(&o, buf.data() + at, sizeof(Owned));
         gathered_.id.push_back(o.id);
         gathered_.pos.push_back({o.pos[0], o.pos[1], o.pos[2]});
         gathered_.vel.push_back({o.vel[0], o.vel[1], o.vel[2]});
@@ -129,77 +138,49 @@ class SlabSolver final : public Solver {
       throw std::logic_error("a decomposed run's particles are read at output frames only (gather_frame)");
   }
 
-  // Drops the ghosts, sends each owned particle to its owner and its ghost
-  // copies to the ranks whose halo it lies in, and puts the new set in.
-  void exchange() {
-    const FluidState s = inner_->take_fluid();
-    const int me = comm_.rank(), ranks = comm_.size();
-    size_t owned_after_step = 0;
-    for (size_t i = 0; i < s.size(); ++i) owned_after_step += s.status[i] != kStatusGhost;
-    removed_ += owned_before_ > owned_after_step ? owned_before_ - owned_after_step : 0;
-    if (opt_.rebalance_every > 0 && steps() > 0 && steps() % uint64_t(opt_.rebalance_every) == 0) rebalance(s);
-
-    std::vector<std::vector<char>> out(static_cast<size_t>(ranks));
-    std::vector<char> keep;
-    auto send = [&](int r, const Record& rec) { append(r == me ? keep : out[size_t(r)], rec); };
-    for (size_t i = 0; i < s.size(); ++i) {
-      if (s.status[i] == kStatusGhost) continue;
-      Record rec{s.pos[i], s.vel[i], s.flow[i], s.id[i], s.status[i]};
-      const double x = coordinate(s.pos[i], plan_.axis);
-      const int owner = plan_.owner(x);
-      send(owner, rec);
-      rec.status = kStatusGhost;
-      for (int r : {owner - 1, owner + 1})
-        if (r >= 0 && r < ranks && plan_.in_halo(r, x)) send(r, rec);
-    }
-    std::vector<std::vector<char>> in = comm_.all_to_all(out);
-    in[size_t(me)] = std::move(keep);
-
-    FluidState next;
-    for (const auto& p : s.id) ghost_[p] = 0;
-    size_t owned = 0;
-    for (const auto& buf : in)
-      for (const Record& r : records_of<Record>(buf)) {
-        next.pos.push_back(r.pos);
-        next.vel.push_back(r.vel);
-        next.flow.push_back(r.flow);
-        next.id.push_back(r.id);
-        next.status.push_back(uint8_t(r.status));
-        ghost_[r.id] = r.status == kStatusGhost;
-        owned += r.status != kStatusGhost;
-      }
-    inner_->put_fluid(next);
-    owned_before_ = owned;
-    totals_ = {double(owned), double(removed_), double(inner_->num_clamped())};
+  // The run's counts over all ranks.
+  void sum_totals() {
+    totals_ = {double(inner_->num_fluid()), double(inner_->num_removed()), double(inner_->num_clamped())};
     comm_.sum(totals_.data(), 3);
   }
 
-  // The cuts to the quantiles of the particles along the axis when the ranks'
-  // counts differ by more than opt_.rebalance_above.
-  void rebalance(const FluidState& s) {
+  // Moves the cuts toward the quantiles of the particles along the axis when
+  // the ranks' counts differ by more than opt_.rebalance_above; each cut by
+  // less than half the least slab width, so that every particle's new owner
+  // is its holder or a neighbour (the exchange's reach, sph/exchange.h).
+  void rebalance() {
     const int ranks = comm_.size();
-    AxisHistogram h = AxisHistogram::over(plan_.lo, plan_.hi, bin_width_);
-    std::vector<double> v(size_t(ranks) + h.counts.size(), 0.0);
-    for (size_t i = 0; i < s.size(); ++i)
-      if (s.status[i] != kStatusGhost) {
-        v[size_t(comm_.rank())] += 1.0;
-        h.add(coordinate(s.pos[i], plan_.axis));
-      }
-    std::copy(h.counts.begin(), h.counts.end(), v.begin() + ranks);
-    comm_.sum(v.data(), int(v.size()));
-    if (imbalance(std::vector<double>(v.begin(), v.begin() + ranks)) <= opt_.rebalance_above) return;
-    std::copy(v.begin() + ranks, v.end(), h.counts.begin());
-    plan_.cuts = balanced_cuts(h, ranks, plan_.lo, plan_.hi, plan_.min_width);
+    if (ranks < 2) return;
+    std::vector<double> counts(size_t(ranks), 0.0);
+    counts[size_t(comm_.rank())] = double(inner_->num_fluid());
+    comm_.sum(counts.data(), ranks);
+    if (imbalance(counts) <= opt_.rebalance_above) return;
+    const HostParticles h = inner_->download();
+    AxisHistogram hist = AxisHistogram::over(plan_.lo, plan_.hi, bin_width_);
+    for (size_t i = 0; i < h.id.size(); ++i)
+      if (h.status[i] != kStatusGhost) hist.add(coordinate(h.pos[i], plan_.axis));
+    comm_.sum(hist.counts.data(), int(hist.counts.size()));
+    const std::vector<double> target = balanced_cuts(hist, ranks, plan_.lo, plan_.hi, plan_.min_width);
+    const double reach = 0.49 * plan_.min_width;
+    bool moved = false;
+    for (size_t k = 0; k < target.size(); ++k) {
+      const double c = std::clamp(target[k], plan_.cuts[k] - reach, plan_.cuts[k] + reach);
+      moved = moved || c != plan_.cuts[k];
+      plan_.cuts[k] = c;
+    }
+    if (!moved) return;  // held at the least slab width
     ++rebalances_;
+    inner_->set_slab(bounds_for(plan_, comm_.rank()));
+    sum_totals();
   }
 
-  std::unique_ptr<Solver> inner_;
+  // Declared first: the inner solver uses it until it is destroyed.
+  std::unique_ptr<ParticleTransport> transport_;
   Comm& comm_;
   SlabPlan plan_;
   SlabOptions opt_;
   double bin_width_;
-  std::vector<uint8_t> ghost_;  // per id: a ghost here
-  size_t owned_before_ = 0, removed_ = 0;
+  std::unique_ptr<Solver> inner_;
   std::vector<double> totals_{0.0, 0.0, 0.0};  // owned, removed, clamped: over all ranks
   uint64_t rebalances_ = 0;
   HostParticles gathered_;
@@ -224,7 +205,8 @@ SlabPlan plan_slabs(const SolverInput& in, int ranks) {
   return p;
 }
 
-std::unique_ptr<Solver> make_slab_solver(SolverInput in, Comm& comm, const SolverMaker& make, const SlabOptions& opt) {
+std::unique_ptr<Solver> make_slab_solver(SolverInput in, Comm& comm, Backend backend, const SolverMaker& make,
+                                         const SlabOptions& opt) {
   if (in.kind != SolverKind::Wcsph)
     throw std::invalid_argument(std::string("a run over several ranks needs sph.solver \"wcsph\" (this is \"") +
                                 solver_name(in.kind) + "\")");
@@ -242,14 +224,11 @@ std::unique_ptr<Solver> make_slab_solver(SolverInput in, Comm& comm, const Solve
   in.fluid_pos_rho = std::move(pos);
   in.fluid_vel = std::move(vel);
   in.fluid_id = std::move(ids);
-  in.reduce_step_stats = [&comm](StepStats& s) {
-    float v[2] = {s.max_speed2, s.max_accel2};
-    comm.max(v, 2);
-    s.max_speed2 = v[0];
-    s.max_accel2 = v[1];
-  };
-  const double bin = 0.5 * double(in.params.spacing);
-  return std::make_unique<SlabSolver>(make(in), comm, plan, total, bin, opt);
+  auto transport = backend == Backend::Cuda ? make_nccl_transport(comm) : make_mpi_transport(comm);
+  in.transport = transport.get();
+  auto slab = std::make_unique<SlabSolver>(std::move(transport), comm, plan, 0.5 * double(in.params.spacing), opt);
+  slab->start(make(in));
+  return slab;
 }
 
 }  // namespace sphray

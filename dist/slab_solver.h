@@ -1,16 +1,17 @@
 // A simulation over several ranks (MPI processes), one slab of the domain
-// each (slabs.h): each rank steps the particles it owns with the
-// solver of an ordinary run, among copies ("ghosts") of its neighbours'
-// particles within two support radii of its slab. Per step:
-//   1. the inner solver's step; its step statistics are reduced over the
-//      ranks before the step's size is chosen (SolverInput::reduce_step_stats),
-//      so every rank takes the same dt;
-//   2. one exchange: each rank sends every particle it owns that left its
-//      slab to the new owner, and copies every owned particle within the
-//      halo of a neighbouring slab to that rank as a ghost (one all-to-all);
-//      ghosts of the last step are dropped, the new set sorted (put_fluid);
-//   3. every `rebalance_every` steps, the cuts move to the quantiles of the
-//      particles when the counts differ by more than `rebalance_above`.
+// each (slabs.h): each rank steps the particles it owns with the solver of
+// an ordinary run, among copies ("ghosts") of its neighbours' particles
+// within two support radii of its slab. Per step, inside the solver
+// (sph/exchange.h, Solver::set_slab), on its backend:
+//   1. the step's extremes are reduced over the ranks before its size is
+//      chosen, so every rank takes the same dt;
+//   2. after the particles move, one exchange: every particle that left the
+//      slab goes to its new owner, and copies of the owned particles within
+//      the halo of a neighbouring slab go there as ghosts (the ghosts of the
+//      last step are dropped); then the grid is built as in any step.
+// The transport is MPI on the CPU backend and NCCL on CUDA (dist/transport.h).
+// Every `rebalance_every` steps the cuts move toward the quantiles of the
+// particles when the ranks' counts differ by more than `rebalance_above`.
 // Why two support radii: WCSPH's step reads its neighbours' state (position,
 // density, predicted velocity, p / rho^2: all from the start of the step) and
 // the wall particles' pressure, which each wall particle sums from the fluid
@@ -52,7 +53,8 @@ SlabPlan plan_slabs(const SolverInput& in, int ranks);
 // This rank's solver of a decomposed run: `in` holds the whole run's
 // particles (every rank resolves the same scene); the rank keeps its own.
 // Collective: every rank calls it. WCSPH only (std::invalid_argument else).
-std::unique_ptr<Solver> make_slab_solver(SolverInput in, Comm& comm, const SolverMaker& make,
+// The transport follows the backend: MPI for the CPU, NCCL for CUDA.
+std::unique_ptr<Solver> make_slab_solver(SolverInput in, Comm& comm, Backend backend, const SolverMaker& make,
                                          const SlabOptions& opt = {});
 
 }  // namespace sphray

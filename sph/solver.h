@@ -18,6 +18,7 @@
 #include "obstacles.h"
 #include "params.h"
 #include "dfsph_params.h"
+#include "exchange.h"
 #include "pbf_params.h"
 #include "skin_params.h"
 #include "solver_kind.h"
@@ -73,23 +74,13 @@ struct SolverInput {
   // the direct loop (the tests use 0 and 1 to check that path).
   int pair_mask_words = -1;
   // A decomposed run (dist/slab_solver.h): each fluid particle's index in the
-  // whole run's initial list (empty: 0, 1, ..., n - 1), and a call that
-  // reduces this rank's step statistics over all ranks, made on the host
-  // before the step's size is chosen, so that every rank takes the same dt
-  // (null: none). WCSPH only.
+  // whole run's initial list (empty: 0, 1, ..., n - 1), and the transport
+  // over the ranks (sph/exchange.h; it outlives the solver): the step's
+  // extremes are reduced over the ranks before its size is chosen, so that
+  // every rank takes the same dt, and each step ends with the exchange of
+  // particles with the other ranks (Solver::set_slab). WCSPH only.
   std::vector<uint32_t> fluid_id;
-  std::function<void(StepStats&)> reduce_step_stats;
-};
-
-// The fluid state a step hands to the next, on the host (a decomposed run
-// moves particles between ranks with it): pos x, y, z, density; vel; flow
-// (what neighbours read: WCSPH's predicted velocity and p / rho^2); the id;
-// the status (integrate.h: kStatusGhost marks another rank's particle).
-struct FluidState {
-  std::vector<Float4> pos, vel, flow;
-  std::vector<uint32_t> id;
-  std::vector<uint8_t> status;
-  size_t size() const { return pos.size(); }
+  ParticleTransport* transport = nullptr;
 };
 
 // Host copy of the fluid state, in the solver's current (sorted) order.
@@ -98,6 +89,7 @@ struct HostParticles {
   std::vector<Vec3f> pos, vel;
   std::vector<float> density;
   std::vector<std::array<float, 6>> presence;  // empty when presence is off
+  std::vector<uint8_t> status;  // integrate.h (kStatusGhost: another rank's particle); empty from PBF and DFSPH
 };
 
 // The solver's current fluid state where its backend keeps it (device pointers
@@ -193,11 +185,14 @@ class Solver {
   // solver's backend into a buffer it keeps (valid until the next step);
   // null for a solver without one (PBF). WCSPH: tait_pressure of the density.
   virtual const float* device_pressure() { return nullptr; }
-  // The fluid state between steps (FluidState), and its replacement: the
-  // particles of put_fluid become the solver's (sorted, with a fresh grid) for
-  // the next step. WCSPH only; the others throw std::logic_error.
-  virtual FluidState take_fluid() const { throw std::logic_error("this solver cannot hand over its particles"); }
-  virtual void put_fluid(const FluidState&) { throw std::logic_error("this solver cannot take particles"); }
+  // A decomposed run: this rank's slab and its neighbours' (sph/exchange.h).
+  // Exchanges particles with the other ranks at once (collective), and so
+  // does every later step, after it moves them: the particles that left the
+  // slab go to their owners, and copies of those within the halo of a
+  // neighbouring slab go there as ghosts (integrate.h, kStatusGhost: read by
+  // the neighbour loops, never moved, counted, or returned by num_fluid()).
+  // Solvers other than WCSPH throw std::logic_error.
+  virtual void set_slab(const SlabBounds&) { throw std::logic_error("this solver cannot run over several ranks"); }
   // Called by the run loop at every output frame before the sinks read the
   // solver (a decomposed run gathers its ranks' particles then).
   virtual void gather_frame() {}

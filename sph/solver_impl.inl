@@ -12,6 +12,7 @@
 
 #include "nsearch/sort.inl"
 #include "particle_copies.inl"
+#include "exchange_impl.inl"
 #include "wall_particles.inl"
 
 // The particle data into the new sorted order, one kernel for all of it
@@ -43,7 +44,7 @@ class SolverImpl final : public Solver {
   explicit SolverImpl(const SolverInput& in)
       : prm_(in.params), grid_(in.grid), cfl_(in.cfl), min_dt_(in.min_dt), max_dt_(in.max_dt),
         n_(uint32_t(in.fluid_pos_rho.size())), covariance_radius_(in.covariance_radius),
-        reduce_step_stats_(in.reduce_step_stats),
+        transport_(in.transport),
         obstacles_(make_obstacle_set(kBackend, in.obstacles, in.params.spacing)), walls_(in, in.grid) {
     if (covariance_radius_ > prm_.kernel.support())
       throw std::invalid_argument("WCSPH: the covariance radius exceeds the kernel's support");
@@ -76,7 +77,7 @@ class SolverImpl final : public Solver {
   SolverKind kind() const override { return SolverKind::Wcsph; }
   double time() const override { return t_; }
   uint64_t steps() const override { return steps_; }
-  size_t num_fluid() const override { return n_; }
+  size_t num_fluid() const override { return n_ - ghosts_; }
   size_t num_removed() const override { return removed_; }
   uint64_t num_clamped() const override {
     // Clamps of the last integration are not yet in clamped_total_.
@@ -105,7 +106,7 @@ class SolverImpl final : public Solver {
     return b(pos_) + b(vel_) + b(flow_) + b(pos_tmp_) + b(vel_tmp_) + b(flow_tmp_) + b(accel_) + b(rate_grad_) + b(presence_) + b(presence_tmp_) + b(covariance_) + b(covariance_tmp_) + b(id_) +
            b(id_tmp_) + b(status_) + b(status_tmp_) + b(keys_) + b(order_) + b(offsets_) + b(fine_offsets_) + b(wall_) +
            b(fluid_pairs_) + b(boundary_pairs_) + b(fluid_pair_count_) + b(boundary_pair_count_) + b(fluid_near_) +
-           walls_.bytes() + raw_copies_.bytes();
+           walls_.bytes() + raw_copies_.bytes() + exchange_.bytes();
   }
 
   // Stage order: pairs (wall pressure, then one neighbour loop for the
@@ -130,16 +131,14 @@ class SolverImpl final : public Solver {
     StepControl* control = raw(control_);
     transform_reduce_into(n_, StepStatsOf{const_state(), pair_results()}, CombineStepStats(), kEmptyStepStats,
                           &control->stats);
-    if (reduce_step_stats_) {  // a decomposed run: one dt for all ranks (waits for the reduction)
-      StepControl c = read_one(control_, 0);
-      reduce_step_stats_(c.stats);
-      control_[0] = c;
-    }
+    // A decomposed run: the extremes over all ranks, so that every rank takes one dt.
+    if (transport_) transport_->max(&control->stats.max_speed2, 2);
     parallel_for("choose_step", 1,
                  ChooseStep{step_rule(), min_dt_, std::max(until - t_, 0.0), control, const_state(), pair_results()});
     parallel_for("advance", n_, Advance{prm_, control, state(), pair_results(), obstacles_.view});
     control_read_.start(control);
     clock_.end_of("integrate");
+    if (transport_) exchange();
     build_grid(control);
     clock_.end_of("grid");
     clock_.finish();
@@ -154,31 +153,17 @@ class SolverImpl final : public Solver {
     ++steps_;
   }
 
-  FluidState take_fluid() const override {
-    namespace bk = sphray::SPHRAY_BK;
-    return {bk::download(pos_, n_), bk::download(vel_, n_), bk::download(flow_, n_), bk::download(id_, n_),
-            bk::download(status_, n_)};
-  }
-
-  void put_fluid(const FluidState& s) override {
-    const uint32_t n = uint32_t(s.size());
-    if (s.vel.size() != n || s.flow.size() != n || s.id.size() != n || s.status.size() != n)
-      throw std::invalid_argument("WCSPH: put_fluid's arrays differ in length");
-    fit(n);
-    n_ = n;
-    if (n) {
-      thrust::copy(s.pos.begin(), s.pos.end(), pos_.begin());
-      thrust::copy(s.vel.begin(), s.vel.end(), vel_.begin());
-      thrust::copy(s.flow.begin(), s.flow.end(), flow_.begin());
-      thrust::copy(s.id.begin(), s.id.end(), id_.begin());
-      thrust::copy(s.status.begin(), s.status.end(), status_.begin());
-    }
-    presence_valid_ = false;
+  void set_slab(const SlabBounds& bounds) override {
+    if (!transport_) throw std::logic_error("WCSPH: set_slab without a transport (SolverInput::transport)");
+    bounds_ = bounds;
+    exchange();
     build_grid();
   }
 
   HostParticles download() const override {
-    return download_particles(id_, pos_, vel_, presence_valid_ ? &presence_ : nullptr, n_);
+    HostParticles h = download_particles(id_, pos_, vel_, presence_valid_ ? &presence_ : nullptr, n_);
+    h.status = sphray::SPHRAY_BK::download(status_, n_);
+    return h;
   }
 
   // On CUDA the copies run behind the next steps (RawCopies): out.ready
@@ -202,6 +187,18 @@ class SolverImpl final : public Solver {
                       E == kPairPresenceCovariance ? raw(covariance_) : nullptr,
                       covariance_radius_ > 0 ? 1.0f / covariance_radius_ : 0.0f};
     return {prm_, grid_, fluid_in(), walls, fluid_pairs(), boundary_pairs(), out, n_};
+  }
+
+  // The exchange after a step (exchange_impl.inl): the particles this rank
+  // holds from now on, in the arrays, unsorted (build_grid follows).
+  void exchange() {
+    const ExchangeResult r = exchange_particles(exchange_, bounds_, *transport_, const_state(), n_, [&](uint32_t n) {
+      fit(n);
+      return state();
+    });
+    n_ = r.n;
+    ghosts_ = r.n - r.owned;
+    presence_valid_ = false;  // in the old order
   }
 
   // Grows every per-particle buffer to hold n particles (never shrinks: a
@@ -276,6 +273,12 @@ class SolverImpl final : public Solver {
     // sorted last: drop them. Reading their count waits for the sort, so a
     // closed tank does not.
     const uint32_t active = prm_.open_top ? read_one(offsets_, grid_.num_cells()) : n_;
+    // Of those, other ranks' ghosts are not the run's to count as removed.
+    uint32_t ghosts_gone = 0;
+    if (active < n_ && ghosts_ > 0) {
+      const auto dropped = thrust::make_permutation_iterator(status_.begin(), order_.begin() + active);
+      ghosts_gone = uint32_t(thrust::count(policy(), dropped, dropped + (n_ - active), uint8_t(kStatusGhost)));
+    }
     const ParticleArrays out{raw(pos_tmp_), raw(vel_tmp_), raw(flow_tmp_), raw(id_tmp_), raw(status_tmp_),
                              raw(presence_tmp_), raw(covariance_tmp_)};
     parallel_for("gather_particles", active, GatherParticles{raw(order_), const_state(), n_, out, active});
@@ -286,7 +289,8 @@ class SolverImpl final : public Solver {
     status_.swap(status_tmp_);
     if (presence_valid_) presence_.swap(presence_tmp_);
     if (covariance_valid()) covariance_.swap(covariance_tmp_);
-    removed_ += n_ - active;
+    removed_ += (n_ - active) - ghosts_gone;
+    ghosts_ -= ghosts_gone;
     n_ = active;
     parallel_for("fluid_cells_near", grid_.num_cells(), CellsNear{grid_, raw(fine_offsets_), raw(fluid_near_)});
     // The pair masks of the next step's pair loop (nsearch/pair_masks.h), at these positions.
@@ -357,7 +361,12 @@ class SolverImpl final : public Solver {
   double cfl_, min_dt_, max_dt_;
   uint32_t n_;
   float covariance_radius_;  // [m] SolverInput::covariance_radius
-  std::function<void(StepStats&)> reduce_step_stats_;  // SolverInput::reduce_step_stats
+  // A decomposed run (set_slab): the transport, the slabs, the exchange's
+  // buffers, and how many of the n_ particles are other ranks' ghosts.
+  ParticleTransport* transport_ = nullptr;
+  SlabBounds bounds_;
+  ExchangeBuffers exchange_;
+  uint32_t ghosts_ = 0;
   PresenceMode presence_mode_ = PresenceMode::Off;
   bool presence_valid_ = false;
   double t_ = 0;

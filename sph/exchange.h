@@ -1,0 +1,76 @@
+// A decomposed run's per-step traffic as the solver sees it (the ranks and
+// their slabs are dist/'s, slab_solver.h): which particles go where after a
+// step, and the transport that carries them (MPI on the CPU backend, NCCL on
+// CUDA). The solver does the work on its own backend, so on CUDA the
+// particles never leave the GPU.
+#pragma once
+
+#include <cstdint>
+
+#include "core/vec.h"
+
+namespace sphray {
+
+// A particle as it travels between ranks: what the next step reads of it.
+struct ExchangeRecord {
+  Float4 pos, vel, flow;  // x, density; v; u, p / rho^2 (integrate.h)
+  uint32_t id;
+  uint32_t status;  // integrate.h; kStatusGhost for a copy
+};
+
+// Ranks a particle can go to in one exchange: its owner is this rank or a
+// neighbour (a step moves it less than a slab), and its ghost copies go to
+// the owner's neighbours: ranks me - 2 .. me + 2, index k = rank - me + 2.
+constexpr int kPeers = 5;
+constexpr int kSelf = 2;
+
+// The slabs of ranks me - 2 .. me + 2 along the cut axis (exists: the rank
+// is in the run; the first and last slabs reach to infinity outward).
+struct SlabBounds {
+  int axis = 0;
+  float lo[kPeers] = {}, hi[kPeers] = {};
+  bool exists[kPeers] = {};
+  float halo = 0;
+};
+
+// Where each particle goes: bit k of `to` for peer k; `owner` the peer that owns it.
+struct Destinations {
+  uint8_t to, owner;
+};
+
+SPHRAY_HD inline Destinations destinations_of(const SlabBounds& b, const Float4& p) {
+  const float x = b.axis == 0 ? p.x : b.axis == 1 ? p.y : p.z;
+  uint8_t owner = kSelf;
+  if (b.exists[kSelf - 1] && x < b.lo[kSelf]) owner = kSelf - 1;
+  else if (b.exists[kSelf + 1] && x >= b.hi[kSelf]) owner = kSelf + 1;
+  uint8_t to = uint8_t(1u << owner);
+  for (int k : {int(owner) - 1, int(owner) + 1}) {
+    if (k < 0 || k >= kPeers || !b.exists[k]) continue;
+    const float gap = x < b.lo[k] ? b.lo[k] - x : x >= b.hi[k] ? x - b.hi[k] : 0.0f;
+    if (gap < b.halo) to = uint8_t(to | (1u << k));
+  }
+  return {to, owner};
+}
+
+// Per peer, the records this rank sends it, and how many of them it will own.
+struct PeerCounts {
+  uint32_t total[kPeers];
+  uint32_t owned[kPeers];
+};
+
+// Carries records and reductions between the ranks, on the solver's
+// backend memory (device pointers on CUDA). Collective: every rank calls.
+class ParticleTransport {
+ public:
+  virtual ~ParticleTransport() = default;
+  // In place, element-wise maximum over all ranks.
+  virtual void max(float* values, int n) = 0;
+  // Sends `send` (host) to each existing peer k != kSelf and returns in
+  // `recv` (host) what each sent here.
+  virtual void exchange_counts(const SlabBounds& b, const PeerCounts& send, PeerCounts& recv) = 0;
+  // send[k]: send_count[k] records for peer k; recv[k]: room for recv_count[k].
+  virtual void exchange(const SlabBounds& b, ExchangeRecord* const send[kPeers], const uint32_t send_count[kPeers],
+                        ExchangeRecord* const recv[kPeers], const uint32_t recv_count[kPeers]) = 0;
+};
+
+}  // namespace sphray
