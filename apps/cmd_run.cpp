@@ -99,6 +99,9 @@ nlohmann::json completed_json(const RunSummary& r, const RunArgs& a, const Scene
                       {"particle_steps", r.particle_steps}, {"spacing_m", scene.sph.spacing},
                       {"mean_dt_s", r.mean_dt},          {"max_speed_m_s", r.max_speed},
                       {"realtime_factor", r.realtime_factor()}, {"solver", r.solver}};
+  const StageTimes& st = r.mean_stage_ms;
+  j["stage_ms"] = {{"grid", st.grid}, {"pairs", st.pairs}, {"integrate", st.integrate}, {"exchange", st.exchange}};
+  if (st.skin > 0) j["stage_ms"]["skin"] = st.skin;
   if (r.iterations_max > 0)
     j["constraint"] = {{"iterations_mean", r.iterations_mean}, {"iterations_max", r.iterations_max},
                        {"density_error_mean", r.density_error_mean}, {"density_error_max", r.density_error_max},

@@ -1,6 +1,4 @@
-// ParticleTransport over NCCL: the exchange's records and the step's
-// reduction go GPU to GPU on the stream the solver's kernels run on (the
-// legacy default stream); only the per-peer counts pass through the host.
+// ParticleTransport over NCCL (dist/transport.h).
 #include <cuda_runtime.h>
 #include <nccl.h>
 
@@ -21,48 +19,33 @@ void check(cudaError_t rc, const char* what) {
   if (rc != cudaSuccess) throw std::runtime_error(std::string("CUDA: ") + what + " failed: " + cudaGetErrorString(rc));
 }
 
+// The records go over NCCL, GPU to GPU, on the stream the solver's kernels
+// run on (the legacy default stream). The step's two extremes and the
+// per-peer counts go through the host over MPI: the host waits for both
+// anyway (it sizes the receive buffers, and reads the step's outcome), and
+// on the device machine (2 H200, NVLink) an NCCL all-reduce of two floats
+// took 2.3-2.8 ms per step against 0.1 ms for the copy and MPI_Allreduce
+// (docs/benchmarks.md, "Scale-out").
 class NcclTransport final : public ParticleTransport {
  public:
-  explicit NcclTransport(Comm& comm) : rank_(comm.rank()) {
+  explicit NcclTransport(Comm& comm) : rank_(comm.rank()), mpi_(make_mpi_transport(comm)) {
     ncclUniqueId id{};
     if (rank_ == 0) check(ncclGetUniqueId(&id), "ncclGetUniqueId");
     std::string bytes(reinterpret_cast<const char*>(&id), sizeof(id));
     comm.broadcast(bytes, 0);
     std::memcpy(&id, bytes.data(), sizeof(id));
     check(ncclCommInitRank(&comm_, comm.size(), id, rank_), "ncclCommInitRank");
-    check(cudaMalloc(&counts_, 4 * kPeers * sizeof(uint32_t)), "cudaMalloc");
   }
-  ~NcclTransport() override {
-    cudaFree(counts_);
-    ncclCommDestroy(comm_);
-  }
+  ~NcclTransport() override { ncclCommDestroy(comm_); }
   void max(float* v, int n) override {
-    check(ncclAllReduce(v, v, size_t(n), ncclFloat, ncclMax, comm_, stream()), "ncclAllReduce");
+    float h[8];
+    if (n > 8) throw std::logic_error("NcclTransport::max: at most 8 values");
+    check(cudaMemcpy(h, v, sizeof(float) * size_t(n), cudaMemcpyDeviceToHost), "cudaMemcpy");
+    mpi_->max(h, n);
+    check(cudaMemcpy(v, h, sizeof(float) * size_t(n), cudaMemcpyHostToDevice), "cudaMemcpy");
   }
   void exchange_counts(const SlabBounds& b, const PeerCounts& send, PeerCounts& recv) override {
-    uint32_t host[2 * kPeers][2] = {};
-    for (int k = 0; k < kPeers; ++k) {
-      host[k][0] = send.total[k];
-      host[k][1] = send.owned[k];
-    }
-    uint32_t* out = counts_;
-    uint32_t* in = counts_ + 2 * kPeers;
-    check(cudaMemcpyAsync(out, host, 2 * kPeers * sizeof(uint32_t), cudaMemcpyHostToDevice, stream()), "cudaMemcpyAsync");
-    check(ncclGroupStart(), "ncclGroupStart");
-    for (int k = 0; k < kPeers; ++k) {
-      if (k == kSelf || !b.exists[k]) continue;
-      check(ncclSend(out + 2 * k, 2, ncclUint32, rank_ + k - kSelf, comm_, stream()), "ncclSend");
-      check(ncclRecv(in + 2 * k, 2, ncclUint32, rank_ + k - kSelf, comm_, stream()), "ncclRecv");
-    }
-    check(ncclGroupEnd(), "ncclGroupEnd");
-    check(cudaMemcpyAsync(host[kPeers], in, 2 * kPeers * sizeof(uint32_t), cudaMemcpyDeviceToHost, stream()),
-          "cudaMemcpyAsync");
-    check(cudaStreamSynchronize(stream()), "cudaStreamSynchronize");
-    for (int k = 0; k < kPeers; ++k) {
-      const bool peer = k != kSelf && b.exists[k];
-      recv.total[k] = peer ? host[kPeers + k][0] : 0;
-      recv.owned[k] = peer ? host[kPeers + k][1] : 0;
-    }
+    mpi_->exchange_counts(b, send, recv);
   }
   void exchange(const SlabBounds& b, ExchangeRecord* const send[kPeers], const uint32_t send_count[kPeers],
                 ExchangeRecord* const recv[kPeers], const uint32_t recv_count[kPeers]) override {
@@ -71,18 +54,19 @@ class NcclTransport final : public ParticleTransport {
       if (k == kSelf || !b.exists[k]) continue;
       const int peer = rank_ + k - kSelf;
       if (send_count[k] > 0)
-        check(ncclSend(send[k], send_count[k] * sizeof(ExchangeRecord), ncclChar, peer, comm_, stream()), "ncclSend");
+        check(ncclSend(send[k], send_count[k] * sizeof(ExchangeRecord), ncclChar, peer, comm_, cudaStreamLegacy),
+              "ncclSend");
       if (recv_count[k] > 0)
-        check(ncclRecv(recv[k], recv_count[k] * sizeof(ExchangeRecord), ncclChar, peer, comm_, stream()), "ncclRecv");
+        check(ncclRecv(recv[k], recv_count[k] * sizeof(ExchangeRecord), ncclChar, peer, comm_, cudaStreamLegacy),
+              "ncclRecv");
     }
     check(ncclGroupEnd(), "ncclGroupEnd");
   }
 
  private:
-  static cudaStream_t stream() { return cudaStreamLegacy; }
   int rank_;
+  std::unique_ptr<ParticleTransport> mpi_;  // the counts and the extremes
   ncclComm_t comm_{};
-  uint32_t* counts_ = nullptr;  // device: 2 x kPeers sent, 2 x kPeers received
 };
 
 }  // namespace

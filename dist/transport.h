@@ -1,6 +1,7 @@
 // The transports of a decomposed run's per-step traffic (sph/exchange.h):
-// MPI point-to-point on the CPU backend (host memory), NCCL on CUDA (device
-// memory, GPU to GPU; its communicator set up from an MPI-broadcast id).
+// MPI point-to-point on the CPU backend (host memory); on CUDA the particles
+// go GPU to GPU over NCCL (its communicator set up from an MPI-broadcast id),
+// the step's extremes and the per-peer counts over MPI through the host.
 #pragma once
 
 #include <memory>

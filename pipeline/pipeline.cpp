@@ -74,6 +74,7 @@ struct StepTally {
   void add(const Solver& solver, bool free, RunSummary& r) {
     const StageTimes& st = solver.last_stage_times();
     sum.grid += st.grid; sum.pairs += st.pairs; sum.integrate += st.integrate; sum.skin += st.skin;
+    sum.exchange += st.exchange;
     const StepLimits& l = solver.last_limits();
     if (free) {
       dt_sum += l.dt;
@@ -105,7 +106,8 @@ void finish_summary(RunSummary& r, const Solver& solver, const StepTally& tally,
   r.clamped = solver.num_clamped();
   if (r.steps) {
     const double k = 1.0 / double(r.steps);
-    r.mean_stage_ms = {tally.sum.grid * k, tally.sum.pairs * k, tally.sum.integrate * k, tally.sum.skin * k};
+    r.mean_stage_ms = {tally.sum.grid * k, tally.sum.pairs * k, tally.sum.integrate * k, tally.sum.skin * k,
+                       tally.sum.exchange * k};
     r.iterations_mean = tally.iterations_sum * k;
     r.divergence_iterations_mean = tally.divergence_iterations_sum * k;
     r.density_error_mean = tally.density_error_sum * k;
@@ -275,6 +277,7 @@ void print_summary(const RunSummary& r, std::ostream& log) {
       << ", pairs (forces, density rate, presence where needed) " << r.mean_stage_ms.pairs << ", integrate "
       << r.mean_stage_ms.integrate;
   if (r.mean_stage_ms.skin > 0) log << ", obstacle skins " << r.mean_stage_ms.skin;
+  if (r.mean_stage_ms.exchange > 0) log << ", exchange with the other ranks " << r.mean_stage_ms.exchange;
   log << "\n";
   if (r.field_builds)
     log << "  field          " << r.field_builder << " builder, " << r.field_kernel << " kernels, " << r.field_dims[0]

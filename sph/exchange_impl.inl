@@ -39,20 +39,24 @@ struct AddPeerCounts {
   }
 };
 
-// Particle i as a record for peer k: a ghost copy unless k owns it.
-struct ToRecord {
+// Particle i into the buffer of each peer it goes to, at its place in the
+// particles' order there (the inclusive scan of the counts, less one): a
+// ghost copy unless the peer owns it.
+struct ScatterRecords {
   ConstParticleArrays s;
   const Destinations* d;
-  int k;
-  SPHRAY_HD ExchangeRecord operator()(uint32_t i) const {
-    return {s.pos[i], s.vel[i], s.flow[i], s.id[i], d[i].owner == k ? uint32_t(s.status[i]) : uint32_t(kStatusGhost)};
+  const PeerCounts* upto;  // inclusive scan of CountDestinations
+  ExchangeRecord* out[kPeers];
+  SPHRAY_HD void operator()(uint32_t i) const {
+    const Destinations di = d[i];
+    if (di.to == 0) return;
+    ExchangeRecord r{s.pos[i], s.vel[i], s.flow[i], s.id[i], uint32_t(kStatusGhost)};
+    for (int k = 0; k < kPeers; ++k) {
+      if (!((di.to >> k) & 1u)) continue;
+      r.status = di.owner == k ? uint32_t(s.status[i]) : uint32_t(kStatusGhost);
+      out[k][upto[i].total[k] - 1u] = r;
+    }
   }
-};
-
-struct GoesTo {
-  const Destinations* d;
-  int k;
-  SPHRAY_HD bool operator()(uint32_t i) const { return (d[i].to >> k) & 1u; }
 };
 
 struct UnpackRecords {
@@ -73,10 +77,10 @@ struct UnpackRecords {
 // The buffers of the exchange, kept from step to step (they only grow).
 struct ExchangeBuffers {
   Vector<Destinations> dest;
-  Vector<PeerCounts> counts = Vector<PeerCounts>(1);
+  Vector<PeerCounts> upto;
   Vector<ExchangeRecord> send[kPeers], recv[kPeers];
   size_t bytes() const {
-    size_t b = dest.size() * sizeof(Destinations);
+    size_t b = dest.size() * sizeof(Destinations) + upto.size() * sizeof(PeerCounts);
     for (int k = 0; k < kPeers; ++k) b += (send[k].size() + recv[k].size()) * sizeof(ExchangeRecord);
     return b;
   }
@@ -99,9 +103,23 @@ template <class Fit>
 ExchangeResult exchange_particles(ExchangeBuffers& buf, const SlabBounds& bounds, ParticleTransport& transport,
                                   ConstParticleArrays s, uint32_t n, Fit&& fit) {
   grow_to(buf.dest, n);
+  grow_to(buf.upto, n);
   parallel_for("exchange_classify", n, ClassifyForExchange{bounds, s.pos, s.status, raw(buf.dest)});
-  transform_reduce_into(n, CountDestinations{raw(buf.dest)}, AddPeerCounts(), PeerCounts{}, raw(buf.counts));
-  const PeerCounts send = read_one(buf.counts, 0);
+  // One scan gives every particle its place in each peer's buffer, and in
+  // its last element the counts (the one read the host waits for).
+  PeerCounts send{};
+  if (n > 0) {
+    thrust::transform_inclusive_scan(policy(), thrust::counting_iterator<uint32_t>(0),
+                                     thrust::counting_iterator<uint32_t>(n), buf.upto.begin(),
+                                     CountDestinations{raw(buf.dest)}, AddPeerCounts());
+    send = read_one(buf.upto, n - 1);
+  }
+  ScatterRecords scatter{s, raw(buf.dest), raw(buf.upto), {}};
+  for (int k = 0; k < kPeers; ++k) {
+    grow_to(buf.send[k], send.total[k]);
+    scatter.out[k] = raw(buf.send[k]);
+  }
+  parallel_for("exchange_pack", n, scatter);
   PeerCounts recv{};
   transport.exchange_counts(bounds, send, recv);
   recv.total[kSelf] = send.total[kSelf];
@@ -109,14 +127,7 @@ ExchangeResult exchange_particles(ExchangeBuffers& buf, const SlabBounds& bounds
   ExchangeRecord* send_ptr[kPeers];
   ExchangeRecord* recv_ptr[kPeers];
   for (int k = 0; k < kPeers; ++k) {
-    grow_to(buf.send[k], send.total[k]);
     send_ptr[k] = raw(buf.send[k]);
-    if (send.total[k] > 0) {
-      const auto records = thrust::make_transform_iterator(thrust::counting_iterator<uint32_t>(0),
-                                                           ToRecord{s, raw(buf.dest), k});
-      thrust::copy_if(policy(), records, records + n, thrust::counting_iterator<uint32_t>(0), buf.send[k].begin(),
-                      GoesTo{raw(buf.dest), k});
-    }
     if (k != kSelf) grow_to(buf.recv[k], recv.total[k]);
     recv_ptr[k] = k == kSelf ? nullptr : raw(buf.recv[k]);
   }

@@ -143,7 +143,8 @@ struct SolveStats {
 struct StageTimes {
   double grid = 0, pairs = 0, integrate = 0;
   double skin = 0;  // the obstacles' skin waves (sph/skin.h), when the scene has any
-  double total() const { return grid + pairs + integrate + skin; }
+  double exchange = 0;  // a decomposed run's exchange of particles with the other ranks (sph/exchange.h)
+  double total() const { return grid + pairs + integrate + skin + exchange; }
 };
 
 class SkinSet;

@@ -139,6 +139,7 @@ class SolverImpl final : public Solver {
     control_read_.start(control);
     clock_.end_of("integrate");
     if (transport_) exchange();
+    clock_.end_of("exchange");
     build_grid(control);
     clock_.end_of("grid");
     clock_.finish();
@@ -149,6 +150,7 @@ class SolverImpl final : public Solver {
     limits_ = c.limits;
     if (c.outcome == kStepBelowFloor) throw SimulationError(describe_dt_floor());
     times_ = {clock_.ms("grid"), clock_.ms("pairs"), clock_.ms("integrate")};
+    times_.exchange = clock_.ms("exchange");
     t_ += limits_.dt;
     ++steps_;
   }
