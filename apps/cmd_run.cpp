@@ -3,6 +3,7 @@
 #include <cerrno>
 #include <iomanip>
 #include <iostream>
+#include <optional>
 #include <set>
 
 #include "cli.h"
@@ -26,7 +27,7 @@ struct ExportArgs {
 };
 
 struct RunArgs {
-  std::string scene_path, backend = "auto", metrics_csv, summary_json;
+  std::string scene_path, backend = "auto", metrics_csv, summary_json, resume;
   std::vector<std::string> sets;
   bool quiet = false;
   ExportArgs ex;
@@ -151,7 +152,7 @@ void print_outputs(RunOutputs& o, const RunArgs& a, const Scene& scene) {
 void check_outputs(const RunArgs& a) {
   const ExportArgs& ex = a.ex;
   if (ex.path.empty() && !ex.fields.empty()) throw std::runtime_error("--export-fields needs --export FILE");
-  check_distinct_files({{"scene file", a.scene_path}, {"--export", ex.path}, {"--metrics-csv", a.metrics_csv},
+  check_distinct_files({{"scene file", a.scene_path}, {"--export", ex.path}, {"--resume", a.resume}, {"--metrics-csv", a.metrics_csv},
                         {"--summary-json", a.summary_json}, {"--frames-dir", a.fa.dir},
                         {"the export's XDMF sidecar", ex.path.empty() || xdmf_path(ex.path) == ex.path
                                                           ? std::string()  // refused by FrameWriter, by name
@@ -168,6 +169,17 @@ void write_stopped_summary(std::ofstream& summary, const std::string& error, con
                             {"sim_time_s", solver.time()}, {"spacing_m", scene.sph.spacing}}
                  .dump(2)
           << "\n";
+}
+
+// The last frame of an export, to resume from (--resume).
+Frame last_frame(const std::string& path) {
+  try {
+    const FrameReader reader(path);
+    if (reader.frames().empty()) throw std::runtime_error("--resume: " + path + " holds no frame");
+    return reader.read(reader.frames().size() - 1);
+  } catch (const FrameFileError& e) {
+    throw std::runtime_error(std::string("--resume: ") + e.what());
+  }
 }
 
 // The ranks of this run: MPI's when an MPI launcher started it, else one.
@@ -228,6 +240,8 @@ int cmd_run(RunArgs a) {
     if (!a.summary_json.empty()) out.summary = open_output("--summary-json", a.summary_json);
   }
   const Backend b = choose_backend(a.backend, std::cout);
+  std::optional<Frame> resume;
+  if (!a.resume.empty()) resume = last_frame(a.resume);
   // The sinks say what they need; the stages follow from that.
   const StageNeeds needs = needs_of(scene, out.sinks());
   std::unique_ptr<Solver> solver;
@@ -235,14 +249,14 @@ int cmd_run(RunArgs a) {
     check_several_ranks(a, scene, needs, fields_asked);
     pick_rank_device(b);
     const SolverMaker make = b == Backend::Cuda ? SolverMaker(make_cuda_solver) : SolverMaker(make_cpu_solver);
-    const SolverInput in = make_solver_input(rs, needs.presence);
+    const SolverInput in = make_solver_input(rs, needs.presence, resume ? &*resume : nullptr);
     const SlabPlan plan = plan_slabs(in, comm->size());
     std::cout << "ranks: " << comm->size() << " slabs along " << axis_name(plan.axis) << ", cut at";
     for (double c : plan.cuts) std::cout << " " << c;
     std::cout << " m, halo " << plan.halo << " m\n";
     solver = make_slab_solver(in, *comm, b, make);
   } else {
-    solver = make_solver(rs, b, needs);
+    solver = make_solver(rs, b, needs, resume ? &*resume : nullptr);
   }
   auto field = make_field(rs, b, needs);
   if (out.png) out.png->open(scene, b, make_field_setup(rs));
@@ -254,6 +268,9 @@ int cmd_run(RunArgs a) {
     }
   }
   print_start(rs, a.scene_path, *solver);
+  if (resume)
+    std::cout << "resumed from " << a.resume << " at t = " << resume->time << " s (step " << resume->step << ", "
+              << resume->count() << " particles)\n";
 
   RunOptions opt;
   opt.progress = !a.quiet;
@@ -286,6 +303,9 @@ CLI::App* add_run_command(CLI::App& app, int& exit_code) {
   run->add_option("--metrics-csv", a->metrics_csv, "write time, surge front, kinetic energy per output interval");
   run->add_option("--summary-json", a->summary_json, "write the run summary as JSON");
   run->add_flag("--quiet", a->quiet, "no progress lines");
+  run->add_option("--resume", a->resume,
+                  "start from the last frame of this export (written with --export-fields velocity,density), on any "
+                  "number of ranks");
   run->add_option("--export", a->ex.path, "write frames to this HDF5 file (docs/formats.md)");
   run->add_option("--export-every", a->ex.every, "export every K-th output frame (default 1)")
       ->check(CLI::Range(1, 1000000));

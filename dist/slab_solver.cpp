@@ -219,7 +219,7 @@ std::unique_ptr<Solver> make_slab_solver(SolverInput in, Comm& comm, Backend bac
     if (plan.owner(coordinate(in.fluid_pos_rho[i], plan.axis)) == comm.rank()) {
       pos.push_back(in.fluid_pos_rho[i]);
       vel.push_back(in.fluid_vel[i]);
-      ids.push_back(i);
+      ids.push_back(in.fluid_id.empty() ? i : in.fluid_id[i]);
     }
   in.fluid_pos_rho = std::move(pos);
   in.fluid_vel = std::move(vel);

@@ -42,9 +42,10 @@ StageNeeds needs_of(const Scene& s, const std::vector<OutputSink*>& sinks) {
   return n;
 }
 
-std::unique_ptr<Solver> make_solver(const ResolvedScene& r, Backend b, const StageNeeds& needs) {
+std::unique_ptr<Solver> make_solver(const ResolvedScene& r, Backend b, const StageNeeds& needs,
+                                    const Frame* resume) {
   check_fits(r, b, needs.field);
-  const SolverInput in = make_solver_input(r, needs.presence);
+  const SolverInput in = make_solver_input(r, needs.presence, resume);
   return b == Backend::Cuda ? make_cuda_solver(in) : make_cpu_solver(in);
 }
 
@@ -178,7 +179,8 @@ RunSummary run_scene(const Scene& s, Solver& solver, const RunOptions& opt, std:
   const double end = s.run.end_time, every = s.run.output_interval;
   const auto t0 = clock::now();
   auto last_print = t0;
-  int frame = 0;
+  // A resumed run starts at the output frame of its time.
+  int frame = int(std::lround(solver.time() / every));
   double field_ms = 0;
   // What frame k needs: the field at every frame for a scene with a "field"
   // section, else where a sink needs it; presence toward it (when the solver

@@ -78,7 +78,8 @@ class FunctionSink final : public OutputSink {
 // needs it, or never.
 StageNeeds needs_of(const Scene& s, const std::vector<OutputSink*>& sinks = {});
 
-std::unique_ptr<Solver> make_solver(const ResolvedScene& r, Backend b, const StageNeeds& needs);
+std::unique_ptr<Solver> make_solver(const ResolvedScene& r, Backend b, const StageNeeds& needs,
+                                    const Frame* resume = nullptr);
 // The scene's field builder, or null when no stage needs a field.
 std::unique_ptr<FieldBuilder> make_field(const ResolvedScene& r, Backend b, const StageNeeds& needs);
 

@@ -420,7 +420,45 @@ bool field_needs_presence_step(const Scene& s, FieldKind builder, bool anisotrop
   return builder == FieldKind::Presence || (anisotropic && pair_loop_covariance_radius(s) > 0);
 }
 
-SolverInput make_solver_input(const ResolvedScene& r, PresenceMode presence) {
+namespace {
+
+// The fluid of `in` replaced by the frame's: its particles (by id), time and step.
+void resume_from(SolverInput& in, const Frame& f, const Scene& s, bool moving_obstacles) {
+  const size_t n = f.count();
+  if (f.velocity.size() != 3 * n || f.density.size() != n)
+    throw std::runtime_error("--resume: the frame has no velocity or density (export the run with "
+                             "--export-fields velocity,density to resume from it)");
+  if (moving_obstacles || !in.skins.empty())
+    throw std::runtime_error("--resume: a scene with moving obstacles or skin waves cannot be resumed (their state "
+                             "is not in the export)");
+  if (f.time >= s.run.end_time - 1e-12)
+    throw std::runtime_error("--resume: the frame is at t = " + std::to_string(f.time) + " s, not before run.end_time = " +
+                             std::to_string(s.run.end_time) + " s");
+  const size_t lattice = in.fluid_pos_rho.size();
+  bool complete = n == lattice;
+  for (size_t i = 0; i < n; ++i) {
+    if (f.id[i] >= lattice)
+      throw std::runtime_error("--resume: the frame holds particle id " + std::to_string(f.id[i]) + " but this scene has " +
+                               std::to_string(lattice) + " fluid particles: it was exported from another scene or "
+                               "spacing");
+    complete = complete && f.id[i] == i;
+  }
+  if (!complete && in.kind != SolverKind::Wcsph)
+    throw std::runtime_error("--resume: particles left the run before this frame; only the wcsph solver resumes such a run");
+  in.fluid_pos_rho.resize(n);
+  in.fluid_vel.resize(n);
+  for (size_t i = 0; i < n; ++i) {
+    in.fluid_pos_rho[i] = {f.position[3 * i], f.position[3 * i + 1], f.position[3 * i + 2], f.density[i]};
+    in.fluid_vel[i] = {f.velocity[3 * i], f.velocity[3 * i + 1], f.velocity[3 * i + 2], 0.0f};
+  }
+  in.fluid_id = complete ? std::vector<uint32_t>{} : f.id;
+  in.start_time = f.time;
+  in.start_step = f.step;
+}
+
+}  // namespace
+
+SolverInput make_solver_input(const ResolvedScene& r, PresenceMode presence, const Frame* resume) {
   const Scene& s = r.scene;
   const SceneSize& z = r.size;
   SolverInput in;
@@ -526,6 +564,7 @@ SolverInput make_solver_input(const ResolvedScene& r, PresenceMode presence) {
       throw SceneError(os.str());
     }
   }
+  if (resume) resume_from(in, *resume, s, any_moving);
   return in;
 }
 

@@ -9,6 +9,7 @@
 #include "field/field.h"
 #include "render/render.h"
 #include "sph/skin.h"
+#include "io/frames_h5.h"
 #include "io/scene.h"
 #include "sph/solver.h"
 
@@ -57,7 +58,10 @@ DfsphParams make_dfsph_params(const Scene& s);
 // artificial viscosity amounts to in this scene, alpha h c0 / 10 [m^2/s].
 double auto_dfsph_viscosity(const Scene& s);
 SceneSize measure_scene(const Scene& s);  // counts only; generates nothing
-SolverInput make_solver_input(const ResolvedScene& r, PresenceMode presence);
+// `resume`: the last frame of an earlier run's export (--resume), whose
+// particles, time and step the run starts from; it needs velocity and
+// density (std::runtime_error naming what is missing or does not match).
+SolverInput make_solver_input(const ResolvedScene& r, PresenceMode presence, const Frame* resume = nullptr);
 // [m] The anisotropic field's neighbourhood radius when the solver's own
 // neighbour loop can sum its covariance (WCSPH, radius within its support:
 // SolverInput::covariance_radius), else 0 (the field builder's own pass).

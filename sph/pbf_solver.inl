@@ -15,6 +15,8 @@ class PbfSolverImpl final : public Solver {
       : prm_(in.params), pbf_(in.pbf), grid_(in.grid), cfl_(in.cfl), min_dt_(in.min_dt), max_dt_(in.max_dt),
         n_(uint32_t(in.fluid_pos_rho.size())), obstacles_(make_obstacle_set(kBackend, in.obstacles, in.params.spacing)),
         walls_(in, in.grid) {
+    t_ = in.start_time;
+    steps_ = in.start_step;
     const size_t n = n_;
     upload(pos_, in.fluid_pos_rho);
     upload(vel_, in.fluid_vel);

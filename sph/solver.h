@@ -81,6 +81,9 @@ struct SolverInput {
   // particles with the other ranks (Solver::set_slab). WCSPH only.
   std::vector<uint32_t> fluid_id;
   ParticleTransport* transport = nullptr;
+  // A resumed run (--resume): the time and step count of the state above.
+  double start_time = 0;
+  uint64_t start_step = 0;
 };
 
 // Host copy of the fluid state, in the solver's current (sorted) order.

@@ -49,6 +49,8 @@ class SolverImpl final : public Solver {
     if (covariance_radius_ > prm_.kernel.support())
       throw std::invalid_argument("WCSPH: the covariance radius exceeds the kernel's support");
     const size_t n = n_, cells = size_t(grid_.num_cells()) + 1, slabs = size_t(grid_.num_fine_cells()) + 1;
+    t_ = in.start_time;
+    steps_ = in.start_step;
     if (!in.fluid_id.empty() && in.fluid_id.size() != n)
       throw std::invalid_argument("WCSPH: fluid_id and fluid_pos_rho differ in length");
     upload(pos_, in.fluid_pos_rho);
