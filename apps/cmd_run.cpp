@@ -288,7 +288,7 @@ int cmd_run(RunArgs a) {
   if (out.metrics) out.metrics->finish();
   print_summary(r, std::cout);
   print_outputs(out, a, scene);
-  if (!a.summary_json.empty()) write_json(out.summary, completed_json(r, a, scene), "--summary-json", a.summary_json);
+  if (out.summary.is_open()) write_json(out.summary, completed_json(r, a, scene), "--summary-json", a.summary_json);
   return 0;
 }
 

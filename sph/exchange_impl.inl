@@ -1,8 +1,10 @@
 // A decomposed run's exchange of particles after a step (sph/exchange.h),
-// written once for both backends: each particle's destinations, their
-// counts, the records packed per peer in the particles' order, the
-// transport, and the records unpacked into the particle arrays (kept ones
-// first, then each peer's in rank order), all on the solver's backend.
+// written once for both backends. The particles that stay keep their slots:
+// those that left are marked gone (kStatusGone, dropped by the grid's sort
+// that follows, as particles outside the grid are), the ones that stay only
+// as another rank's ghost are marked so, and what the peers send is appended.
+// Only the particles that go somewhere are packed: a list of their indices,
+// per peer a scan over that list, one scatter. The host reads two counts.
 // Included inside a backend namespace by solver_impl.inl.
 
 struct ClassifyForExchange {
@@ -11,7 +13,7 @@ struct ClassifyForExchange {
   const uint8_t* status;
   Destinations* out;
   SPHRAY_HD void operator()(uint32_t i) const {
-    // A ghost's owner sends it again where it is still wanted.
+    // Ghosts go: their owners send them again where they are still wanted.
     out[i] = status[i] == kStatusGhost ? Destinations{0, uint8_t(kSelf)} : destinations_of(bounds, pos[i]);
   }
 };
@@ -39,23 +41,53 @@ struct AddPeerCounts {
   }
 };
 
-// Particle i into the buffer of each peer it goes to, at its place in the
-// particles' order there (the inclusive scan of the counts, less one): a
-// ghost copy unless the peer owns it.
+constexpr uint8_t kToPeers = uint8_t(0x1fu & ~(1u << kSelf));
+
+// Particles with a destination other than this rank.
+struct GoesToPeers {
+  SPHRAY_HD bool operator()(const Destinations& d) const { return (d.to & kToPeers) != 0; }
+};
+
+// Per listed particle, how many records each peer has received up to it (inclusive).
+struct CountPeerRecords {
+  const Destinations* d;
+  const uint32_t* list;
+  SPHRAY_HD PeerCounts operator()(uint32_t j) const {
+    PeerCounts c{};
+    const Destinations dj = d[list[j]];
+    for (int k = 0; k < kPeers; ++k) c.total[k] = k != kSelf && ((dj.to >> k) & 1u);
+    return c;
+  }
+};
+
+// Listed particle j into the buffer of each peer it goes to, at its place in
+// the particles' order there: a ghost copy unless the peer owns it.
 struct ScatterRecords {
   ConstParticleArrays s;
   const Destinations* d;
-  const PeerCounts* upto;  // inclusive scan of CountDestinations
+  const uint32_t* list;
+  const PeerCounts* upto;  // inclusive scan of CountPeerRecords
   ExchangeRecord* out[kPeers];
-  SPHRAY_HD void operator()(uint32_t i) const {
+  SPHRAY_HD void operator()(uint32_t j) const {
+    const uint32_t i = list[j];
     const Destinations di = d[i];
-    if (di.to == 0) return;
     ExchangeRecord r{s.pos[i], s.vel[i], s.flow[i], s.id[i], uint32_t(kStatusGhost)};
     for (int k = 0; k < kPeers; ++k) {
-      if (!((di.to >> k) & 1u)) continue;
+      if (k == kSelf || !((di.to >> k) & 1u)) continue;
       r.status = di.owner == k ? uint32_t(s.status[i]) : uint32_t(kStatusGhost);
-      out[k][upto[i].total[k] - 1u] = r;
+      out[k][upto[j].total[k] - 1u] = r;
     }
+  }
+};
+
+// What stays of each particle here: as it is (owned), as a ghost, or gone.
+struct MarkStaying {
+  const Destinations* d;
+  uint8_t* status;
+  SPHRAY_HD void operator()(uint32_t i) const {
+    const Destinations di = d[i];
+    if (!((di.to >> kSelf) & 1u)) status[i] = kStatusGone;
+    else if (di.owner != kSelf) status[i] = kStatusGhost;
   }
 };
 
@@ -77,10 +109,11 @@ struct UnpackRecords {
 // The buffers of the exchange, kept from step to step (they only grow).
 struct ExchangeBuffers {
   Vector<Destinations> dest;
-  Vector<PeerCounts> upto;
+  Vector<PeerCounts> counts = Vector<PeerCounts>(1), upto;
+  Vector<uint32_t> list;
   Vector<ExchangeRecord> send[kPeers], recv[kPeers];
   size_t bytes() const {
-    size_t b = dest.size() * sizeof(Destinations) + upto.size() * sizeof(PeerCounts);
+    size_t b = dest.size() * sizeof(Destinations) + upto.size() * sizeof(PeerCounts) + list.size() * sizeof(uint32_t);
     for (int k = 0; k < kPeers; ++k) b += (send[k].size() + recv[k].size()) * sizeof(ExchangeRecord);
     return b;
   }
@@ -91,57 +124,64 @@ void grow_to(Vector<T>& v, size_t n) {
   if (v.size() < n) v.resize(n);
 }
 
-// What an exchange left: the particles now held, and how many of them this rank owns.
+// What an exchange left: the particles now in the arrays (gone ones
+// included, until the grid drops them), and how many of the others are
+// owned here and are ghosts.
 struct ExchangeResult {
-  uint32_t n = 0, owned = 0;
+  uint32_t n = 0, owned = 0, ghosts = 0;
 };
 
-// Packs the particles of `s` (n of them) per destination, exchanges them,
-// and unpacks what stays and what came into `out` (which the caller has
-// grown via `fit`, called with the new count before unpacking).
+// Exchanges the n particles of `s` with the peers; `fit(m)` grows the
+// particle arrays to m (keeping their contents) and returns them, for the
+// records received, appended after the n.
 template <class Fit>
 ExchangeResult exchange_particles(ExchangeBuffers& buf, const SlabBounds& bounds, ParticleTransport& transport,
-                                  ConstParticleArrays s, uint32_t n, Fit&& fit) {
+                                  ConstParticleArrays s, uint8_t* status, uint32_t n, Fit&& fit) {
   grow_to(buf.dest, n);
-  grow_to(buf.upto, n);
   parallel_for("exchange_classify", n, ClassifyForExchange{bounds, s.pos, s.status, raw(buf.dest)});
-  // One scan gives every particle its place in each peer's buffer, and in
-  // its last element the counts (the one read the host waits for).
-  PeerCounts send{};
-  if (n > 0) {
-    thrust::transform_inclusive_scan(policy(), thrust::counting_iterator<uint32_t>(0),
-                                     thrust::counting_iterator<uint32_t>(n), buf.upto.begin(),
-                                     CountDestinations{raw(buf.dest)}, AddPeerCounts());
-    send = read_one(buf.upto, n - 1);
-  }
-  ScatterRecords scatter{s, raw(buf.dest), raw(buf.upto), {}};
+  transform_reduce_into(n, CountDestinations{raw(buf.dest)}, AddPeerCounts(), PeerCounts{}, raw(buf.counts));
+  const PeerCounts send = read_one(buf.counts, 0);
+  // The particles that go to a peer, listed; per peer their places.
+  grow_to(buf.list, n);
+  const uint32_t m = uint32_t(thrust::copy_if(policy(), thrust::counting_iterator<uint32_t>(0),
+                                              thrust::counting_iterator<uint32_t>(n), buf.dest.begin(),
+                                              buf.list.begin(), GoesToPeers()) -
+                              buf.list.begin());
+  ScatterRecords scatter{s, raw(buf.dest), raw(buf.list), nullptr, {}};
   for (int k = 0; k < kPeers; ++k) {
-    grow_to(buf.send[k], send.total[k]);
+    grow_to(buf.send[k], k == kSelf ? 0 : send.total[k]);
     scatter.out[k] = raw(buf.send[k]);
   }
-  parallel_for("exchange_pack", n, scatter);
+  if (m > 0) {
+    grow_to(buf.upto, m);
+    thrust::transform_inclusive_scan(policy(), thrust::counting_iterator<uint32_t>(0),
+                                     thrust::counting_iterator<uint32_t>(m), buf.upto.begin(),
+                                     CountPeerRecords{raw(buf.dest), raw(buf.list)}, AddPeerCounts());
+    scatter.upto = raw(buf.upto);
+    parallel_for("exchange_pack", m, scatter);
+  }
+  parallel_for("exchange_mark", n, MarkStaying{raw(buf.dest), status});
   PeerCounts recv{};
   transport.exchange_counts(bounds, send, recv);
-  recv.total[kSelf] = send.total[kSelf];
-  recv.owned[kSelf] = send.owned[kSelf];
   ExchangeRecord* send_ptr[kPeers];
   ExchangeRecord* recv_ptr[kPeers];
+  ExchangeResult r{n, send.owned[kSelf], send.total[kSelf] - send.owned[kSelf]};
   for (int k = 0; k < kPeers; ++k) {
     send_ptr[k] = raw(buf.send[k]);
-    if (k != kSelf) grow_to(buf.recv[k], recv.total[k]);
-    recv_ptr[k] = k == kSelf ? nullptr : raw(buf.recv[k]);
-  }
-  transport.exchange(bounds, send_ptr, send.total, recv_ptr, recv.total);
-  ExchangeResult r;
-  for (int k = 0; k < kPeers; ++k) {
+    recv_ptr[k] = nullptr;
+    if (k == kSelf) continue;
+    grow_to(buf.recv[k], recv.total[k]);
+    recv_ptr[k] = raw(buf.recv[k]);
     r.n += recv.total[k];
     r.owned += recv.owned[k];
+    r.ghosts += recv.total[k] - recv.owned[k];
   }
+  transport.exchange(bounds, send_ptr, send.total, recv_ptr, recv.total);
   const ParticleArrays out = fit(r.n);
-  uint32_t offset = 0;
-  for (int k : {kSelf, 0, 1, 3, 4}) {  // the kept ones first, then each peer's
-    const ExchangeRecord* from = k == kSelf ? raw(buf.send[kSelf]) : raw(buf.recv[k]);
-    parallel_for("exchange_unpack", recv.total[k], UnpackRecords{from, offset, out});
+  uint32_t offset = n;
+  for (int k = 0; k < kPeers; ++k) {
+    if (k == kSelf) continue;
+    parallel_for("exchange_unpack", recv.total[k], UnpackRecords{raw(buf.recv[k]), offset, out});
     offset += recv.total[k];
   }
   return r;

@@ -30,7 +30,9 @@ namespace sphray {
 // (dist/slab_solver.h): its neighbours read it, but the step neither moves it
 // nor counts it in the step's extremes (its own sums lack the neighbours
 // beyond the halo); it is replaced by a fresh copy before the next step.
-enum ParticleStatus : uint8_t { kStatusOk = 0, kStatusClamped = 1, kStatusGhost = 2 };
+// kStatusGone: a particle that left this rank in an exchange, dropped by the
+// grid build that follows it (solver_impl.inl).
+enum ParticleStatus : uint8_t { kStatusOk = 0, kStatusClamped = 1, kStatusGhost = 2, kStatusGone = 3 };
 
 // flow.w = p / rho^2 from the density (params.h); Advance keeps it current.
 // The pressure [Pa] per particle (Solver::device_pressure).

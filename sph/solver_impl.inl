@@ -39,6 +39,18 @@ struct GatherParticles {
   }
 };
 
+// Cell keys after an exchange: a particle sent away is keyed outside the
+// grid, so that the sort puts it last and the build drops it.
+struct KeyOfStaying {
+  GridGeom grid;
+  const Float4* pos;
+  const uint8_t* status;
+  uint32_t* keys;
+  SPHRAY_HD void operator()(uint32_t i) const {
+    keys[i] = status[i] == kStatusGone ? grid.num_fine_cells() : grid.fine_key_of(xyz(pos[i]));
+  }
+};
+
 class SolverImpl final : public Solver {
  public:
   explicit SolverImpl(const SolverInput& in)
@@ -196,20 +208,22 @@ class SolverImpl final : public Solver {
   // The exchange after a step (exchange_impl.inl): the particles this rank
   // holds from now on, in the arrays, unsorted (build_grid follows).
   void exchange() {
-    const ExchangeResult r = exchange_particles(exchange_, bounds_, *transport_, const_state(), n_, [&](uint32_t n) {
-      fit(n);
-      return state();
-    });
+    const ExchangeResult r =
+        exchange_particles(exchange_, bounds_, *transport_, const_state(), raw(status_), n_, [&](uint32_t n) {
+          fit(n, true);
+          return state();
+        });
     n_ = r.n;
-    ghosts_ = r.n - r.owned;
-    presence_valid_ = false;  // in the old order
+    ghosts_ = r.ghosts;
+    gone_ = true;  // build_grid drops them
   }
 
   // Grows every per-particle buffer to hold n particles (never shrinks: a
-  // decomposed run's count changes a little every step).
-  void fit(uint32_t n) {
-    auto grow = [](auto& v, size_t size) {
-      if (v.size() < size) v.resize(size);
+  // decomposed run's count changes a little every step; `spare`: a tenth more,
+  // so that it rarely grows, as each growth copies the contents).
+  void fit(uint32_t n, bool spare = false) {
+    auto grow = [spare](auto& v, size_t size) {
+      if (v.size() < size) v.resize(spare ? size + size / 10 : size);
     };
     for (auto* v : {&pos_, &vel_, &flow_, &pos_tmp_, &vel_tmp_, &flow_tmp_, &accel_, &rate_grad_}) grow(*v, n);
     for (auto* v : {&id_, &id_tmp_, &keys_, &order_, &fluid_pair_count_, &boundary_pair_count_}) grow(*v, n);
@@ -270,19 +284,26 @@ class SolverImpl final : public Solver {
 
   void build_grid(const StepControl* control = nullptr) {
     if (control) walls_.move(obstacles_.view, control);
-    parallel_for("fluid_keys", n_, KeyOf<Float4>{grid_, raw(pos_), raw(keys_)});
+    if (gone_) parallel_for("fluid_keys", n_, KeyOfStaying{grid_, raw(pos_), raw(status_), raw(keys_)});
+    else parallel_for("fluid_keys", n_, KeyOf<Float4>{grid_, raw(pos_), raw(keys_)});
     sort_and_offsets(grid_, n_, keys_, order_, fine_offsets_, &offsets_);
     // Particles outside the grid (only possible through an open top: Advance
     // keeps them inside a closed tank, whose grid holds its walls besides)
     // sorted last: drop them. Reading their count waits for the sort, so a
     // closed tank does not.
-    const uint32_t active = prm_.open_top ? read_one(offsets_, grid_.num_cells()) : n_;
-    // Of those, other ranks' ghosts are not the run's to count as removed.
-    uint32_t ghosts_gone = 0;
-    if (active < n_ && ghosts_ > 0) {
+    // So are the particles an exchange sent away (kStatusGone: their keys are
+    // outside the grid).
+    const uint32_t active = prm_.open_top || gone_ ? read_one(offsets_, grid_.num_cells()) : n_;
+    // The run's own particles among those dropped are removed; another rank's
+    // ghosts and those sent away are not.
+    uint32_t dropped_owned = n_ - active, dropped_ghosts = 0;
+    if (active < n_ && transport_) {
       const auto dropped = thrust::make_permutation_iterator(status_.begin(), order_.begin() + active);
-      ghosts_gone = uint32_t(thrust::count(policy(), dropped, dropped + (n_ - active), uint8_t(kStatusGhost)));
+      dropped_ghosts = uint32_t(thrust::count(policy(), dropped, dropped + (n_ - active), uint8_t(kStatusGhost)));
+      const uint32_t sent = uint32_t(thrust::count(policy(), dropped, dropped + (n_ - active), uint8_t(kStatusGone)));
+      dropped_owned -= dropped_ghosts + sent;
     }
+    gone_ = false;
     const ParticleArrays out{raw(pos_tmp_), raw(vel_tmp_), raw(flow_tmp_), raw(id_tmp_), raw(status_tmp_),
                              raw(presence_tmp_), raw(covariance_tmp_)};
     parallel_for("gather_particles", active, GatherParticles{raw(order_), const_state(), n_, out, active});
@@ -293,8 +314,8 @@ class SolverImpl final : public Solver {
     status_.swap(status_tmp_);
     if (presence_valid_) presence_.swap(presence_tmp_);
     if (covariance_valid()) covariance_.swap(covariance_tmp_);
-    removed_ += (n_ - active) - ghosts_gone;
-    ghosts_ -= ghosts_gone;
+    removed_ += dropped_owned;
+    ghosts_ -= dropped_ghosts;
     n_ = active;
     parallel_for("fluid_cells_near", grid_.num_cells(), CellsNear{grid_, raw(fine_offsets_), raw(fluid_near_)});
     // The pair masks of the next step's pair loop (nsearch/pair_masks.h), at these positions.
@@ -371,6 +392,7 @@ class SolverImpl final : public Solver {
   SlabBounds bounds_;
   ExchangeBuffers exchange_;
   uint32_t ghosts_ = 0;
+  bool gone_ = false;  // the arrays hold particles the last exchange sent away
   PresenceMode presence_mode_ = PresenceMode::Off;
   bool presence_valid_ = false;
   double t_ = 0;

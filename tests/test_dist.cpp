@@ -118,8 +118,10 @@ double kinetic_energy(const Frame& f) {
 TEST_CASE("the dam break on 2 and 3 ranks keeps every particle and follows the one-rank run", "[dist][mpi]") {
   const double spacing = 0.04;
   const std::string scene = source_path("scenes/dam_break.json");
+  const std::string summary = tmp_dir() + "/summary.json";  // rank 0's alone
   const std::string args = scene + " --backend cpu --quiet --set sph.spacing=0.04 --set run.end_time=0.6 "
-                                   "--set run.output_interval=0.1 --export-fields velocity,density --export ";
+                                   "--set run.output_interval=0.1 --summary-json " + summary +
+                           " --export-fields velocity,density --export ";
   const std::string one = tmp_dir() + "/ranks1.h5";
   const CliResult r1 = run_ranks(1, args + one);
   INFO(r1.output);
@@ -132,6 +134,7 @@ TEST_CASE("the dam break on 2 and 3 ranks keeps every particle and follows the o
     INFO(ranks << " ranks: " << r.output);
     REQUIRE(r.code == 0);
     CHECK(has(r.output, "ranks: " + std::to_string(ranks) + " slabs along x"));
+    CHECK(has(slurp(summary), "\"status\": \"completed\""));
     const FrameReader got(path);
     REQUIRE(got.frames().size() == ref.frames().size());
     for (size_t k = 0; k < ref.frames().size(); ++k) {
@@ -213,20 +216,20 @@ TEST_CASE("a run resumes from its export's last frame, on one rank or several", 
 }
 
 TEST_CASE("a rank that dies ends the run with its rank named, and the frames written stay readable", "[dist][mpi]") {
-  const std::string out = tmp_dir() + "/killed.h5", log = tmp_dir() + "/killed.txt";
+  const std::string out = tmp_dir() + "/killed.h5", log = tmp_dir() + "/killed.txt", csv = tmp_dir() + "/killed.csv";
   setenv("OMPI_ALLOW_RUN_AS_ROOT", "1", 1);
   setenv("OMPI_ALLOW_RUN_AS_ROOT_CONFIRM", "1", 1);
   setenv("OMP_NUM_THREADS", "1", 1);
   // A run far longer than the test, one of whose ranks is killed (the newest
-  // process of the command line, once the export holds frames); `timeout`
-  // turns a hang into exit code 124.
+  // process of the command line) once five frames are out (the metrics CSV,
+  // a row per frame, flushed); `timeout` turns a hang into exit code 124.
   const std::string marker = "--set run.end_time=29.5";
   const std::string cmd = "timeout 120 " + std::string(SPHRAY_MPIEXEC) + " -n 2 " + SPHRAY_EXE + " run " +
                           source_path("scenes/dam_break.json") +
                           " --backend cpu --quiet --set sph.spacing=0.04 --set run.output_interval=0.02 " + marker +
-                          " --export " + out + " > " + log + " 2>&1 & pid=$!; "
-                          "for i in $(seq 100); do sleep 0.2; [ $(stat -c %s " + out +
-                          " 2>/dev/null || echo 0) -gt 200000 ] && break; done; "
+                          " --metrics-csv " + csv + " --export " + out + " > " + log + " 2>&1 & pid=$!; "
+                          "for i in $(seq 300); do sleep 0.2; [ $(cat " + csv +
+                          " 2>/dev/null | wc -l) -gt 5 ] && break; done; "
                           "pkill -9 -n -f -- '" + marker + "'; wait $pid";
   const std::string script = tmp_dir() + "/kill_a_rank.sh";
   std::ofstream(script) << cmd << "\n";
