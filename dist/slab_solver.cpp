@@ -22,22 +22,6 @@ struct Owned {
 float coordinate(const Float4& p, int axis) { return axis == 0 ? p.x : axis == 1 ? p.y : p.z; }
 double coordinate(const Vec3f& p, int axis) { return axis == 0 ? p.x : axis == 1 ? p.y : p.z; }
 
-// The slabs of ranks rank - 2 .. rank + 2 as the solver's exchange reads them.
-SlabBounds bounds_for(const SlabPlan& p, int rank) {
-  SlabBounds b;
-  b.axis = p.axis;
-  b.halo = float(p.halo);
-  const float inf = std::numeric_limits<float>::infinity();
-  for (int k = 0; k < kPeers; ++k) {
-    const int r = rank + k - kSelf;
-    b.exists[k] = r >= 0 && r < p.ranks();
-    if (!b.exists[k]) continue;
-    b.lo[k] = r == 0 ? -inf : float(p.slab_lo(r));
-    b.hi[k] = r == p.ranks() - 1 ? inf : float(p.slab_hi(r));
-  }
-  return b;
-}
-
 class SlabSolver final : public Solver {
  public:
   SlabSolver(std::unique_ptr<ParticleTransport> transport, Comm& comm, SlabPlan plan, double bin_width,
@@ -47,7 +31,7 @@ class SlabSolver final : public Solver {
   // The inner solver holds this rank's particles; the first exchange gives it its ghosts.
   void start(std::unique_ptr<Solver> inner) {
     inner_ = std::move(inner);
-    inner_->set_slab(bounds_for(plan_, comm_.rank()));
+    inner_->set_slab(slab_bounds(plan_, comm_.rank()));
     sum_totals();
   }
 
@@ -170,7 +154,7 @@ class SlabSolver final : public Solver {
     }
     if (!moved) return;  // held at the least slab width
     ++rebalances_;
-    inner_->set_slab(bounds_for(plan_, comm_.rank()));
+    inner_->set_slab(slab_bounds(plan_, comm_.rank()));
     sum_totals();
   }
 
@@ -198,6 +182,7 @@ SlabPlan plan_slabs(const SolverInput& in, int ranks) {
   p.lo = p.axis == 0 ? t.min.x : p.axis == 1 ? t.min.y : t.min.z;
   p.hi = p.axis == 0 ? t.max.x : p.axis == 1 ? t.max.y : t.max.z;
   p.halo = p.min_width = 2.0 * double(in.params.kernel.support());
+  p.halo_free = double(in.params.kernel.support());
   check_rank_count(ranks, p.lo, p.hi, p.min_width, axis_name(p.axis));
   AxisHistogram h = AxisHistogram::over(p.lo, p.hi, 0.5 * double(in.params.spacing));
   for (const Float4& q : in.fluid_pos_rho) h.add(coordinate(q, p.axis));

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <sstream>
 #include <stdexcept>
 
@@ -11,12 +12,20 @@ int SlabPlan::owner(double x) const {
   return int(std::upper_bound(cuts.begin(), cuts.end(), x) - cuts.begin());
 }
 
-bool SlabPlan::in_halo(int r, double x) const {
-  const double a = slab_lo(r), b = slab_hi(r);
-  // The first and last slabs reach to infinity on their outer side (owner()).
-  if (x < a) return r > 0 && a - x <= halo;
-  if (x >= b) return r < ranks() - 1 && x - b < halo;
-  return false;
+SlabBounds slab_bounds(const SlabPlan& p, int rank) {
+  SlabBounds b;
+  b.axis = p.axis;
+  b.halo = float(p.halo);
+  b.halo_free = float(p.halo_free);
+  const float inf = std::numeric_limits<float>::infinity();
+  for (int k = 0; k < kPeers; ++k) {
+    const int r = rank + k - kSelf;
+    b.exists[k] = r >= 0 && r < p.ranks();
+    if (!b.exists[k]) continue;
+    b.lo[k] = r == 0 ? -inf : float(p.slab_lo(r));
+    b.hi[k] = r == p.ranks() - 1 ? inf : float(p.slab_hi(r));
+  }
+  return b;
 }
 
 AxisHistogram AxisHistogram::over(double lo, double hi, double width) {

@@ -11,12 +11,15 @@
 #include <string>
 #include <vector>
 
+#include "sph/exchange.h"
+
 namespace sphray {
 
 struct SlabPlan {
   int axis = 0;             // 0 x, 1 y, 2 z
   double lo = 0, hi = 0;    // the domain along the axis [m]
-  double halo = 0;          // ghost width [m]: particles within it of a slab are copied to its rank
+  double halo = 0;          // ghost width [m] near wall particles: particles within it of a slab are copied to its rank
+  double halo_free = 0;     // ghost width [m] elsewhere
   double min_width = 0;     // [m]
   std::vector<double> cuts; // the ranks - 1 interior cuts, ascending
 
@@ -24,11 +27,13 @@ struct SlabPlan {
   // The rank owning coordinate x (along the axis): slab r is [cut r-1, cut r);
   // outside the domain, the first or last.
   int owner(double x) const;
-  // Whether x lies within the halo of slab r (outside it; the owner excluded).
-  bool in_halo(int r, double x) const;
   double slab_lo(int r) const { return r == 0 ? lo : cuts[size_t(r) - 1]; }
   double slab_hi(int r) const { return r == ranks() - 1 ? hi : cuts[size_t(r)]; }
 };
+
+// The slabs of ranks rank - 2 .. rank + 2 as the solver's exchange reads them
+// (sph/exchange.h).
+SlabBounds slab_bounds(const SlabPlan& p, int rank);
 
 // Particle counts along the axis in bins of `width` over [lo, hi]: what the cuts
 // are placed by (summed over the ranks for a rebalance).

@@ -25,20 +25,25 @@ constexpr int kPeers = 5;
 constexpr int kSelf = 2;
 
 // The slabs of ranks me - 2 .. me + 2 along the cut axis (exists: the rank
-// is in the run; the first and last slabs reach to infinity outward).
+// is in the run; the first and last slabs reach to infinity outward), and the
+// width of their halos: `halo` where a particle lies near wall particles
+// (their pressure, summed from the fluid within a support, reaches one
+// support further), `halo_free` elsewhere.
 struct SlabBounds {
   int axis = 0;
   float lo[kPeers] = {}, hi[kPeers] = {};
   bool exists[kPeers] = {};
-  float halo = 0;
+  float halo = 0, halo_free = 0;
 };
 
-// Where each particle goes: bit k of `to` for peer k; `owner` the peer that owns it.
+// Where each particle goes: bit k of `to` for peer k; `owner` the peer that
+// owns it. near_walls: wall particles lie within a support of p.
 struct Destinations {
   uint8_t to, owner;
 };
 
-SPHRAY_HD inline Destinations destinations_of(const SlabBounds& b, const Float4& p) {
+SPHRAY_HD inline Destinations destinations_of(const SlabBounds& b, const Float4& p, bool near_walls) {
+  const float halo = near_walls ? b.halo : b.halo_free;
   const float x = b.axis == 0 ? p.x : b.axis == 1 ? p.y : p.z;
   uint8_t owner = kSelf;
   if (b.exists[kSelf - 1] && x < b.lo[kSelf]) owner = kSelf - 1;
@@ -47,7 +52,7 @@ SPHRAY_HD inline Destinations destinations_of(const SlabBounds& b, const Float4&
   for (int k : {int(owner) - 1, int(owner) + 1}) {
     if (k < 0 || k >= kPeers || !b.exists[k]) continue;
     const float gap = x < b.lo[k] ? b.lo[k] - x : x >= b.hi[k] ? x - b.hi[k] : 0.0f;
-    if (gap < b.halo) to = uint8_t(to | (1u << k));
+    if (gap < halo) to = uint8_t(to | (1u << k));
   }
   return {to, owner};
 }

@@ -7,14 +7,23 @@
 // per peer a scan over that list, one scatter. The host reads two counts.
 // Included inside a backend namespace by solver_impl.inl.
 
+// near_walls: the grid's flags of cells with wall particles in reach
+// (CellsNear; cells are a support wide), or null: near walls everywhere.
 struct ClassifyForExchange {
   SlabBounds bounds;
   const Float4* pos;
   const uint8_t* status;
+  GridGeom grid;
+  const uint8_t* near_walls;
   Destinations* out;
   SPHRAY_HD void operator()(uint32_t i) const {
     // Ghosts go: their owners send them again where they are still wanted.
-    out[i] = status[i] == kStatusGhost ? Destinations{0, uint8_t(kSelf)} : destinations_of(bounds, pos[i]);
+    if (status[i] == kStatusGhost) {
+      out[i] = Destinations{0, uint8_t(kSelf)};
+      return;
+    }
+    const Float4 p = pos[i];
+    out[i] = destinations_of(bounds, p, near_walls == nullptr || cell_near(grid, near_walls, xyz(p)));
   }
 };
 
@@ -131,14 +140,17 @@ struct ExchangeResult {
   uint32_t n = 0, owned = 0, ghosts = 0;
 };
 
-// Exchanges the n particles of `s` with the peers; `fit(m)` grows the
+// Exchanges the n particles of `s` with the peers (near_walls:
+// ClassifyForExchange); `fit(m)` grows the
 // particle arrays to m (keeping their contents) and returns them, for the
 // records received, appended after the n.
 template <class Fit>
-ExchangeResult exchange_particles(ExchangeBuffers& buf, const SlabBounds& bounds, ParticleTransport& transport,
-                                  ConstParticleArrays s, uint8_t* status, uint32_t n, Fit&& fit) {
+ExchangeResult exchange_particles(ExchangeBuffers& buf, const SlabBounds& bounds, const GridGeom& grid,
+                                  const uint8_t* near_walls, ParticleTransport& transport, ConstParticleArrays s,
+                                  uint8_t* status, uint32_t n, Fit&& fit) {
   grow_to(buf.dest, n);
-  parallel_for("exchange_classify", n, ClassifyForExchange{bounds, s.pos, s.status, raw(buf.dest)});
+  parallel_for("exchange_classify", n,
+               ClassifyForExchange{bounds, s.pos, s.status, grid, near_walls, raw(buf.dest)});
   transform_reduce_into(n, CountDestinations{raw(buf.dest)}, AddPeerCounts(), PeerCounts{}, raw(buf.counts));
   const PeerCounts send = read_one(buf.counts, 0);
   // The particles that go to a peer, listed; per peer their places.

@@ -56,13 +56,14 @@ class SolverImpl final : public Solver {
   explicit SolverImpl(const SolverInput& in)
       : prm_(in.params), grid_(in.grid), cfl_(in.cfl), min_dt_(in.min_dt), max_dt_(in.max_dt),
         n_(uint32_t(in.fluid_pos_rho.size())), covariance_radius_(in.covariance_radius),
-        transport_(in.transport),
         obstacles_(make_obstacle_set(kBackend, in.obstacles, in.params.spacing)), walls_(in, in.grid) {
     if (covariance_radius_ > prm_.kernel.support())
       throw std::invalid_argument("WCSPH: the covariance radius exceeds the kernel's support");
     const size_t n = n_, cells = size_t(grid_.num_cells()) + 1, slabs = size_t(grid_.num_fine_cells()) + 1;
     t_ = in.start_time;
     steps_ = in.start_step;
+    transport_ = in.transport;
+    moving_walls_ = !in.boundary_obstacle.empty();
     if (!in.fluid_id.empty() && in.fluid_id.size() != n)
       throw std::invalid_argument("WCSPH: fluid_id and fluid_pos_rho differ in length");
     upload(pos_, in.fluid_pos_rho);
@@ -209,10 +210,11 @@ class SolverImpl final : public Solver {
   // holds from now on, in the arrays, unsorted (build_grid follows).
   void exchange() {
     const ExchangeResult r =
-        exchange_particles(exchange_, bounds_, *transport_, const_state(), raw(status_), n_, [&](uint32_t n) {
-          fit(n, true);
-          return state();
-        });
+        exchange_particles(exchange_, bounds_, grid_, moving_walls_ ? nullptr : walls_.near(), *transport_,
+                           const_state(), raw(status_), n_, [&](uint32_t n) {
+                             fit(n, true);
+                             return state();
+                           });
     n_ = r.n;
     ghosts_ = r.ghosts;
     gone_ = true;  // build_grid drops them
@@ -393,6 +395,9 @@ class SolverImpl final : public Solver {
   ExchangeBuffers exchange_;
   uint32_t ghosts_ = 0;
   bool gone_ = false;  // the arrays hold particles the last exchange sent away
+  // Obstacles move: the walls' cell flags of the last grid may miss where
+  // they are now, so the exchange takes the full halo everywhere.
+  bool moving_walls_ = false;
   PresenceMode presence_mode_ = PresenceMode::Off;
   bool presence_valid_ = false;
   double t_ = 0;
