@@ -1,7 +1,8 @@
 // A simulation over several ranks (MPI processes), one slab of the domain
 // each (slabs.h): each rank steps the particles it owns with the solver of
 // an ordinary run, among copies ("ghosts") of its neighbours' particles
-// within two support radii of its slab. Per step, inside the solver
+// within one support radius of its slab, two near wall particles. Per step,
+// inside the solver
 // (sph/exchange.h, Solver::set_slab), on its backend:
 //   1. the step's extremes are reduced over the ranks before its size is
 //      chosen, so every rank takes the same dt;
@@ -12,12 +13,12 @@
 // The transport is MPI on the CPU backend and NCCL on CUDA (dist/transport.h).
 // Every `rebalance_every` steps the cuts move toward the quantiles of the
 // particles when the ranks' counts differ by more than `rebalance_above`.
-// Why two support radii: WCSPH's step reads its neighbours' state (position,
+// Why those widths: WCSPH's step reads its neighbours' state (position,
 // density, predicted velocity, p / rho^2: all from the start of the step) and
 // the wall particles' pressure, which each wall particle sums from the fluid
-// within one support of it: an owned particle's step depends on fluid up to
-// two supports away. Ghosts' own results (incomplete sums at the halo's edge)
-// are discarded: they are never moved nor counted (kStatusGhost).
+// within one support of it: near walls an owned particle's step depends on
+// fluid up to two supports away. Ghosts' own results (incomplete sums at the
+// halo's edge) are discarded: they are never moved nor counted (kStatusGhost).
 // Outputs: at each output frame the ranks gather their owned particles on
 // rank 0 (gather_frame), which writes every output.
 #pragma once
@@ -45,7 +46,8 @@ struct SlabOptions {
 using SolverMaker = std::function<std::unique_ptr<Solver>(const SolverInput&)>;
 
 // The plan of `in`'s run over comm.size() ranks: the domain's longest axis,
-// halo and least slab width two support radii, cuts at the quantiles of the
+// least slab width and halo near walls two support radii (one elsewhere),
+// cuts at the quantiles of the
 // initial particles. Throws std::invalid_argument when the domain cannot hold
 // that many slabs (check_rank_count).
 SlabPlan plan_slabs(const SolverInput& in, int ranks);
