@@ -2,8 +2,7 @@
 // each (slabs.h): each rank steps the particles it owns with the solver of
 // an ordinary run, among copies ("ghosts") of its neighbours' particles
 // within one support radius of its slab, two near wall particles. Per step,
-// inside the solver
-// (sph/exchange.h, Solver::set_slab), on its backend:
+// inside the solver (sph/exchange.h, Solver::set_slab), on its backend:
 //   1. the step's extremes are reduced over the ranks before its size is
 //      chosen, so every rank takes the same dt;
 //   2. after the particles move, one exchange: every particle that left the
