@@ -191,18 +191,17 @@ std::unique_ptr<Comm> run_ranks() {
   return make_mpi_comm();
 }
 
-// What a run over several ranks cannot do yet, refused before it starts.
-void check_several_ranks(const RunArgs& a, const Scene& scene, const StageNeeds& needs,
-                         const std::set<std::string>& fields) {
+// What a run over several ranks cannot do yet, refused before it starts:
+// presence (the exchange reorders the particles after the pair loop that
+// sums it). The presence builder then builds with full extents, as from an
+// export (`sphray render --from`).
+void check_several_ranks(const Scene& scene, const std::set<std::string>& fields) {
   auto refuse = [](const std::string& what) {
     throw std::runtime_error(what + " is not available in a run over several ranks (mpirun -np > 1) yet; "
-                             "run it with one rank, or render the export afterwards (sphray render --from)");
+                             "run it with one rank");
   };
-  if (!a.fa.dir.empty()) refuse("--frames-dir (PNG frames)");
-  for (const char* f : {"field", "presence", "pressure"})
-    if (fields.count(f)) refuse(std::string("--export-fields ") + f);
-  if (scene.field.given || needs.field) refuse("the density field (the scene's \"field\" section)");
-  if (needs.presence != PresenceMode::Off) refuse("particle presence (sph.presence)");
+  if (fields.count("presence")) refuse("--export-fields presence");
+  if (scene.sph.presence) refuse("particle presence on every step (sph.presence)");
 }
 
 // The CUDA device of this rank: one per rank on each node.
@@ -246,19 +245,21 @@ int cmd_run(RunArgs a) {
   const StageNeeds needs = needs_of(scene, out.sinks());
   std::unique_ptr<Solver> solver;
   if (several) {
-    check_several_ranks(a, scene, needs, fields_asked);
+    check_several_ranks(scene, fields_asked);
     pick_rank_device(b);
     const SolverMaker make = b == Backend::Cuda ? SolverMaker(make_cuda_solver) : SolverMaker(make_cpu_solver);
-    const SolverInput in = make_solver_input(rs, needs.presence, resume ? &*resume : nullptr);
+    const SolverInput in = make_solver_input(rs, PresenceMode::Off, resume ? &*resume : nullptr);
     const SlabPlan plan = plan_slabs(in, comm->size());
     std::cout << "ranks: " << comm->size() << " slabs along " << axis_name(plan.axis) << ", cut at";
     for (double c : plan.cuts) std::cout << " " << c;
     std::cout << " m, halo " << plan.halo << " m\n";
-    solver = make_slab_solver(in, *comm, b, make);
+    SlabOptions so;
+    so.frame_view = needs.field || out.png;  // rank 0 builds the field and renders from the gathered particles
+    solver = make_slab_solver(in, *comm, b, make, so);
   } else {
     solver = make_solver(rs, b, needs, resume ? &*resume : nullptr);
   }
-  auto field = make_field(rs, b, needs);
+  auto field = root ? make_field(rs, b, needs) : nullptr;  // rank 0 builds it (from the gathered particles)
   if (out.png) out.png->open(scene, b, make_field_setup(rs));
   if (out.exporter) {  // created before the run: an unwritable path fails before any step
     try {
@@ -276,7 +277,8 @@ int cmd_run(RunArgs a) {
   opt.progress = !a.quiet;
   opt.field = field.get();
   opt.sinks = out.sinks();
-  opt.gather_frames = !a.ex.path.empty() || !a.metrics_csv.empty();  // alike on every rank
+  // Alike on every rank (from the arguments and the scene, not from rank 0's sinks).
+  opt.gather_frames = !a.ex.path.empty() || !a.metrics_csv.empty() || !a.fa.dir.empty() || scene.field.given;
   RunSummary r;
   try {
     r = run_scene(scene, *solver, opt, std::cout);

@@ -25,8 +25,9 @@ double coordinate(const Vec3f& p, int axis) { return axis == 0 ? p.x : axis == 1
 class SlabSolver final : public Solver {
  public:
   SlabSolver(std::unique_ptr<ParticleTransport> transport, Comm& comm, SlabPlan plan, double bin_width,
-             const SlabOptions& opt)
-      : transport_(std::move(transport)), comm_(comm), plan_(std::move(plan)), opt_(opt), bin_width_(bin_width) {}
+             const SlabOptions& opt, SolverInput frame_in, SolverMaker make)
+      : transport_(std::move(transport)), comm_(comm), plan_(std::move(plan)), opt_(opt), bin_width_(bin_width),
+        frame_in_(std::move(frame_in)), make_(std::move(make)) {}
 
   // The inner solver holds this rank's particles; the first exchange gives it its ghosts.
   void start(std::unique_ptr<Solver> inner) {
@@ -47,7 +48,9 @@ class SlabSolver final : public Solver {
   void set_presence(PresenceMode mode) override { inner_->set_presence(mode); }
   PresenceMode presence_mode() const override { return inner_->presence_mode(); }
   bool has_presence() const override { return false; }  // the exchange reorders it (cmd_run refuses what needs it)
-  ParticleView view() const override { return inner_->view(); }
+  // Rank 0's grid of the gathered particles (SlabOptions::frame_view), else
+  // this rank's own particles and ghosts.
+  ParticleView view() const override { return frame_ ? frame_->view() : inner_->view(); }
   size_t device_bytes() const override { return inner_->device_bytes(); }
   std::vector<Vec3f> boundary_positions() const override { return inner_->boundary_positions(); }
 
@@ -93,6 +96,21 @@ class SlabSolver final : public Solver {
         gathered_.density.push_back(o.density);
       }
     gathered_step_ = steps();
+    if (opt_.frame_view && comm_.rank() == 0) {
+      SolverInput in = frame_in_;
+      in.fluid_pos_rho.resize(gathered_.id.size());
+      in.fluid_vel.resize(gathered_.id.size());
+      for (size_t i = 0; i < gathered_.id.size(); ++i) {
+        const Vec3f p = gathered_.pos[i], v = gathered_.vel[i];
+        in.fluid_pos_rho[i] = {p.x, p.y, p.z, gathered_.density[i]};
+        in.fluid_vel[i] = {v.x, v.y, v.z, 0.0f};
+      }
+      in.fluid_id = gathered_.id;
+      in.start_time = time();
+      in.start_step = steps();
+      frame_.reset();  // its buffers first
+      frame_ = make_(in);  // sorts them into the grid
+    }
   }
 
   HostParticles download() const override {
@@ -169,6 +187,9 @@ class SlabSolver final : public Solver {
   uint64_t rebalances_ = 0;
   HostParticles gathered_;
   uint64_t gathered_step_ = ~uint64_t(0);
+  SolverInput frame_in_;  // the run's input without its fluid: rank 0's frame grid
+  SolverMaker make_;
+  std::unique_ptr<Solver> frame_;  // rank 0, frame_view: the gathered particles, sorted
 };
 
 }  // namespace
@@ -210,8 +231,16 @@ std::unique_ptr<Solver> make_slab_solver(SolverInput in, Comm& comm, Backend bac
   in.fluid_vel = std::move(vel);
   in.fluid_id = std::move(ids);
   auto transport = backend == Backend::Cuda ? make_nccl_transport(comm) : make_mpi_transport(comm);
+  SolverInput frame_in;
+  if (opt.frame_view && comm.rank() == 0) {
+    frame_in = in;
+    frame_in.presence = PresenceMode::Off;
+    frame_in.fluid_pos_rho.clear();
+    frame_in.fluid_vel.clear();
+  }
   in.transport = transport.get();
-  auto slab = std::make_unique<SlabSolver>(std::move(transport), comm, plan, 0.5 * double(in.params.spacing), opt);
+  auto slab = std::make_unique<SlabSolver>(std::move(transport), comm, plan, 0.5 * double(in.params.spacing), opt,
+                                           std::move(frame_in), make);
   slab->start(make(in));
   return slab;
 }

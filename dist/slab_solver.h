@@ -19,7 +19,8 @@
 // fluid up to two supports away. Ghosts' own results (incomplete sums at the
 // halo's edge) are discarded: they are never moved nor counted (kStatusGhost).
 // Outputs: at each output frame the ranks gather their owned particles on
-// rank 0 (gather_frame), which writes every output.
+// rank 0 (gather_frame), which writes every output; with frame_view, rank 0
+// also sorts them into a grid of its own for the field and the renderers.
 #pragma once
 
 #include <functional>
@@ -40,6 +41,10 @@ struct RanksStopped : SimulationError {
 struct SlabOptions {
   int rebalance_every = 100;     // steps between balance checks (0: never)
   double rebalance_above = 0.1;  // move the cuts when max / mean count - 1 exceeds this
+  // Rank 0 sorts the particles it gathers at an output frame into a grid of
+  // its own, for view(): the density field and the renderers read them there
+  // (on its backend, as `sphray render --from` reads an export's frame).
+  bool frame_view = false;
 };
 
 using SolverMaker = std::function<std::unique_ptr<Solver>(const SolverInput&)>;
