@@ -165,7 +165,7 @@ class SolverImpl final : public Solver {
     limits_ = c.limits;
     if (c.outcome == kStepBelowFloor) throw SimulationError(describe_dt_floor());
     times_ = {clock_.ms("grid"), clock_.ms("pairs"), clock_.ms("integrate")};
-    times_.exchange = clock_.ms("exchange");
+    times_.exchange = transport_ ? clock_.ms("exchange") : 0.0;
     t_ += limits_.dt;
     ++steps_;
   }
