@@ -119,6 +119,16 @@ CliResult run_ranks(int ranks, const std::string& args) {
   return {WIFEXITED(status) ? WEXITSTATUS(status) : -1, slurp(out)};
 }
 
+// `sphray run ARGS OUT1` on one rank and `ARGS OUT2` on two; both must
+// succeed. Returns the two-rank run's output.
+std::string run_on_1_and_2(const std::string& args, const std::string& out1, const std::string& out2) {
+  const CliResult r1 = run_ranks(1, args + out1), r2 = run_ranks(2, args + out2);
+  INFO(r1.output << r2.output);
+  REQUIRE(r1.code == 0);
+  REQUIRE(r2.code == 0);
+  return r2.output;
+}
+
 double kinetic_energy(const Frame& f) {
   double e = 0;
   for (float v : f.velocity) e += 0.5 * double(v) * double(v);
@@ -192,10 +202,7 @@ TEST_CASE("ghosts one support wide away from the walls change nothing", "[dist][
                            "--set run.output_interval=0.1 --set tank.max=[1.6,1.2,0.8] --set fluid.0.max=[0.4,1.2,0.6] "
                            "--export-fields velocity,density --export ";
   const std::string one = tmp_dir() + "/wide1.h5", two = tmp_dir() + "/wide2.h5";
-  const CliResult r1 = run_ranks(1, args + one), r2 = run_ranks(2, args + two);
-  INFO(r1.output << r2.output);
-  REQUIRE(r1.code == 0);
-  REQUIRE(r2.code == 0);
+  run_on_1_and_2(args, one, two);
   const FrameReader a(one), b(two);
   REQUIRE(a.frames().size() == 4);
   REQUIRE(b.frames().size() == 4);
@@ -286,11 +293,7 @@ TEST_CASE("PNG frames of a run over several ranks are rank 0's renders of all pa
                            " --backend cpu --quiet --set sph.spacing=0.04 --set run.end_time=0.2 "
                            "--set run.output_interval=0.1 --set field.builder=naive --size 160x90 --frames-dir ";
   const std::string one = tmp_dir() + "/png1", two = tmp_dir() + "/png2";
-  const CliResult r1 = run_ranks(1, base + one), r2 = run_ranks(2, base + two);
-  INFO(r1.output << r2.output);
-  REQUIRE(r1.code == 0);
-  REQUIRE(r2.code == 0);
-  CHECK(has(r2.output, "3 PNGs"));
+  CHECK(has(run_on_1_and_2(base, one, two), "3 PNGs"));
   for (int k = 0; k < 3; ++k) {
     char name[32];
     std::snprintf(name, sizeof(name), "/frame_%06d.png", k);
