@@ -2,6 +2,7 @@
 // library per command (apps/cmd_*.cpp); every user error becomes one line on
 // stderr and exit code 2, a failed run exit code 1.
 #include <cstdio>
+#include <string>
 
 #include "cli.h"
 #include "commands.h"
@@ -29,6 +30,12 @@ int main(int argc, char** argv) {
   });
   if (const std::string unknown = cli::unknown_command(app, argc, argv); !unknown.empty()) {
     std::fprintf(stderr, "sphray: error: %s\n", unknown.c_str());
+    return 2;
+  }
+  // Each process of a launcher would run its own copy of any other command.
+  if (launcher_size() > 1 && (argc < 2 || std::string(argv[1]) != "run")) {
+    std::fprintf(stderr, "sphray: error: only 'sphray run' runs over several ranks (started as one of %d)\n",
+                 launcher_size());
     return 2;
   }
   // In a run over several ranks (dist/): a failed step is raised on every

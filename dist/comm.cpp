@@ -35,6 +35,10 @@ bool started_by_mpi_launcher() {
   return false;
 }
 
+int launcher_size() {
+  return env_int("OMPI_COMM_WORLD_SIZE", env_int("PMI_SIZE", env_int("SLURM_NTASKS", 1)));
+}
+
 int local_rank() {
   return env_int("OMPI_COMM_WORLD_LOCAL_RANK", env_int("MPI_LOCALRANKID", env_int("SLURM_LOCALID", 0)));
 }

@@ -38,6 +38,8 @@ std::unique_ptr<Comm> make_single_comm();
 // initialises MPI, so a one-process run is today's run.
 bool mpi_built();
 bool started_by_mpi_launcher();
+// The number of processes the launcher started (1 without one).
+int launcher_size();
 
 // MPI over MPI_COMM_WORLD: initialises MPI (once; finalised at exit). Throws
 // std::runtime_error in a build without MPI.

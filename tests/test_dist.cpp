@@ -105,16 +105,16 @@ TEST_CASE("a rank count the domain cannot hold is refused with the numbers", "[d
 #if defined(SPHRAY_MPIEXEC)
 namespace {
 
-// `sphray run ARGS` on `ranks` MPI ranks (CPU backend, one OpenMP thread each,
+// `sphray COMMAND ARGS` (default run) on `ranks` MPI ranks (CPU backend, one OpenMP thread each,
 // oversubscribing the cores), exported to out: its exit code and output.
-CliResult run_ranks(int ranks, const std::string& args) {
+CliResult run_ranks(int ranks, const std::string& args, const std::string& command = "run") {
   setenv("OMPI_ALLOW_RUN_AS_ROOT", "1", 1);
   setenv("OMPI_ALLOW_RUN_AS_ROOT_CONFIRM", "1", 1);
   setenv("OMPI_MCA_rmaps_base_oversubscribe", "1", 1);
   setenv("OMP_NUM_THREADS", "1", 1);
   const std::string out = tmp_dir() + "/mpirun_output.txt";
   const std::string cmd = std::string(SPHRAY_MPIEXEC) + " -n " + std::to_string(ranks) + " " + SPHRAY_EXE +
-                          " run " + args + " > " + out + " 2>&1";
+                          " " + command + " " + args + " > " + out + " 2>&1";
   const int status = std::system(cmd.c_str());
   return {WIFEXITED(status) ? WEXITSTATUS(status) : -1, slurp(out)};
 }
@@ -316,6 +316,10 @@ TEST_CASE("more ranks than the domain holds are refused before the run", "[dist]
 TEST_CASE("what a run over several ranks cannot do yet is refused by name", "[dist][mpi]") {
   const std::string base =
       source_path("scenes/dam_break.json") + " --backend cpu --quiet --set sph.spacing=0.04 --set run.end_time=0.01 ";
+  const CliResult bench = run_ranks(2, "sim --backend cpu --sizes 8k", "bench");
+  INFO(bench.output);
+  CHECK(bench.code == 2);
+  CHECK(has(bench.output, "only 'sphray run' runs over several ranks (started as one of 2)"));
   const CliResult presence = run_ranks(2, base + "--export " + tmp_dir() + "/p.h5 --export-fields presence");
   INFO(presence.output);
   CHECK(presence.code == 2);
