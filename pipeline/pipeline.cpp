@@ -97,11 +97,12 @@ struct StepTally {
 };
 
 // The summary's totals and means, once the run has ended.
+// A resumed run counts from where it started (t0, steps0).
 void finish_summary(RunSummary& r, const Solver& solver, const StepTally& tally, const FieldBuilder* field,
-                    double field_ms) {
-  r.steps = solver.steps();
+                    double field_ms, double t0, uint64_t steps0) {
+  r.steps = solver.steps() - steps0;
   r.solver = solver_name(solver.kind());
-  r.sim_time = solver.time();
+  r.sim_time = solver.time() - t0;
   r.fluid_end = solver.num_fluid();
   r.removed = solver.num_removed();
   r.clamped = solver.num_clamped();
@@ -179,8 +180,11 @@ RunSummary run_scene(const Scene& s, Solver& solver, const RunOptions& opt, std:
   const double end = s.run.end_time, every = s.run.output_interval;
   const auto t0 = clock::now();
   auto last_print = t0;
-  // A resumed run starts at the output frame of its time.
+  // A resumed run starts at the output frame of its time; its summary counts
+  // the steps and time it simulated.
   int frame = int(std::lround(solver.time() / every));
+  const double t0_sim = solver.time();
+  const uint64_t steps0 = solver.steps();
   double field_ms = 0;
   // What frame k needs: the field at every frame for a scene with a "field"
   // section, else where a sink needs it; presence toward it (when the solver
@@ -214,12 +218,13 @@ RunSummary run_scene(const Scene& s, Solver& solver, const RunOptions& opt, std:
     if (!opt.progress || (!last && std::chrono::duration<double>(now - last_print).count() < opt.progress_seconds)) return;
     last_print = now;
     const double wall = std::chrono::duration<double>(now - t0).count();
-    const double eta = solver.time() > 0 ? wall * (end - solver.time()) / solver.time() : 0.0;
+    const double done = solver.time() - t0_sim;
+    const double eta = done > 0 ? wall * (end - solver.time()) / done : 0.0;
     log << "  t = " << std::fixed << std::setprecision(4) << solver.time() << " / " << end << " s  step "
         << solver.steps() << "  dt " << std::scientific << std::setprecision(2)
         << (tally.last_free_dt > 0 ? tally.last_free_dt : double(solver.last_limits().dt))
         << " s  " << (wall > 0 ? r.particle_steps / wall : 0.0) << " particle-steps/s  " << std::defaultfloat
-        << std::setprecision(3) << "x" << (wall > 0 ? solver.time() / wall : 0.0) << " real time  ETA "
+        << std::setprecision(3) << "x" << (wall > 0 ? done / wall : 0.0) << " real time  ETA "
         << format_seconds(eta) << "\n";
     log.flush();
   };
@@ -239,7 +244,7 @@ RunSummary run_scene(const Scene& s, Solver& solver, const RunOptions& opt, std:
     progress(solver.time() >= end - 1e-12);
   }
   r.wall_seconds = std::chrono::duration<double>(clock::now() - t0).count();
-  finish_summary(r, solver, tally, opt.field, field_ms);
+  finish_summary(r, solver, tally, opt.field, field_ms, t0_sim, steps0);
   return r;
 }
 

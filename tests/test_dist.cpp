@@ -225,6 +225,7 @@ TEST_CASE("a run resumes from its export's last frame, on one rank or several", 
     INFO(ranks << " ranks: " << r.output);
     REQUIRE(r.code == 0);
     CHECK(has(r.output, "resumed from " + first + " at t = 0.2 s (step 200, 1120 particles)"));
+    CHECK(has(r.output, "simulated      0.3 s in 300 steps"));  // this run's share
     const FrameReader got(out);
     REQUIRE(got.frames().size() == 4);  // t = 0.2 (the frame resumed from), 0.3, 0.4, 0.5
     const Frame last = got.read(3);
