@@ -55,11 +55,15 @@ class SlabSolver final : public Solver {
   std::vector<Vec3f> boundary_positions() const override { return inner_->boundary_positions(); }
 
   void step(double until) override {
+    // A step refused by its guards ends after all of the step's collective
+    // calls (the exchange included): the ranks then agree on it. Any other
+    // error may leave the others inside one of them: it ends every rank
+    // (apps/main.cpp, MPI_Abort).
     std::string error;
     int failed = comm_.size();
     try {
       inner_->step(until);
-    } catch (const std::exception& e) {
+    } catch (const SimulationError& e) {
       error = e.what();
       failed = comm_.rank();
     }
