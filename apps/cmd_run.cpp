@@ -255,7 +255,7 @@ int cmd_run(RunArgs a) {
     std::cout << " m, halo " << plan.halo << " m\n";
     SlabOptions so;
     so.frame_view = needs.field || out.png;  // rank 0 builds the field and renders from the gathered particles
-    solver = make_slab_solver(in, *comm, b, make, so);
+    solver = make_slab_solver(in, plan, *comm, b, make, so);
   } else {
     solver = make_solver(rs, b, needs, resume ? &*resume : nullptr);
   }

@@ -12,10 +12,8 @@ class SingleComm final : public Comm {
  public:
   int rank() const override { return 0; }
   int size() const override { return 1; }
-  void max(float*, int) override {}
   void sum(double*, int) override {}
   void min(int*, int) override {}
-  std::vector<std::vector<char>> all_to_all(const std::vector<std::vector<char>>& send) override { return send; }
   std::vector<std::vector<char>> gather(const std::vector<char>& mine) override { return {mine}; }
   void broadcast(std::string&, int) override {}
 };
@@ -29,15 +27,11 @@ int env_int(const char* name, int fallback) {
 
 std::unique_ptr<Comm> make_single_comm() { return std::make_unique<SingleComm>(); }
 
-bool started_by_mpi_launcher() {
-  for (const char* name : {"OMPI_COMM_WORLD_SIZE", "PMI_SIZE", "PMIX_RANK", "MPI_LOCALNRANKS"})
-    if (std::getenv(name)) return true;
-  return false;
-}
+// Open MPI's mpirun sets OMPI_COMM_WORLD_SIZE; PMI launchers (MPICH's Hydra,
+// srun) PMI_SIZE. Not SLURM_NTASKS: a batch script has it without a launcher.
+int launcher_size() { return env_int("OMPI_COMM_WORLD_SIZE", env_int("PMI_SIZE", 0)); }
 
-int launcher_size() {
-  return env_int("OMPI_COMM_WORLD_SIZE", env_int("PMI_SIZE", env_int("SLURM_NTASKS", 1)));
-}
+bool started_by_mpi_launcher() { return launcher_size() > 0; }
 
 int local_rank() {
   return env_int("OMPI_COMM_WORLD_LOCAL_RANK", env_int("MPI_LOCALRANKID", env_int("SLURM_LOCALID", 0)));
@@ -63,7 +57,6 @@ std::unique_ptr<Comm> make_mpi_comm() {
 #endif
 
 #if !defined(SPHRAY_HAVE_NCCL)
-bool nccl_built() { return false; }
 std::unique_ptr<ParticleTransport> make_nccl_transport(Comm&) {
   throw std::runtime_error("this sphray was built without NCCL (it comes with the CUDA toolkit or libnccl-dev): a run "
                            "over several ranks on CUDA needs it; use --backend cpu");

@@ -16,13 +16,9 @@ class Comm {
   virtual ~Comm() = default;
   virtual int rank() const = 0;
   virtual int size() const = 0;
-  // In place over all ranks: element-wise maximum, sum, minimum.
-  virtual void max(float* v, int n) = 0;
+  // In place over all ranks: element-wise sum, minimum.
   virtual void sum(double* v, int n) = 0;
   virtual void min(int* v, int n) = 0;
-  // send[r]: the bytes for rank r (size() buffers, empty ones included);
-  // returns the bytes each rank sent to this one, by rank.
-  virtual std::vector<std::vector<char>> all_to_all(const std::vector<std::vector<char>>& send) = 0;
   // Rank 0 receives every rank's bytes (its own included), by rank; the
   // others receive nothing.
   virtual std::vector<std::vector<char>> gather(const std::vector<char>& mine) = 0;
@@ -38,7 +34,7 @@ std::unique_ptr<Comm> make_single_comm();
 // initialises MPI, so a one-process run is today's run.
 bool mpi_built();
 bool started_by_mpi_launcher();
-// The number of processes the launcher started (1 without one).
+// The number of processes the launcher started (0 without one).
 int launcher_size();
 
 // MPI over MPI_COMM_WORLD: initialises MPI (once; finalised at exit). Throws

@@ -22,15 +22,7 @@ void check(int rc, const char* what) {
   throw std::runtime_error(std::string("MPI: ") + what + " failed: " + std::string(text, size_t(len)));
 }
 
-// Byte counts and displacements of MPI's "v" calls (int: 2 GiB per rank pair).
-std::vector<int> counts_of(const std::vector<std::vector<char>>& bufs) {
-  std::vector<int> c(bufs.size());
-  for (size_t r = 0; r < bufs.size(); ++r) {
-    if (bufs[r].size() > size_t(INT32_MAX)) throw std::runtime_error("MPI: a message over 2 GiB");
-    c[r] = int(bufs[r].size());
-  }
-  return c;
-}
+// Displacements of MPI's "v" calls from their byte counts (int: 2 GiB in all).
 std::vector<int> displacements(const std::vector<int>& counts) {
   std::vector<int> d(counts.size(), 0);
   long long at = 0;
@@ -61,29 +53,11 @@ class MpiComm final : public Comm {
   }
   int rank() const override { return rank_; }
   int size() const override { return size_; }
-  void max(float* v, int n) override {
-    check(MPI_Allreduce(MPI_IN_PLACE, v, n, MPI_FLOAT, MPI_MAX, MPI_COMM_WORLD), "MPI_Allreduce");
-  }
   void sum(double* v, int n) override {
     check(MPI_Allreduce(MPI_IN_PLACE, v, n, MPI_DOUBLE, MPI_SUM, MPI_COMM_WORLD), "MPI_Allreduce");
   }
   void min(int* v, int n) override {
     check(MPI_Allreduce(MPI_IN_PLACE, v, n, MPI_INT, MPI_MIN, MPI_COMM_WORLD), "MPI_Allreduce");
-  }
-  std::vector<std::vector<char>> all_to_all(const std::vector<std::vector<char>>& send) override {
-    if (int(send.size()) != size_) throw std::logic_error("all_to_all: one buffer per rank");
-    const std::vector<int> scount = counts_of(send), sdisp = displacements(scount);
-    std::vector<int> rcount(size_t(size_), 0);
-    check(MPI_Alltoall(scount.data(), 1, MPI_INT, rcount.data(), 1, MPI_INT, MPI_COMM_WORLD), "MPI_Alltoall");
-    const std::vector<int> rdisp = displacements(rcount);
-    std::vector<char> out_flat(size_t(rdisp.back()) + size_t(rcount.back())), in_flat;
-    for (const auto& b : send) in_flat.insert(in_flat.end(), b.begin(), b.end());
-    check(MPI_Alltoallv(in_flat.data(), scount.data(), sdisp.data(), MPI_BYTE, out_flat.data(), rcount.data(),
-                        rdisp.data(), MPI_BYTE, MPI_COMM_WORLD),
-          "MPI_Alltoallv");
-    std::vector<std::vector<char>> out(static_cast<size_t>(size_));
-    for (int r = 0; r < size_; ++r) out[size_t(r)].assign(out_flat.begin() + rdisp[r], out_flat.begin() + rdisp[r] + rcount[r]);
-    return out;
   }
   std::vector<std::vector<char>> gather(const std::vector<char>& mine) override {
     if (mine.size() > size_t(INT32_MAX)) throw std::runtime_error("MPI: a message over 2 GiB");

@@ -71,7 +71,6 @@ class NcclTransport final : public ParticleTransport {
 
 }  // namespace
 
-bool nccl_built() { return true; }
 std::unique_ptr<ParticleTransport> make_nccl_transport(Comm& comm) { return std::make_unique<NcclTransport>(comm); }
 
 }  // namespace sphray

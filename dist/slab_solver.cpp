@@ -19,14 +19,12 @@ struct Owned {
   float pos[3], vel[3], density;
 };
 
-float coordinate(const Float4& p, int axis) { return axis == 0 ? p.x : axis == 1 ? p.y : p.z; }
-double coordinate(const Vec3f& p, int axis) { return axis == 0 ? p.x : axis == 1 ? p.y : p.z; }
 
 class SlabSolver final : public Solver {
  public:
-  SlabSolver(std::unique_ptr<ParticleTransport> transport, Comm& comm, SlabPlan plan, double bin_width,
+  SlabSolver(std::unique_ptr<ParticleTransport> transport, Comm& comm, SlabPlan plan,
              const SlabOptions& opt, SolverInput frame_in, SolverMaker make)
-      : transport_(std::move(transport)), comm_(comm), plan_(std::move(plan)), opt_(opt), bin_width_(bin_width),
+      : transport_(std::move(transport)), comm_(comm), plan_(std::move(plan)), opt_(opt),
         frame_in_(std::move(frame_in)), make_(std::move(make)) {}
 
   // The inner solver holds this rank's particles; the first exchange gives it its ghosts.
@@ -162,9 +160,9 @@ class SlabSolver final : public Solver {
     comm_.sum(counts.data(), ranks);
     if (imbalance(counts) <= opt_.rebalance_above) return;
     const HostParticles h = inner_->download();
-    AxisHistogram hist = AxisHistogram::over(plan_.lo, plan_.hi, bin_width_);
+    AxisHistogram hist = AxisHistogram::over(plan_.lo, plan_.hi, plan_.bin);
     for (size_t i = 0; i < h.id.size(); ++i)
-      if (h.status[i] != kStatusGhost) hist.add(coordinate(h.pos[i], plan_.axis));
+      if (h.status[i] != kStatusGhost) hist.add(along(h.pos[i], plan_.axis));
     comm_.sum(hist.counts.data(), int(hist.counts.size()));
     const std::vector<double> target = balanced_cuts(hist, ranks, plan_.lo, plan_.hi, plan_.min_width);
     const double reach = 0.49 * plan_.min_width;
@@ -175,7 +173,6 @@ class SlabSolver final : public Solver {
       plan_.cuts[k] = c;
     }
     if (!moved) return;  // held at the least slab width
-    ++rebalances_;
     inner_->set_slab(slab_bounds(plan_, comm_.rank()));
     sum_totals();
   }
@@ -185,10 +182,8 @@ class SlabSolver final : public Solver {
   Comm& comm_;
   SlabPlan plan_;
   SlabOptions opt_;
-  double bin_width_;
   std::unique_ptr<Solver> inner_;
   std::vector<double> totals_{0.0, 0.0, 0.0};  // owned, removed, clamped: over all ranks
-  uint64_t rebalances_ = 0;
   HostParticles gathered_;
   uint64_t gathered_step_ = ~uint64_t(0);
   SolverInput frame_in_;  // the run's input without its fluid: rank 0's frame grid
@@ -200,33 +195,34 @@ class SlabSolver final : public Solver {
 
 SlabPlan plan_slabs(const SolverInput& in, int ranks) {
   const Aabb& t = in.params.tank;
-  const double ext[3] = {double(t.max.x - t.min.x), double(t.max.y - t.min.y), double(t.max.z - t.min.z)};
+  const Vec3f ext = t.max - t.min;
   SlabPlan p;
-  p.axis = ext[1] > ext[p.axis] ? 1 : p.axis;
-  p.axis = ext[2] > ext[p.axis] ? 2 : p.axis;
-  p.lo = p.axis == 0 ? t.min.x : p.axis == 1 ? t.min.y : t.min.z;
-  p.hi = p.axis == 0 ? t.max.x : p.axis == 1 ? t.max.y : t.max.z;
+  for (int a = 1; a < 3; ++a)
+    if (along(ext, a) > along(ext, p.axis)) p.axis = a;
+  p.lo = along(t.min, p.axis);
+  p.hi = along(t.max, p.axis);
   p.halo = p.min_width = 2.0 * double(in.params.kernel.support());
   p.halo_free = double(in.params.kernel.support());
   check_rank_count(ranks, p.lo, p.hi, p.min_width, axis_name(p.axis));
-  AxisHistogram h = AxisHistogram::over(p.lo, p.hi, 0.5 * double(in.params.spacing));
-  for (const Float4& q : in.fluid_pos_rho) h.add(coordinate(q, p.axis));
+  p.bin = 0.5 * double(in.params.spacing);
+  AxisHistogram h = AxisHistogram::over(p.lo, p.hi, p.bin);
+  for (const Float4& q : in.fluid_pos_rho) h.add(along(xyz(q), p.axis));
   p.cuts = balanced_cuts(h, ranks, p.lo, p.hi, p.min_width);
   return p;
 }
 
-std::unique_ptr<Solver> make_slab_solver(SolverInput in, Comm& comm, Backend backend, const SolverMaker& make,
-                                         const SlabOptions& opt) {
+std::unique_ptr<Solver> make_slab_solver(SolverInput in, const SlabPlan& plan, Comm& comm, Backend backend,
+                                         const SolverMaker& make, const SlabOptions& opt) {
+  if (plan.ranks() != comm.size()) throw std::logic_error("make_slab_solver: a plan for another rank count");
   if (in.kind != SolverKind::Wcsph)
     throw std::invalid_argument(std::string("a run over several ranks needs sph.solver \"wcsph\" (this is \"") +
                                 solver_name(in.kind) + "\")");
   if (!in.skins.empty()) throw std::invalid_argument("a run over several ranks cannot carry obstacles' skin waves");
-  const SlabPlan plan = plan_slabs(in, comm.size());
   const uint32_t total = uint32_t(in.fluid_pos_rho.size());
   std::vector<Float4> pos, vel;
   std::vector<uint32_t> ids;
   for (uint32_t i = 0; i < total; ++i)
-    if (plan.owner(coordinate(in.fluid_pos_rho[i], plan.axis)) == comm.rank()) {
+    if (plan.owner(along(xyz(in.fluid_pos_rho[i]), plan.axis)) == comm.rank()) {
       pos.push_back(in.fluid_pos_rho[i]);
       vel.push_back(in.fluid_vel[i]);
       ids.push_back(in.fluid_id.empty() ? i : in.fluid_id[i]);
@@ -243,7 +239,7 @@ std::unique_ptr<Solver> make_slab_solver(SolverInput in, Comm& comm, Backend bac
     frame_in.fluid_vel.clear();
   }
   in.transport = transport.get();
-  auto slab = std::make_unique<SlabSolver>(std::move(transport), comm, plan, 0.5 * double(in.params.spacing), opt,
+  auto slab = std::make_unique<SlabSolver>(std::move(transport), comm, plan, opt,
                                            std::move(frame_in), make);
   slab->start(make(in));
   return slab;

@@ -56,11 +56,12 @@ using SolverMaker = std::function<std::unique_ptr<Solver>(const SolverInput&)>;
 // that many slabs (check_rank_count).
 SlabPlan plan_slabs(const SolverInput& in, int ranks);
 
-// This rank's solver of a decomposed run: `in` holds the whole run's
-// particles (every rank resolves the same scene); the rank keeps its own.
-// Collective: every rank calls it. WCSPH only (std::invalid_argument else).
-// The transport follows the backend: MPI for the CPU, NCCL for CUDA.
-std::unique_ptr<Solver> make_slab_solver(SolverInput in, Comm& comm, Backend backend, const SolverMaker& make,
-                                         const SlabOptions& opt = {});
+// This rank's solver of a decomposed run cut as `plan` (plan_slabs, one slab
+// per rank): `in` holds the whole run's particles (every rank resolves the
+// same scene); the rank keeps its own. Collective: every rank calls it. WCSPH
+// only (std::invalid_argument else). The transport follows the backend: MPI
+// for the CPU, NCCL for CUDA.
+std::unique_ptr<Solver> make_slab_solver(SolverInput in, const SlabPlan& plan, Comm& comm, Backend backend,
+                                         const SolverMaker& make, const SlabOptions& opt = {});
 
 }  // namespace sphray

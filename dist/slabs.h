@@ -20,6 +20,7 @@ struct SlabPlan {
   double lo = 0, hi = 0;    // the domain along the axis [m]
   double halo = 0;          // ghost width [m] near wall particles: particles within it of a slab are copied to its rank
   double halo_free = 0;     // ghost width [m] elsewhere
+  double bin = 0;           // [m] the bins of the particle histogram the cuts are placed by
   double min_width = 0;     // [m]
   std::vector<double> cuts; // the ranks - 1 interior cuts, ascending
 

@@ -16,6 +16,5 @@ std::unique_ptr<ParticleTransport> make_mpi_transport(Comm& comm);
 // Over NCCL among comm's ranks, on the current CUDA device (use_cuda_device
 // first). Throws in a build without NCCL (or CUDA).
 std::unique_ptr<ParticleTransport> make_nccl_transport(Comm& comm);
-bool nccl_built();
 
 }  // namespace sphray

@@ -36,6 +36,9 @@ struct SlabBounds {
   float halo = 0, halo_free = 0;
 };
 
+// A point's coordinate along axis 0 (x), 1 (y) or 2 (z).
+SPHRAY_HD inline float along(const Vec3f& p, int axis) { return axis == 0 ? p.x : axis == 1 ? p.y : p.z; }
+
 // Where each particle goes: bit k of `to` for peer k; `owner` the peer that
 // owns it. near_walls: wall particles lie within a support of p.
 struct Destinations {
@@ -44,7 +47,7 @@ struct Destinations {
 
 SPHRAY_HD inline Destinations destinations_of(const SlabBounds& b, const Float4& p, bool near_walls) {
   const float halo = near_walls ? b.halo : b.halo_free;
-  const float x = b.axis == 0 ? p.x : b.axis == 1 ? p.y : p.z;
+  const float x = along(xyz(p), b.axis);
   uint8_t owner = kSelf;
   if (b.exists[kSelf - 1] && x < b.lo[kSelf]) owner = kSelf - 1;
   else if (b.exists[kSelf + 1] && x >= b.hi[kSelf]) owner = kSelf + 1;
