@@ -92,7 +92,7 @@ struct HostParticles {
   std::vector<Vec3f> pos, vel;
   std::vector<float> density;
   std::vector<std::array<float, 6>> presence;  // empty when presence is off
-  std::vector<uint8_t> status;  // integrate.h (kStatusGhost: another rank's particle); empty from PBF and DFSPH
+  std::vector<uint8_t> status;  // a decomposed run's (integrate.h, kStatusGhost: another rank's particle); else empty
 };
 
 // The solver's current fluid state where its backend keeps it (device pointers

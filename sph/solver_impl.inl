@@ -153,8 +153,10 @@ class SolverImpl final : public Solver {
     parallel_for("advance", n_, Advance{prm_, control, state(), pair_results(), obstacles_.view});
     control_read_.start(control);
     clock_.end_of("integrate");
-    if (transport_) exchange();
-    clock_.end_of("exchange");
+    if (transport_) {
+      exchange();
+      clock_.end_of("exchange");
+    }
     build_grid(control);
     clock_.end_of("grid");
     clock_.finish();
@@ -179,7 +181,7 @@ class SolverImpl final : public Solver {
 
   HostParticles download() const override {
     HostParticles h = download_particles(id_, pos_, vel_, presence_valid_ ? &presence_ : nullptr, n_);
-    h.status = sphray::SPHRAY_BK::download(status_, n_);
+    if (transport_) h.status = sphray::SPHRAY_BK::download(status_, n_);  // which are ghosts
     return h;
   }
 
