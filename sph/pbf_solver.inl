@@ -145,14 +145,15 @@ class PbfSolverImpl final : public Solver {
   // The pair masks at the predicted positions, searched within the support
   // only (the grid's cells are wider: pbf_support_cells in setup.cpp), and
   // the launches' particles for the step: the iterations move a particle by
-  // at most max_correction each (and a stop's offset, obstacles.h), so its
-  // class holds within that margin (none without the limit).
+  // at most max_correction each (and a stop's offset, obstacles.h, taken
+  // twice for slack), so its class holds within that margin (none without
+  // the limit).
   void build_masks() {
     BuildPairMask b{grid_, raw(fine_offsets_), raw(pred_), raw(pred_), pbf_.kernel.s * pbf_.kernel.s, true, pairs()};
     b.search_radius = pbf_.kernel.s;
     parallel_for("pbf_pair_masks", n_, b);
     const float margin = pbf_.max_correction > 0.0f
-                             ? float(pbf_.iterations) * (pbf_.max_correction + 0.02f * prm_.spacing)
+                             ? float(pbf_.iterations) * (pbf_.max_correction + 2.0f * obstacles_.view.offset)
                              : pbf_.kernel.s;
     lists_.classify(n_, prm_, pbf_.kernel.s, margin, grid_, walls_.view(), pairs(), raw(pred_));
   }
