@@ -270,6 +270,7 @@ PbfParams make_pbf_params(const Scene& s) {
   p.max_dt_depth = g > 0 && c.depth_error > 0
                        ? float(k.support() * std::sqrt(c.iterations * c.depth_error / (g * depth_of(s))))
                        : std::numeric_limits<float>::max();
+  p.step_error = float(c.step_error);
   p.iterations = c.iterations;
   p.tolerance = float(c.tolerance);
   return p;

@@ -35,7 +35,7 @@ void read_wcsph_options(const ConfigReader& r, SphConfig& c) {
 }
 
 PbfConfig read_pbf_config(const ConfigReader& r) {
-  r.only({"iterations", "tolerance", "support", "relaxation", "scorr_k", "scorr_dq", "scorr_n", "depth_error", "max_correction", "xsph",
+  r.only({"iterations", "tolerance", "support", "relaxation", "scorr_k", "scorr_dq", "scorr_n", "depth_error", "step_error", "max_correction", "xsph",
           "vorticity"});
   PbfConfig c;
   c.iterations = r.integer("iterations", c.iterations, 1, 100);
@@ -46,6 +46,7 @@ PbfConfig read_pbf_config(const ConfigReader& r) {
   c.scorr_dq = r.number("scorr_dq", c.scorr_dq, 0, 1, false, true);
   c.scorr_n = r.integer("scorr_n", c.scorr_n, 1, 8);
   c.depth_error = r.number("depth_error", c.depth_error, 0, 1);
+  c.step_error = r.number("step_error", c.step_error, 0, 1);
   c.max_correction = r.number("max_correction", c.max_correction, 0, 10);
   c.xsph = r.number("xsph", c.xsph, 0, 1);
   c.vorticity = r.number("vorticity", c.vorticity, 0, 100);

@@ -21,6 +21,7 @@ struct PbfConfig {
   int scorr_n = 4;            // s_corr exponent
   double max_correction = 0.25;  // largest correction per particle and iteration [spacings]; 0: none
   double depth_error = 0.01;  // compression a column may keep between steps (the depth limit of dt); 0: no limit
+  double step_error = 0.005;  // mean compression the steps after the first are sized to (ChooseFlowStep); 0: the depth limit throughout
   double xsph = 0.3;          // XSPH viscosity c (the share of the neighbours' mean velocity difference per step)
   double vorticity = 0;       // vorticity confinement epsilon [m/s]; 0: off (docs/method.md)
 };

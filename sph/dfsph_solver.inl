@@ -85,7 +85,7 @@ class DfsphSolverImpl final : public Solver {
     FlowControl* control = raw(control_);
     parallel_for("dfsph_choose_step", 1,
                  ChooseFlowStep{cfl_ * prm_.spacing, double(df_.speed_floor), max_dt_, double(df_.max_dt_viscous), min_dt_,
-                                std::max(until - t_, 0.0), control});
+                                std::max(until - t_, 0.0), control, 0.0, 0u});
     forces();
     parallel_for("dfsph_warm_pressure", n_, DfsphWarmStart<false>{control, raw(warm_), raw(source_), raw(press_)});
     SolveResult pressure = iterate<false>(df_.min_iterations, df_.max_iterations, df_.tolerance);

@@ -46,6 +46,8 @@ struct FlowControl {
   FlowStats stats;      // of the state the step starts from
   StepLimits limits;   // limits.dt: the step taken when outcome is kStepOk
   uint32_t outcome;    // StepOutcome (integrate.h)
+  double dt_chosen;    // the last step before landing on an output time (0 before the first)
+  double error_mean;   // the mean compression of the steps so far, smoothed (ChooseFlowStep)
 };
 
 // dt = cfl dx / max(v_max, v_floor), capped at max_dt, at max_dt_solver and
@@ -54,10 +56,18 @@ struct FlowControl {
 // not take steps sized by its small speed alone. max_dt_solver is the
 // solver's own limit: PBF's depth limit (its reason in pbf.h), DFSPH's
 // explicit viscosity's (dfsph.h; DFSPH iterates to a tolerance and needs no
-// depth limit). Made on the device, like ChooseStep (integrate.h).
+// depth limit). With error_target > 0 (PBF's pbf.step_error) max_dt_solver
+// sizes only the first step; after it the limit follows the compression the
+// last step left: a mean of e over the n particles at a step of dt asks for
+// dt sqrt(error_target / e) (the compression a step leaves grows as dt^2,
+// pbf.h), changed by at most the factors kShrink and kGrow per step, so that
+// the speeds, position changes over dt, do not jump. Made on the device, like
+// ChooseStep (integrate.h).
 struct ChooseFlowStep {
   double cfl_dx, speed_floor, max_dt, max_dt_solver, min_dt, remaining;
   FlowControl* control;
+  double error_target;  // mean compression the step is sized to; 0: max_dt_solver throughout
+  uint32_t n;           // particles in the error sum
   SPHRAY_HD void operator()(uint32_t) const {
     FlowControl& c = *control;
     StepLimits& l = c.limits;
@@ -65,18 +75,28 @@ struct ChooseFlowStep {
     const double v = l.max_speed > speed_floor ? l.max_speed : speed_floor;
     l.dt_cfl = v > 0 ? cfl_dx / v : HUGE_VAL;
     l.dt_force = max_dt_solver;
+    const double e_now = n > 0 ? c.stats.error_sum / n : 0.0;
+    c.error_mean = c.dt_chosen > 0 ? kKeep * c.error_mean + (1.0 - kKeep) * e_now : e_now;
+    if (error_target > 0 && c.dt_chosen > 0) {
+      const double e = e_now > c.error_mean ? e_now : c.error_mean;
+      const double f = e > 0 ? std::sqrt(error_target / e) : kGrow;
+      const double grown = c.dt_chosen * (f < kShrink ? kShrink : f > kGrow ? kGrow : f);
+      l.dt_force = grown > max_dt_solver ? grown : max_dt_solver;
+    }
     l.dt_viscous = HUGE_VAL;
-    const double limit = max_dt < max_dt_solver ? max_dt : max_dt_solver;
+    const double limit = max_dt < l.dt_force ? max_dt : l.dt_force;
     const double dt = l.dt_cfl < limit ? l.dt_cfl : limit;
     l.dt = dt;
     if (dt < min_dt) { c.outcome = kStepBelowFloor; return; }
     c.outcome = kStepOk;
+    c.dt_chosen = dt;
     // No sliver of a step before an output time: PBF's velocities are
     // position changes over dt and DFSPH's pressures scale with 1 / dt^2, so
     // a tiny step turns a correction into a huge speed or pressure. Land on
     // `until` a little beyond the limit, or in two halves.
     l.dt = remaining <= kLandStretch * dt ? remaining : remaining < 2.0 * dt ? 0.5 * remaining : dt;
   }
+  static constexpr double kShrink = 0.9, kGrow = 1.05, kKeep = 0.9;
   static constexpr double kLandStretch = 1.01;
 };
 

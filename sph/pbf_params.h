@@ -27,6 +27,7 @@ struct PbfParams {
   float presence_scale;  // 1 / (2 K) with this kernel (interaction.h)
   float speed_floor;     // [m/s] the CFL's speed is at least this (ChooseFlowStep)
   float max_dt_depth;    // [s] the step at which the liquid's depth compresses by pbf.depth_error (ChooseFlowStep)
+  float step_error;      // mean compression the steps after the first are sized to; 0: max_dt_depth throughout
   int iterations;        // constraint iterations per step
   float tolerance;       // mean density error that ends the iterations early; 0: off
 };

@@ -110,6 +110,78 @@ TEST_CASE("pbf: no particle leaves a closed tank, and the step follows the flow 
   CHECK(solver->last_solve().iterations == s.sph.pbf.iterations);
 }
 
+TEST_CASE("pbf step size: after the first step the limit follows the mean compression left, never below the depth limit",
+          "[sph][cpu]") {
+  // One call of the rule on a control whose previous step and error are set;
+  // returns the step and the solver's limit. The flow CFL is out of reach
+  // (a slow flow, a wide cfl_dx) unless a test asks for it.
+  const double depth = 1e-3, target = 0.005, n = 1000;
+  auto choose = [&](double dt_before, double error_mean, double error_smooth, double cfl_dx = 1.0,
+                    double remaining = 1.0) {
+    FlowControl c{};
+    c.stats.max_speed2 = 1.0f;  // 1 m/s
+    c.stats.error_sum = error_mean * n;
+    c.dt_chosen = dt_before;
+    c.error_mean = error_smooth;
+    ChooseFlowStep{cfl_dx, 0.0, 1.0, depth, 1e-8, remaining, &c, target, uint32_t(n)}(0);
+    return c;
+  };
+  // The first step: the depth limit, and the smoothed error starts at the step's.
+  FlowControl c = choose(0.0, 0.001, 0.0);
+  CHECK(c.limits.dt == depth);
+  CHECK(c.error_mean == Approx(0.001));
+  CHECK(c.dt_chosen == depth);
+  // Compression below the target: the step grows as sqrt(target / e), at most 5% a step.
+  const double e = target / (1.02 * 1.02);
+  c = choose(2e-3, e, e);
+  CHECK(c.limits.dt == Approx(2e-3 * 1.02).epsilon(1e-9));
+  CHECK(choose(2e-3, target / 100, target / 100).limits.dt == Approx(2e-3 * ChooseFlowStep::kGrow).epsilon(1e-9));
+  // Above it: shrinks by at most 10% a step, and not below the depth limit.
+  CHECK(choose(2e-3, 4 * target, 4 * target).limits.dt == Approx(2e-3 * ChooseFlowStep::kShrink).epsilon(1e-9));
+  CHECK(choose(1.05e-3, 4 * target, 4 * target).limits.dt == depth);
+  // The larger of this step's error and the smoothed one decides: a single
+  // calm step amid compressed ones does not let the step grow.
+  c = choose(2e-3, target / 4, 2 * target);
+  const double smooth = ChooseFlowStep::kKeep * 2 * target + (1 - ChooseFlowStep::kKeep) * target / 4;
+  CHECK(c.error_mean == Approx(smooth));
+  CHECK(c.limits.dt == Approx(2e-3 * std::max(ChooseFlowStep::kShrink, std::sqrt(target / smooth))).epsilon(1e-9));
+  // The flow CFL still caps it, and the controller's base is the step before
+  // landing on an output time, not the landed sliver.
+  CHECK(choose(2e-3, target / 4, target / 4, 1.5e-3).limits.dt == Approx(1.5e-3));
+  c = choose(2e-3, target / 4, target / 4, 1.0, 2.5e-3);
+  CHECK(c.limits.dt == Approx(1.25e-3));
+  CHECK(c.dt_chosen == Approx(2.1e-3));
+  // pbf.step_error = 0: the depth limit throughout.
+  FlowControl off{};
+  off.stats.max_speed2 = 1.0f;
+  off.dt_chosen = 2e-3;
+  ChooseFlowStep{1.0, 0.0, 1.0, depth, 1e-8, 1.0, &off, 0.0, uint32_t(n)}(0);
+  CHECK(off.limits.dt == depth);
+}
+
+TEST_CASE("pbf: the dam break takes fewer steps under the error-sized step, at a mean compression near its target",
+          "[sph][cpu]") {
+  // At this coarse spacing PBF's 5 ms cap would set every step; without it
+  // the depth limit does, as at the scene's usual sizes.
+  auto run = [](const std::string& step_error, double& error_mean) {
+    const Scene s = pbf_scene("scenes/dam_break.json", {"sph.spacing=0.03", "run.max_dt=0.1", "pbf.step_error=" + step_error});
+    auto solver = make_cpu_solver(make_solver_input(resolve_scene(s), PresenceMode::Off));
+    double sum = 0;
+    while (solver->time() < 0.6 - 1e-12) {
+      solver->step(0.6);
+      sum += solver->last_solve().density_error_mean;
+    }
+    error_mean = sum / double(solver->steps());
+    return solver->steps();
+  };
+  double fixed_error = 0, sized_error = 0;
+  const uint64_t fixed = run("0", fixed_error), sized = run("0.005", sized_error);
+  INFO("steps " << fixed << " -> " << sized << ", mean compression " << fixed_error << " -> " << sized_error);
+  CHECK(double(sized) < 0.9 * double(fixed));
+  CHECK(sized_error > fixed_error);
+  CHECK(sized_error < 1.5 * 0.005);
+}
+
 TEST_CASE("pbf: a density tolerance ends the iterations early", "[sph][cpu]") {
   const Scene loose = pbf_scene("scenes/dam_break.json", {"sph.spacing=0.04", "pbf.iterations=20", "pbf.tolerance=0.5"});
   auto a = make_cpu_solver(make_solver_input(resolve_scene(loose), PresenceMode::Off));
@@ -226,6 +298,8 @@ TEST_CASE("pbf scene options: refused by name where they do not apply or are out
   CHECK(error_of(R"("sph": {"spacing": 0.1, "solver": "pbf"}, "pbf": {"relaxation": 0}})").find("pbf.relaxation") !=
         std::string::npos);
   CHECK(error_of(R"("sph": {"spacing": 0.1, "solver": "pbf", "cfl": 0}})").find("sph.cfl") != std::string::npos);
+  CHECK(error_of(R"("sph": {"spacing": 0.1, "solver": "pbf"}, "pbf": {"step_error": -0.01}})").find("pbf.step_error") !=
+        std::string::npos);
   CHECK(error_of(R"("sph": {"spacing": 0.1, "solver": "pbf"}, "run": {"min_dt": 0.01, "max_dt": 0.001}})")
             .find("run.max_dt") != std::string::npos);
   CHECK(error_of(R"("sph": {"spacing": 0.1, "solver": "pbf"}, "pbf": {"iterations": 4}})").empty());

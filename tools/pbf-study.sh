@@ -18,10 +18,10 @@ done
 
 SOLVER=pbf
 source "$(dirname "$0")/study-common.sh"
-echo "== dam break to 0.3 s: CFL (depth limit off, max_dt 0.1 s)"
+echo "== dam break to 0.3 s: CFL (depth limit and error-sized step off, max_dt 0.1 s)"
 { echo "$HDR"
   for dx in 0.00864 0.00432; do
-    for cfl in 0.5 1 2 4 8; do dam "dx=$dx cfl=$cfl" sph.spacing=$dx sph.cfl=$cfl pbf.depth_error=0 run.max_dt=0.1; done
+    for cfl in 0.5 1 2 4 8; do dam "dx=$dx cfl=$cfl" sph.spacing=$dx sph.cfl=$cfl pbf.depth_error=0 pbf.step_error=0 run.max_dt=0.1; done
     dam "dx=$dx default" sph.spacing=$dx
   done; } | tee "$OUT/pbf_cfl.csv"
 echo "== dam break to 0.3 s: iterations (defaults otherwise)"
@@ -29,6 +29,27 @@ echo "== dam break to 0.3 s: iterations (defaults otherwise)"
   for dx in 0.00864 0.00432; do
     for it in 1 2 3 4 6 8; do dam "dx=$dx iterations=$it" sph.spacing=$dx pbf.iterations=$it; done
   done; } | tee "$OUT/pbf_iterations.csv"
+echo "== dam break to 1 s: the error-sized step (pbf.step_error; 0: the depth limit alone)"
+{ echo "case,particles,steps,mean_dt_ms,density_error_mean_pct,density_error_max_pct,max_speed_m_s,wall_s,realtime,front_0.3s_m"
+  for dx in 0.00864 0.00432 0.00272; do
+    errors="0 0.003 0.005 0.007 0.01"
+    [ $dx = 0.00272 ] && errors="0 0.005"
+    for e in $errors; do
+      $B/sphray run scenes/dam_break.json --backend cuda --quiet --set sph.solver=pbf --set sph.spacing=$dx \
+        --set run.end_time=1.0 --set pbf.step_error=$e --summary-json /tmp/s.json > /dev/null 2>&1
+      rm -f /tmp/m.csv
+      $B/sphray run scenes/dam_break.json --backend cuda --quiet --set sph.solver=pbf --set sph.spacing=$dx \
+        --set run.end_time=0.3 --set run.output_interval=0.3 --set pbf.step_error=$e --metrics-csv /tmp/m.csv > /dev/null 2>&1
+      python3 - "dx=$dx step_error=$e" <<'PY'
+import csv, json, sys
+s = json.load(open('/tmp/s.json')); c = s.get('constraint', {})
+rows = list(csv.DictReader(open('/tmp/m.csv')))
+print(f"{sys.argv[1]},{s['fluid_start']},{s['steps']},{s['mean_dt_s']*1e3:.3f},{100*c.get('density_error_mean',0):.3f},"
+      f"{100*c.get('density_error_max',0):.2f},{s['max_speed_m_s']:.2f},{s['wall_s']:.3f},{s['realtime_factor']:.3f},"
+      f"{float(rows[-1]['front_m']):.4f}")
+PY
+    done
+  done; } | tee "$OUT/pbf_step_error.csv"
 echo "== dam break to 1 s, both solvers (real-time factor of the simulation alone)"
 for dx in 0.00864 0.00432 0.00272; do
   solvers="pbf wcsph"
