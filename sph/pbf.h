@@ -33,6 +33,9 @@
 // within a step); max_dt_depth keeps that at pbf.depth_error, 1% by default
 // (make_pbf_params). Above it, deep columns compressed by several percent
 // and their corrections came back as spurious speeds of metres per second.
+// H is the initial depth; after the first step the limit grows from
+// max_dt_depth while the mean compression the steps leave stays below
+// pbf.step_error (ChooseFlowStep's error-sized step).
 #pragma once
 
 #include <cmath>
