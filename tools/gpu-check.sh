@@ -184,7 +184,7 @@ if has compare; then
   for k in 1 2; do
     for exe in $R/sphray $B/sphray; do
       echo "-- bench sim 1M, $exe (run $k)"
-      $exe bench sim --backend cuda --sizes 1M 2>&1 | grep -E '^ +[0-9]+ +(on|off) '
+      $exe bench sim --backend cuda --sizes 1M 2>&1 | grep -E '^ +[a-z]+ +[0-9]+ +(on|off) '
     done
   done | tee "$OUT/compare_sim.log"
   for exe in $R/sphray $B/sphray; do
