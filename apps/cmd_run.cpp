@@ -248,8 +248,19 @@ int cmd_run(RunArgs a) {
     check_several_ranks(scene, fields_asked);
     pick_rank_device(b);
     const SolverMaker make = b == Backend::Cuda ? SolverMaker(make_cuda_solver) : SolverMaker(make_cpu_solver);
+    // Each rank's memory: an even share before the particles are made (a
+    // scene too large for every rank is refused before it fills the host),
+    // then its slab with ghosts; rank 0's frame view holds every particle.
+    RankShare share{comm->rank(), comm->size(), (rs.size.fluid + size_t(comm->size()) - 1) / size_t(comm->size()),
+                    root && (needs.field || out.png)};
+    share.ranks_on_node = local_size();
+    share.even = true;
+    check_fits(rs, b, needs.field, &share);
     const SolverInput in = make_solver_input(rs, PresenceMode::Off, resume ? &*resume : nullptr);
     const SlabPlan plan = plan_slabs(in, comm->size());
+    share.fluid = held_particles(in, plan, comm->rank());
+    share.even = false;
+    check_fits(rs, b, needs.field, &share);
     std::cout << "ranks: " << comm->size() << " slabs along " << axis_name(plan.axis) << ", cut at";
     for (double c : plan.cuts) std::cout << " " << c;
     std::cout << " m, halo " << plan.halo << " m\n";

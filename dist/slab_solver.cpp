@@ -193,6 +193,16 @@ class SlabSolver final : public Solver {
 
 }  // namespace
 
+size_t held_particles(const SolverInput& in, const SlabPlan& plan, int rank) {
+  const double lo = plan.slab_lo(rank) - plan.halo, hi = plan.slab_hi(rank) + plan.halo;
+  size_t n = 0;
+  for (const Float4& p : in.fluid_pos_rho) {
+    const double x = along(xyz(p), plan.axis);
+    n += (rank == 0 || x >= lo) && (rank == plan.ranks() - 1 || x < hi);
+  }
+  return n;
+}
+
 SlabPlan plan_slabs(const SolverInput& in, int ranks) {
   const Aabb& t = in.params.tank;
   const Vec3f ext = t.max - t.min;

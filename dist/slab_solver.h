@@ -56,6 +56,11 @@ using SolverMaker = std::function<std::unique_ptr<Solver>(const SolverInput&)>;
 // that many slabs (check_rank_count).
 SlabPlan plan_slabs(const SolverInput& in, int ranks);
 
+// The fluid particles of `in` that rank `rank` holds at the start: its own and
+// its ghosts, counted within the wider halo (plan.halo) on both sides, an
+// upper bound for its memory (pipeline/setup.h, RankShare).
+size_t held_particles(const SolverInput& in, const SlabPlan& plan, int rank);
+
 // This rank's solver of a decomposed run cut as `plan` (plan_slabs, one slab
 // per rank): `in` holds the whole run's particles (every rank resolves the
 // same scene); the rank keeps its own. Collective: every rank calls it. WCSPH

@@ -357,7 +357,8 @@ SceneSize measure_scene(const Scene& s) {
   // two pair masks (fluid and walls); the coarse + 2 slab tables and the two
   // near-cell flags.
   const size_t mask_bytes = 2 * (sizeof(PairWord) * pair_mask_capacity(support / dx) + sizeof(uint32_t));
-  z.bytes = z.fluid * (248 + 60 + mask_bytes) + z.boundary * 64 + z.cells * (4 + 8 * GridGeom::kSubX + 2);
+  z.per_fluid = 248 + 60 + mask_bytes;
+  z.bytes = z.fluid * z.per_fluid + z.boundary * 64 + z.cells * (4 + 8 * GridGeom::kSubX + 2);
   return z;
 }
 
@@ -366,7 +367,7 @@ ResolvedScene resolve_scene(const Scene& s) {
           s.sph.solver == SolverKind::Dfsph ? make_dfsph_params(s) : DfsphParams{}, measure_scene(s)};
 }
 
-void check_fits(const ResolvedScene& r, Backend backend, bool field) {
+void check_fits(const ResolvedScene& r, Backend backend, bool field, const RankShare* share) {
   const Scene& s = r.scene;
   const SceneSize& z = r.size;
   const double gib = 1024.0 * 1024.0 * 1024.0;
@@ -377,7 +378,13 @@ void check_fits(const ResolvedScene& r, Backend backend, bool field) {
        << "Raise sph.spacing or shrink the tank.";
     throw SceneError(os.str());
   }
+  // A rank: its slab's particles with the scene's walls and grid (every rank
+  // holds both whole), and rank 0's frame view of the whole run besides.
   size_t bytes = z.bytes;
+  if (share) {
+    bytes = z.bytes - z.fluid * z.per_fluid + share->fluid * z.per_fluid + (share->whole_view ? z.bytes : 0);
+    field = field && share->whole_view;
+  }
   if (field) bytes += size_t(make_field_setup(r).geom.num_voxels()) * sizeof(float);
   size_t avail = 0;
   if (backend == Backend::Cuda) {
@@ -397,12 +404,24 @@ void check_fits(const ResolvedScene& r, Backend backend, bool field) {
       avail = pages > 0 && page > 0 ? size_t(pages) * size_t(page) : 0;
     }
   }
+  if (share && backend == Backend::Cpu && share->ranks_on_node > 1) avail /= size_t(share->ranks_on_node);
   if (avail > 0 && bytes > avail * 0.9) {
     os.precision(3);
-    os << s.file << ": sph.spacing = " << s.sph.spacing << " needs about " << bytes / gib << " GiB (" << z.fluid
-       << " fluid particles, " << z.boundary << " wall particles, " << z.cells << " grid cells"
-       << (field ? ", the density field" : "") << "), but the "
-       << backend_name(backend) << " backend has " << avail / gib << " GiB free. Raise sph.spacing or shrink the tank.";
+    os << s.file << ": sph.spacing = " << s.sph.spacing << " needs about " << bytes / gib << " GiB";
+    if (share)
+      os << " on rank " << share->rank << " of " << share->ranks << " (" << share->fluid
+         << (share->even ? " fluid particles (an even share), " : " fluid particles of its slab with its ghosts, ") << z.boundary << " wall particles, " << z.cells
+         << " grid cells" << (share->whole_view ? ", and all " + std::to_string(z.fluid) + " particles again for the frames" : "")
+         << (field ? ", the density field" : "") << "), but its ";
+    else
+      os << " (" << z.fluid << " fluid particles, " << z.boundary << " wall particles, " << z.cells << " grid cells"
+         << (field ? ", the density field" : "") << "), but the ";
+    os << backend_name(backend) << " backend has " << avail / gib << " GiB free"
+       << (share && backend == Backend::Cpu && share->ranks_on_node > 1
+               ? " (its share of the node's, with " + std::to_string(share->ranks_on_node) + " ranks on it)"
+               : "")
+       << ". Raise sph.spacing or shrink the tank"
+       << (share ? ", or run on more ranks." : ".");
     throw SceneError(os.str());
   }
 }

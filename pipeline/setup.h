@@ -20,7 +20,8 @@ struct SceneSize {
   int boundary_layers = 0;  // the tank's wall layers (WCSPH; 0: PBF, DFSPH)
   int mesh_layers = 0;      // the obstacles' wall layers (SphConfig::mesh_wall_layers)
   GridGeom grid{};
-  size_t bytes = 0;  // estimated memory of the solver's buffers
+  size_t bytes = 0;  // estimated memory of the solver's buffers: fluid * per_fluid + fixed
+  size_t per_fluid = 0;  // of it, per fluid particle
 };
 
 // A scene with what every stage derives from it, computed once.
@@ -79,6 +80,18 @@ FieldSetup make_field_setup(const ResolvedScene& r);
 
 // Throws SceneError when the scene (with its density field when `field`)
 // would need more memory than `backend` has free.
-void check_fits(const ResolvedScene& r, Backend backend, bool field = false);
+// What one rank of a run over several holds (dist/): the fluid particles of
+// its slab with its ghosts, and on rank 0 with frames or a field the whole
+// run's particles besides (the frame view) and the field.
+struct RankShare {
+  int rank = 0, ranks = 1;
+  size_t fluid = 0;
+  bool whole_view = false;
+  int ranks_on_node = 1;  // on the CPU backend they share the node's memory
+  bool even = false;      // fluid is an even share (before the slabs are cut), not the slab's count
+};
+// Refuses (SceneError) a scene whose buffers would not fit the backend's free
+// memory, or that sphray cannot index; with `share`, the buffers of that rank.
+void check_fits(const ResolvedScene& r, Backend backend, bool field = false, const RankShare* share = nullptr);
 
 }  // namespace sphray

@@ -314,6 +314,20 @@ TEST_CASE("more ranks than the domain holds are refused before the run", "[dist]
   CHECK(has(r.output, "at most 5 ranks"));
 }
 
+TEST_CASE("a scene too large for a rank's memory is refused before the particles are made, naming the rank",
+          "[dist][mpi]") {
+  // 640M particles: about 150 GiB for each of 2 ranks, checked before either builds the lattice.
+  const CliResult r = run_ranks(2, source_path("scenes/dam_break.json") +
+                                       " --backend cpu --quiet --set sph.spacing=0.0005 --set run.end_time=0.01");
+  INFO(r.output);
+  CHECK(r.code == 2);
+  CHECK(has(r.output, " GiB on rank "));
+  CHECK(has(r.output, " of 2 ("));
+  CHECK(has(r.output, "fluid particles (an even share)"));
+  CHECK(has(r.output, "its share of the node's, with 2 ranks on it"));
+  CHECK(has(r.output, "or run on more ranks"));
+}
+
 TEST_CASE("what a run over several ranks cannot do yet is refused by name", "[dist][mpi]") {
   const std::string base =
       source_path("scenes/dam_break.json") + " --backend cpu --quiet --set sph.spacing=0.04 --set run.end_time=0.01 ";
