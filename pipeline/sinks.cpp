@@ -1,5 +1,6 @@
 #include "sinks.h"
 
+#include <algorithm>
 #include <cerrno>
 #include <cstring>
 #include <iomanip>
@@ -62,12 +63,18 @@ MetricsSink::MetricsSink(const std::string& path, const Scene& scene, const SphP
 // Flushed per row: a run followed live (tail -f) or killed leaves whole rows,
 // and a write error (a full disk) stops the run here rather than end with a
 // cut-off CSV and exit 0.
+// Without gauges the row's reductions run where the particles are
+// (Solver::flow_sums: no download of every particle per row).
 void MetricsSink::write(const Solver& s, const FieldBuilder*, int) {
-  const HostParticles p = s.download();
+  const FlowSums f = s.flow_sums();
+  const double front = std::max(back_wall_x_, f.max_x + 0.5 * spacing_) - back_wall_x_;  // as surge_front
   errno = 0;
-  csv_ << s.time() << "," << s.steps() << "," << s.num_fluid() << "," << surge_front(p, back_wall_x_, spacing_) << ","
-       << kinetic_energy(p, mass_) << "," << s.last_limits().max_speed;
-  for (const Gauge& g : gauges_) csv_ << "," << water_height(p, g.x, g.y, kernel_, volume_, floor_, top_, spacing_);
+  csv_ << s.time() << "," << s.steps() << "," << s.num_fluid() << "," << front << "," << 0.5 * mass_ * f.speed2_sum
+       << "," << s.last_limits().max_speed;
+  if (!gauges_.empty()) {
+    const HostParticles p = s.download();
+    for (const Gauge& g : gauges_) csv_ << "," << water_height(p, g.x, g.y, kernel_, volume_, floor_, top_, spacing_);
+  }
   csv_ << "\n" << std::flush;
   if (!csv_) throw OutputError(write_failure(flag_, path_));
 }

@@ -118,6 +118,7 @@ class DfsphSolverImpl final : public Solver {
     ++steps_;
   }
 
+  FlowSums flow_sums() const override { return reduce_flow_sums(n_, pos_, vel_, status_); }
   HostParticles download() const override {
     return download_particles(id_, pos_, vel_, presence_valid_ ? &presence_ : nullptr, n_);
   }

@@ -23,6 +23,30 @@ inline HostParticles download_particles(const Vector<uint32_t>& id, const Vector
   return h;
 }
 
+// FlowSums (solver.h) over the first n particles, on the backend; status
+// (or null) marks a decomposed run's ghosts, which are left out.
+struct FlowSumsOf {
+  const Float4* pos;
+  const Float4* vel;
+  const uint8_t* status;
+  SPHRAY_HD FlowSums operator()(uint32_t i) const {
+    if (status && status[i] == kStatusGhost) return FlowSums{};
+    const Float4 v = vel[i];
+    return {double(pos[i].x), double(v.x) * v.x + double(v.y) * v.y + double(v.z) * v.z};
+  }
+};
+struct CombineFlowSums {
+  SPHRAY_HD FlowSums operator()(const FlowSums& a, const FlowSums& b) const {
+    return {a.max_x > b.max_x ? a.max_x : b.max_x, a.speed2_sum + b.speed2_sum};
+  }
+};
+inline FlowSums reduce_flow_sums(uint32_t n, const Vector<Float4>& pos, const Vector<Float4>& vel,
+                                 const Vector<uint8_t>& status) {
+  Vector<FlowSums> out(1);
+  transform_reduce_into(n, FlowSumsOf{raw(pos), raw(vel), raw(status)}, CombineFlowSums(), FlowSums{}, raw(out));
+  return read_one(out, 0);
+}
+
 // download_raw's copies (solver.h, RawParticles): on CUDA they run behind the
 // next steps (AsyncDownload), and out.ready waits for them. The staging
 // buffers are allocated by the first export.

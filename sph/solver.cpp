@@ -1,8 +1,22 @@
 #include "solver.h"
 
+#include <algorithm>
+
+#include "integrate.h"
 #include "skin.h"
 
 namespace sphray {
+
+FlowSums Solver::flow_sums() const {
+  const HostParticles p = download();
+  FlowSums f;
+  for (size_t i = 0; i < p.pos.size(); ++i) {
+    if (!p.status.empty() && p.status[i] == kStatusGhost) continue;
+    f.max_x = std::max(f.max_x, double(p.pos[i].x));
+    f.speed2_sum += double(length2(p.vel[i]));
+  }
+  return f;
+}
 
 const char* solver_name(SolverKind k) {
   switch (k) {

@@ -143,6 +143,14 @@ struct SolveStats {
   bool converged = true;
 };
 
+// What a metrics row reduces over the fluid particles (pipeline/sinks.h):
+// their largest x and the sum of their squared speeds (a decomposed run's
+// ghosts left out). max_x is -1e300 without particles.
+struct FlowSums {
+  double max_x = -1e300;
+  double speed2_sum = 0;
+};
+
 struct StageTimes {
   double grid = 0, pairs = 0, integrate = 0;
   double skin = 0;  // the obstacles' skin waves (sph/skin.h), when the scene has any
@@ -176,6 +184,9 @@ class Solver {
   virtual ParticleView view() const = 0;
   virtual size_t device_bytes() const = 0;    // buffers this solver holds
   virtual HostParticles download() const = 0;
+  // FlowSums of the current state, reduced where the particles are (the
+  // solvers on their backend: no download); this default reduces download().
+  virtual FlowSums flow_sums() const;
   virtual void download_raw(RawParticles& out, bool velocity, bool presence) const = 0;
   virtual std::vector<Vec3f> boundary_positions() const = 0;  // the wall particles, where they are now
   // Per particle in the order of download(), the pressure [Pa] of the last

@@ -179,6 +179,7 @@ class SolverImpl final : public Solver {
     build_grid();
   }
 
+  FlowSums flow_sums() const override { return reduce_flow_sums(n_, pos_, vel_, status_); }
   HostParticles download() const override {
     HostParticles h = download_particles(id_, pos_, vel_, presence_valid_ ? &presence_ : nullptr, n_);
     if (transport_) h.status = sphray::SPHRAY_BK::download(status_, n_);  // which are ghosts

@@ -3,6 +3,7 @@
 
 #include <sys/wait.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdlib>
 #include <filesystem>
@@ -21,6 +22,23 @@
 namespace sphray::test {
 
 inline std::string source_path(const std::string& rel) { return std::string(SPHRAY_SOURCE_DIR) + "/" + rel; }
+
+// The solver's FlowSums (reduced on its backend) against the same sums over
+// its downloaded particles, in double on the host: the largest x exactly,
+// the sum of squared speeds to the summation order's round-off.
+inline void check_flow_sums(const Solver& s) {
+  const HostParticles p = s.download();
+  double max_x = -1e300, speed2 = 0;
+  for (size_t i = 0; i < p.pos.size(); ++i) {
+    max_x = std::max(max_x, double(p.pos[i].x));
+    speed2 += double(p.vel[i].x) * p.vel[i].x + double(p.vel[i].y) * p.vel[i].y + double(p.vel[i].z) * p.vel[i].z;
+  }
+  const FlowSums f = s.flow_sums();
+  INFO(p.pos.size() << " particles: max x " << f.max_x << " against " << max_x << ", sum v^2 " << f.speed2_sum
+                    << " against " << speed2);
+  CHECK(f.max_x == max_x);
+  CHECK(std::abs(f.speed2_sum - speed2) <= 1e-9 * speed2);
+}
 
 // This test process's own directory for the files it writes, made on first
 // use under $TMPDIR (or /tmp) and removed when the process ends, so that

@@ -224,6 +224,7 @@ TEST_CASE("cuda and cpu dam breaks agree to float tolerance", "[gpu]") {
     gpu->step(1.0);
     REQUIRE(std::abs(cpu->last_limits().dt - gpu->last_limits().dt) <= 1e-3 * cpu->last_limits().dt);
   }
+  test::check_flow_sums(*gpu);  // the metrics' reductions on the device
   const Worst w = worst_by_id(cpu->download(), gpu->download());
   INFO("worst position difference " << w.pos << " m, density " << w.rho << ", presence " << w.presence);
   CHECK(w.pos < 1e-3 * s.sph.spacing);
@@ -269,6 +270,8 @@ BackendPair compare_first_steps(const std::string& solver) {
   CHECK(std::abs(sc.density_error_mean - sg.density_error_mean) <= 0.1 * sc.density_error_mean + 1e-4);
   CHECK(std::abs(sc.iterations - sg.iterations) <= 2);
   CHECK(std::abs(vc - vg) <= 0.1 * vc);
+  test::check_flow_sums(*b.cpu);
+  test::check_flow_sums(*b.gpu);
   return b;
 }
 
