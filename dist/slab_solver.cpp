@@ -75,42 +75,27 @@ class SlabSolver final : public Solver {
   }
 
   // Rank 0 receives every rank's own particles, for the outputs.
-  // The owned particles of every rank on rank 0. This rank's are copied
-  // through the solver's pinned buffers (download_raw: a synchronous
-  // download() of every array cost tens of ms per frame at 1M), packed once,
-  // gathered, and unpacked into arrays sized once.
   void gather_frame() override {
-    inner_->download_raw(raw_, true, false);
-    const std::vector<uint8_t> status = inner_->download_status();
-    if (raw_.ready) raw_.ready();
-    const size_t n = raw_.id.size();
-    size_t owned = 0;
-    for (size_t i = 0; i < n; ++i) owned += status.empty() || status[i] != kStatusGhost;
-    std::vector<char> mine(owned * sizeof(Owned));
-    for (size_t i = 0, at = 0; i < n; ++i) {
-      if (!status.empty() && status[i] == kStatusGhost) continue;
-      const Float4 p = raw_.pos[i], v = raw_.vel[i];
-      const Owned o{raw_.id[i], {p.x, p.y, p.z}, {v.x, v.y, v.z}, p.w};
+    const HostParticles h = inner_->download();
+    std::vector<char> mine;
+    mine.reserve(h.id.size() * sizeof(Owned));
+    for (size_t i = 0; i < h.id.size(); ++i) {
+      if (h.status[i] == kStatusGhost) continue;
+      const Owned o{h.id[i], {h.pos[i].x, h.pos[i].y, h.pos[i].z}, {h.vel[i].x, h.vel[i].y, h.vel[i].z}, h.density[i]};
+      const size_t at = mine.size();
+      mine.resize(at + sizeof(Owned));
       std::memcpy(mine.data() + at, &o, sizeof(Owned));
-      at += sizeof(Owned);
     }
     const std::vector<std::vector<char>> all = comm_.gather(mine);
-    size_t total = 0;
-    for (const auto& buf : all) total += buf.size() / sizeof(Owned);
     gathered_ = HostParticles{};
-    gathered_.id.resize(total);
-    gathered_.pos.resize(total);
-    gathered_.vel.resize(total);
-    gathered_.density.resize(total);
-    size_t k = 0;
     for (const auto& buf : all)
-      for (size_t at = 0; at + sizeof(Owned) <= buf.size(); at += sizeof(Owned), ++k) {
+      for (size_t at = 0; at + sizeof(Owned) <= buf.size(); at += sizeof(Owned)) {
         Owned o;
         std::memcpy(&o, buf.data() + at, sizeof(Owned));
-        gathered_.id[k] = o.id;
-        gathered_.pos[k] = {o.pos[0], o.pos[1], o.pos[2]};
-        gathered_.vel[k] = {o.vel[0], o.vel[1], o.vel[2]};
-        gathered_.density[k] = o.density;
+        gathered_.id.push_back(o.id);
+        gathered_.pos.push_back({o.pos[0], o.pos[1], o.pos[2]});
+        gathered_.vel.push_back({o.vel[0], o.vel[1], o.vel[2]});
+        gathered_.density.push_back(o.density);
       }
     gathered_step_ = steps();
     if (opt_.frame_view && comm_.rank() == 0) {
@@ -200,7 +185,6 @@ class SlabSolver final : public Solver {
   std::unique_ptr<Solver> inner_;
   std::vector<double> totals_{0.0, 0.0, 0.0};  // owned, removed, clamped: over all ranks
   HostParticles gathered_;
-  RawParticles raw_;  // this rank's particles for the gather (pinned on CUDA)
   uint64_t gathered_step_ = ~uint64_t(0);
   SolverInput frame_in_;  // the run's input without its fluid: rank 0's frame grid
   SolverMaker make_;

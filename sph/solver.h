@@ -188,9 +188,6 @@ class Solver {
   // solvers on their backend: no download); this default reduces download().
   virtual FlowSums flow_sums() const;
   virtual void download_raw(RawParticles& out, bool velocity, bool presence) const = 0;
-  // Per particle in download_raw's order: a decomposed run's ParticleStatus
-  // (integrate.h), so that its ghosts can be told apart; empty otherwise.
-  virtual std::vector<uint8_t> download_status() const { return {}; }
   virtual std::vector<Vec3f> boundary_positions() const = 0;  // the wall particles, where they are now
   // Per particle in the order of download(), the pressure [Pa] of the last
   // step's solves (DFSPH: the pressure and the divergence solve's, which

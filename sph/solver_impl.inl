@@ -191,9 +191,6 @@ class SolverImpl final : public Solver {
   void download_raw(RawParticles& out, bool velocity, bool presence) const override {
     raw_copies_.take(out, pos_, vel_, id_, presence && presence_valid_ ? &presence_ : nullptr, n_, velocity);
   }
-  std::vector<uint8_t> download_status() const override {
-    return transport_ ? sphray::SPHRAY_BK::download(status_, n_) : std::vector<uint8_t>{};
-  }
 
   std::vector<Vec3f> boundary_positions() const override { return walls_.positions(); }
   const float* device_pressure() override {
