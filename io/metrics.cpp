@@ -8,10 +8,14 @@
 
 namespace sphray {
 
+double surge_front(double max_x, double back_wall_x, double spacing) {
+  return std::max(back_wall_x, max_x + 0.5 * spacing) - back_wall_x;
+}
+
 double surge_front(const HostParticles& p, double back_wall_x, double spacing) {
-  double front = back_wall_x;
-  for (const auto& x : p.pos) front = std::max(front, double(x.x) + 0.5 * spacing);
-  return front - back_wall_x;
+  double max_x = -1e300;
+  for (const auto& x : p.pos) max_x = std::max(max_x, double(x.x));
+  return surge_front(max_x, back_wall_x, spacing);
 }
 
 double kinetic_energy(const HostParticles& p, double particle_mass) {

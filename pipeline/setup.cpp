@@ -410,8 +410,9 @@ void check_fits(const ResolvedScene& r, Backend backend, bool field, const RankS
     os << s.file << ": sph.spacing = " << s.sph.spacing << " needs about " << bytes / gib << " GiB";
     if (share)
       os << " on rank " << share->rank << " of " << share->ranks << " (" << share->fluid
-         << (share->even ? " fluid particles (an even share), " : " fluid particles of its slab with its ghosts, ") << z.boundary << " wall particles, " << z.cells
-         << " grid cells" << (share->whole_view ? ", and all " + std::to_string(z.fluid) + " particles again for the frames" : "")
+         << (share->even ? " fluid particles (an even share), " : " fluid particles of its slab with its ghosts, ")
+         << z.boundary << " wall particles, " << z.cells << " grid cells"
+         << (share->whole_view ? ", and all " + std::to_string(z.fluid) + " particles again for the frames" : "")
          << (field ? ", the density field" : "") << "), but its ";
     else
       os << " (" << z.fluid << " fluid particles, " << z.boundary << " wall particles, " << z.cells << " grid cells"

@@ -67,9 +67,9 @@ MetricsSink::MetricsSink(const std::string& path, const Scene& scene, const SphP
 // (Solver::flow_sums: no download of every particle per row).
 void MetricsSink::write(const Solver& s, const FieldBuilder*, int) {
   const FlowSums f = s.flow_sums();
-  const double front = std::max(back_wall_x_, f.max_x + 0.5 * spacing_) - back_wall_x_;  // as surge_front
   errno = 0;
-  csv_ << s.time() << "," << s.steps() << "," << s.num_fluid() << "," << front << "," << 0.5 * mass_ * f.speed2_sum
+  csv_ << s.time() << "," << s.steps() << "," << s.num_fluid() << "," << surge_front(f.max_x, back_wall_x_, spacing_)
+       << "," << 0.5 * mass_ * f.speed2_sum
        << "," << s.last_limits().max_speed;
   if (!gauges_.empty()) {
     const HostParticles p = s.download();

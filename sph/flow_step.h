@@ -57,12 +57,14 @@ struct FlowControl {
 // solver's own limit: PBF's depth limit (its reason in pbf.h), DFSPH's
 // explicit viscosity's (dfsph.h; DFSPH iterates to a tolerance and needs no
 // depth limit). With error_target > 0 (PBF's pbf.step_error) max_dt_solver
-// sizes only the first step; after it the limit follows the compression the
-// last step left: a mean of e over the n particles at a step of dt asks for
-// dt sqrt(error_target / e) (the compression a step leaves grows as dt^2,
-// pbf.h), changed by at most the factors kShrink and kGrow per step, so that
-// the speeds, position changes over dt, do not jump. Made on the device, like
-// ChooseStep (integrate.h).
+// sizes the first step and is the floor after it; the limit then follows the
+// compression the steps leave: with e the larger of the last step's mean over
+// the n particles and its running mean (weight kKeep on the past), a step of
+// dt asks for dt sqrt(error_target / e) (the compression a step leaves grows
+// as dt^2, pbf.h), changed by at most the factors kShrink and kGrow per step,
+// so that the speeds, position changes over dt, do not jump
+// (docs/method.md, "Step size"). Made on the device, like ChooseStep
+// (integrate.h).
 struct ChooseFlowStep {
   double cfl_dx, speed_floor, max_dt, max_dt_solver, min_dt, remaining;
   FlowControl* control;
