@@ -129,6 +129,21 @@ std::string run_on_1_and_2(const std::string& args, const std::string& out1, con
   return r2.output;
 }
 
+// The rows of a metrics CSV (after its header), as numbers.
+std::vector<std::vector<double>> metrics_rows(const std::string& path) {
+  std::vector<std::vector<double>> rows;
+  std::istringstream in(slurp(path));
+  std::string line;
+  std::getline(in, line);  // the header
+  while (std::getline(in, line)) {
+    std::vector<double> row;
+    std::istringstream cells(line);
+    for (std::string cell; std::getline(cells, cell, ',');) row.push_back(std::stod(cell));
+    rows.push_back(row);
+  }
+  return rows;
+}
+
 double kinetic_energy(const Frame& f) {
   double e = 0;
   for (float v : f.velocity) e += 0.5 * double(v) * double(v);
@@ -145,16 +160,26 @@ TEST_CASE("the dam break on 2 and 3 ranks keeps every particle and follows the o
                                    "--set run.output_interval=0.1 --summary-json " + summary +
                            " --export-fields velocity,density --export ";
   const std::string one = tmp_dir() + "/ranks1.h5";
-  const CliResult r1 = run_ranks(1, args + one);
+  auto metrics = [&](int ranks) { return tmp_dir() + "/metrics" + std::to_string(ranks) + ".csv"; };
+  const CliResult r1 = run_ranks(1, "--metrics-csv " + metrics(1) + " " + args + one);
   INFO(r1.output);
   REQUIRE(r1.code == 0);
   const FrameReader ref(one);
   REQUIRE(ref.frames().size() == 7);
   for (int ranks : {2, 3}) {
     const std::string path = tmp_dir() + "/ranks" + std::to_string(ranks) + ".h5";
-    const CliResult r = run_ranks(ranks, args + path);
+    const CliResult r = run_ranks(ranks, "--metrics-csv " + metrics(ranks) + " " + args + path);
     INFO(ranks << " ranks: " << r.output);
     REQUIRE(r.code == 0);
+    // The metrics rows (rank 0's sums over the gathered particles): the same
+    // front and kinetic energy to the round-off bounds below.
+    const auto m1 = metrics_rows(metrics(1)), mr = metrics_rows(metrics(ranks));
+    REQUIRE(mr.size() == m1.size());
+    for (size_t k = 0; k < m1.size(); ++k) {
+      CHECK(mr[k][2] == m1[k][2]);                                        // particles
+      CHECK(std::abs(mr[k][3] - m1[k][3]) <= 1e-3 * spacing);             // front
+      CHECK(std::abs(mr[k][4] - m1[k][4]) <= 1e-5 * std::max(m1[k][4], 1e-9));  // kinetic energy
+    }
     CHECK(has(r.output, "ranks: " + std::to_string(ranks) + " slabs along x"));
     CHECK(has(slurp(summary), "\"status\": \"completed\""));
     const FrameReader got(path);
