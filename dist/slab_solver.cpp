@@ -134,12 +134,7 @@ class SlabSolver final : public Solver {
   // download() makes.
   FlowSums flow_sums() const override {
     check_gathered();
-    FlowSums f;
-    for (size_t i = 0; i < gathered_.pos.size(); ++i) {
-      f.max_x = std::max(f.max_x, double(gathered_.pos[i].x));
-      f.speed2_sum += double(length2(gathered_.vel[i]));
-    }
-    return f;
+    return flow_sums_of(gathered_);
   }
 
   void download_raw(RawParticles& out, bool velocity, bool /*presence*/) const override {

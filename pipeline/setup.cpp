@@ -404,7 +404,8 @@ void check_fits(const ResolvedScene& r, Backend backend, bool field, const RankS
       avail = pages > 0 && page > 0 ? size_t(pages) * size_t(page) : 0;
     }
   }
-  if (share && backend == Backend::Cpu && share->ranks_on_node > 1) avail /= size_t(share->ranks_on_node);
+  const bool node_shared = share && backend == Backend::Cpu && share->ranks_on_node > 1;
+  if (node_shared) avail /= size_t(share->ranks_on_node);
   if (avail > 0 && bytes > avail * 0.9) {
     os.precision(3);
     os << s.file << ": sph.spacing = " << s.sph.spacing << " needs about " << bytes / gib << " GiB";
@@ -418,9 +419,8 @@ void check_fits(const ResolvedScene& r, Backend backend, bool field, const RankS
       os << " (" << z.fluid << " fluid particles, " << z.boundary << " wall particles, " << z.cells << " grid cells"
          << (field ? ", the density field" : "") << "), but the ";
     os << backend_name(backend) << " backend has " << avail / gib << " GiB free"
-       << (share && backend == Backend::Cpu && share->ranks_on_node > 1
-               ? " (its share of the node's, with " + std::to_string(share->ranks_on_node) + " ranks on it)"
-               : "")
+       << (node_shared ? " (its share of the node's, with " + std::to_string(share->ranks_on_node) + " ranks on it)"
+                       : "")
        << ". Raise sph.spacing or shrink the tank"
        << (share ? ", or run on more ranks." : ".");
     throw SceneError(os.str());

@@ -7,8 +7,7 @@
 
 namespace sphray {
 
-FlowSums Solver::flow_sums() const {
-  const HostParticles p = download();
+FlowSums flow_sums_of(const HostParticles& p) {
   FlowSums f;
   for (size_t i = 0; i < p.pos.size(); ++i) {
     if (!p.status.empty() && p.status[i] == kStatusGhost) continue;
@@ -17,6 +16,8 @@ FlowSums Solver::flow_sums() const {
   }
   return f;
 }
+
+FlowSums Solver::flow_sums() const { return flow_sums_of(download()); }
 
 const char* solver_name(SolverKind k) {
   switch (k) {

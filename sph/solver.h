@@ -150,6 +150,8 @@ struct FlowSums {
   double max_x = -1e300;
   double speed2_sum = 0;
 };
+// FlowSums of particles on the host (status, where given, marks the ghosts).
+FlowSums flow_sums_of(const HostParticles& p);
 
 struct StageTimes {
   double grid = 0, pairs = 0, integrate = 0;
