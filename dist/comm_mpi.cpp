@@ -4,6 +4,7 @@
 #include <mpi.h>
 
 #include <cstdlib>
+#include <utility>
 #include <stdexcept>
 #include <string>
 
@@ -95,17 +96,18 @@ int recv_tag(int k) { return kPeers - 1 - k; }
 
 class MpiTransport final : public ParticleTransport {
  public:
-  explicit MpiTransport(Comm& comm) : rank_(comm.rank()) {
-    check(MPI_Type_contiguous(int(sizeof(ExchangeRecord)), MPI_BYTE, &record_), "MPI_Type_contiguous");
-    check(MPI_Type_commit(&record_), "MPI_Type_commit");
-  }
+  explicit MpiTransport(Comm& comm) : rank_(comm.rank()) {}
   ~MpiTransport() override {
     int done = 0;
     MPI_Finalized(&done);
-    if (!done) MPI_Type_free(&record_);
+    if (done) return;
+    for (auto& t : types_) MPI_Type_free(&t.second);
   }
   void max(float* v, int n) override {
     check(MPI_Allreduce(MPI_IN_PLACE, v, n, MPI_FLOAT, MPI_MAX, MPI_COMM_WORLD), "MPI_Allreduce");
+  }
+  void sum(double* v, int n) override {
+    check(MPI_Allreduce(MPI_IN_PLACE, v, n, MPI_DOUBLE, MPI_SUM, MPI_COMM_WORLD), "MPI_Allreduce");
   }
   void exchange_counts(const SlabBounds& b, const PeerCounts& send, PeerCounts& recv) override {
     uint32_t out[kPeers][2], in[kPeers][2] = {};
@@ -125,20 +127,22 @@ class MpiTransport final : public ParticleTransport {
       recv.owned[k] = in[k][1];
     }
   }
-  void exchange(const SlabBounds& b, ExchangeRecord* const send[kPeers], const uint32_t send_count[kPeers],
-                ExchangeRecord* const recv[kPeers], const uint32_t recv_count[kPeers]) override {
+  void exchange_records(const SlabBounds& b, size_t record_bytes, const void* const send[kPeers],
+                        const uint32_t send_count[kPeers], void* const recv[kPeers],
+                        const uint32_t recv_count[kPeers]) override {
+    const MPI_Datatype record = record_type(record_bytes);
     std::vector<MPI_Request> req;
     for (int k = 0; k < kPeers; ++k) {
       if (k == kSelf || !b.exists[k]) continue;
       const int peer = rank_ + k - kSelf;
       if (send_count[k] > 0) {
         req.emplace_back();
-        check(MPI_Isend(send[k], int(send_count[k]), record_, peer, send_tag(k), MPI_COMM_WORLD, &req.back()),
+        check(MPI_Isend(send[k], int(send_count[k]), record, peer, send_tag(k), MPI_COMM_WORLD, &req.back()),
               "MPI_Isend");
       }
       if (recv_count[k] > 0) {
         req.emplace_back();
-        check(MPI_Irecv(recv[k], int(recv_count[k]), record_, peer, recv_tag(k), MPI_COMM_WORLD, &req.back()),
+        check(MPI_Irecv(recv[k], int(recv_count[k]), record, peer, recv_tag(k), MPI_COMM_WORLD, &req.back()),
               "MPI_Irecv");
       }
     }
@@ -146,8 +150,20 @@ class MpiTransport final : public ParticleTransport {
   }
 
  private:
+  // A contiguous type of `bytes`, made once per record size (counts are ints:
+  // 2^31 records, not bytes).
+  MPI_Datatype record_type(size_t bytes) {
+    for (const auto& t : types_)
+      if (t.first == bytes) return t.second;
+    MPI_Datatype type{};
+    check(MPI_Type_contiguous(int(bytes), MPI_BYTE, &type), "MPI_Type_contiguous");
+    check(MPI_Type_commit(&type), "MPI_Type_commit");
+    types_.emplace_back(bytes, type);
+    return type;
+  }
+
   int rank_;
-  MPI_Datatype record_{};
+  std::vector<std::pair<size_t, MPI_Datatype>> types_;
 };
 
 }  // namespace

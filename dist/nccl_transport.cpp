@@ -40,24 +40,32 @@ class NcclTransport final : public ParticleTransport {
   void max(float* v, int n) override {
     float h[8];
     if (n > 8) throw std::logic_error("NcclTransport::max: at most 8 values");
-    check(cudaMemcpy(h, v, sizeof(float) * size_t(n), cudaMemcpyDeviceToHost), "cudaMemcpy");
+    check(cudaMemcpy(h, v, sizeof(float) * size_t(n), cudaMemcpyDefault), "cudaMemcpy");
     mpi_->max(h, n);
-    check(cudaMemcpy(v, h, sizeof(float) * size_t(n), cudaMemcpyHostToDevice), "cudaMemcpy");
+    check(cudaMemcpy(v, h, sizeof(float) * size_t(n), cudaMemcpyDefault), "cudaMemcpy");
+  }
+  void sum(double* v, int n) override {
+    double h[8];
+    if (n > 8) throw std::logic_error("NcclTransport::sum: at most 8 values");
+    check(cudaMemcpy(h, v, sizeof(double) * size_t(n), cudaMemcpyDefault), "cudaMemcpy");
+    mpi_->sum(h, n);
+    check(cudaMemcpy(v, h, sizeof(double) * size_t(n), cudaMemcpyDefault), "cudaMemcpy");
   }
   void exchange_counts(const SlabBounds& b, const PeerCounts& send, PeerCounts& recv) override {
     mpi_->exchange_counts(b, send, recv);
   }
-  void exchange(const SlabBounds& b, ExchangeRecord* const send[kPeers], const uint32_t send_count[kPeers],
-                ExchangeRecord* const recv[kPeers], const uint32_t recv_count[kPeers]) override {
+  void exchange_records(const SlabBounds& b, size_t record_bytes, const void* const send[kPeers],
+                        const uint32_t send_count[kPeers], void* const recv[kPeers],
+                        const uint32_t recv_count[kPeers]) override {
     check(ncclGroupStart(), "ncclGroupStart");
     for (int k = 0; k < kPeers; ++k) {
       if (k == kSelf || !b.exists[k]) continue;
       const int peer = rank_ + k - kSelf;
       if (send_count[k] > 0)
-        check(ncclSend(send[k], send_count[k] * sizeof(ExchangeRecord), ncclChar, peer, comm_, cudaStreamLegacy),
+        check(ncclSend(send[k], send_count[k] * record_bytes, ncclChar, peer, comm_, cudaStreamLegacy),
               "ncclSend");
       if (recv_count[k] > 0)
-        check(ncclRecv(recv[k], recv_count[k] * sizeof(ExchangeRecord), ncclChar, peer, comm_, cudaStreamLegacy),
+        check(ncclRecv(recv[k], recv_count[k] * record_bytes, ncclChar, peer, comm_, cudaStreamLegacy),
               "ncclRecv");
     }
     check(ncclGroupEnd(), "ncclGroupEnd");

@@ -230,6 +230,12 @@ SlabPlan plan_slabs(const SolverInput& in, int ranks) {
   p.hi = along(t.max, p.axis);
   p.halo = p.min_width = 2.0 * double(in.params.kernel.support());
   p.halo_free = double(in.params.kernel.support());
+  // PBF's neighbours are found once per step at x*, within its own support,
+  // and its walls need no fluid sums (sph/pbf_solver.inl).
+  if (in.kind == SolverKind::Pbf) p.halo = p.halo_free = double(in.pbf.kernel.s);
+  // DFSPH's: within its support at the step's end, kept until the next; its
+  // walls are planes or wall particles that need no fluid sums.
+  if (in.kind == SolverKind::Dfsph) p.halo = p.halo_free = double(in.dfsph.kernel.support());
   check_rank_count(ranks, p.lo, p.hi, p.min_width, axis_name(p.axis));
   p.bin = 0.5 * double(in.params.spacing);
   AxisHistogram h = AxisHistogram::over(p.lo, p.hi, p.bin);
@@ -241,9 +247,6 @@ SlabPlan plan_slabs(const SolverInput& in, int ranks) {
 std::unique_ptr<Solver> make_slab_solver(SolverInput in, const SlabPlan& plan, Comm& comm, Backend backend,
                                          const SolverMaker& make, const SlabOptions& opt) {
   if (plan.ranks() != comm.size()) throw std::logic_error("make_slab_solver: a plan for another rank count");
-  if (in.kind != SolverKind::Wcsph)
-    throw std::invalid_argument(std::string("a run over several ranks needs sph.solver \"wcsph\" (this is \"") +
-                                solver_name(in.kind) + "\")");
   if (!in.skins.empty()) throw std::invalid_argument("a run over several ranks cannot carry obstacles' skin waves");
   const uint32_t total = uint32_t(in.fluid_pos_rho.size());
   std::vector<Float4> pos, vel;

@@ -18,6 +18,10 @@
 // within one support of it: near walls an owned particle's step depends on
 // fluid up to two supports away. Ghosts' own results (incomplete sums at the
 // halo's edge) are discarded: they are never moved nor counted (kStatusGhost).
+// PBF and DFSPH (plan_slabs): one support of their own kernel everywhere, the
+// exchange where their neighbour masks are found (PBF: at x* after the
+// prediction), and the ghosts' values refreshed from their owners after
+// every pass of their iterations (docs/design.md, "Scale-out").
 // Outputs: at each output frame the ranks gather their owned particles on
 // rank 0 (gather_frame), which writes every output; with frame_view, rank 0
 // also sorts them into a grid of its own for the field and the renderers.
@@ -63,9 +67,10 @@ size_t held_particles(const SolverInput& in, const SlabPlan& plan, int rank);
 
 // This rank's solver of a decomposed run cut as `plan` (plan_slabs, one slab
 // per rank): `in` holds the whole run's particles (every rank resolves the
-// same scene); the rank keeps its own. Collective: every rank calls it. WCSPH
-// only (std::invalid_argument else). The transport follows the backend: MPI
-// for the CPU, NCCL for CUDA.
+// same scene); the rank keeps its own. Collective: every rank calls it. Every
+// solver (PBF and DFSPH refresh their ghosts within the step: GhostRefresh,
+// sph/exchange_impl.inl). The transport follows the backend: MPI for the CPU,
+// NCCL for CUDA.
 std::unique_ptr<Solver> make_slab_solver(SolverInput in, const SlabPlan& plan, Comm& comm, Backend backend,
                                          const SolverMaker& make, const SlabOptions& opt = {});
 

@@ -7,21 +7,29 @@
 // the density pass (density, factor, presence); the divergence solve. The
 // grid then matches the positions until the next step, and every pass of
 // the next step's pressure solve reuses its masks.
+// A decomposed run (set_slab, dist/slab_solver.h): the particles are
+// exchanged after the advection, before the sort (each rank owns those in
+// its slab and holds copies of its neighbours' within one support of it, all
+// the neighbours its own particles read until the next exchange); the
+// ghosts take their owners' values of what the next pass reads from its
+// neighbours (GhostRefresh, exchange_impl.inl): the velocities after the
+// forces and after the step, the pressures after the warm start and every
+// update, the accelerations before every update; the solves' residuals and
+// the step's statistics are summed over the ranks, so every rank iterates
+// and steps alike.
 
 class DfsphSolverImpl final : public Solver {
  public:
   explicit DfsphSolverImpl(const SolverInput& in)
       : prm_(in.params), df_(in.dfsph), grid_(in.grid), cfl_(in.cfl), min_dt_(in.min_dt), max_dt_(in.max_dt),
         n_(uint32_t(in.fluid_pos_rho.size())), obstacles_(make_obstacle_set(kBackend, in.obstacles, in.params.spacing)),
-        walls_(in, in.grid) {
+        walls_(in, in.grid), transport_(in.transport) {
     t_ = in.start_time;
     steps_ = in.start_step;
     const size_t n = n_;
     upload(pos_, in.fluid_pos_rho);
     upload(vel_, in.fluid_vel);
-    std::vector<uint32_t> ids(n);
-    for (size_t i = 0; i < n; ++i) ids[i] = uint32_t(i);
-    upload(id_, ids);
+    upload(id_, initial_ids(in, "DFSPH"));
     warm_.assign(n, Float4{0, 0, 0, 0});
     pos_tmp_.resize(n); vel_tmp_.resize(n); warm_tmp_.resize(n); id_tmp_.resize(n);
     status_.assign(n, uint8_t(kStatusOk)); status_tmp_.resize(n);
@@ -46,7 +54,7 @@ class DfsphSolverImpl final : public Solver {
   SolverKind kind() const override { return SolverKind::Dfsph; }
   double time() const override { return t_; }
   uint64_t steps() const override { return steps_; }
-  size_t num_fluid() const override { return n_; }
+  size_t num_fluid() const override { return n_ - ghosts_; }
   size_t num_removed() const override { return removed_; }
   uint64_t num_clamped() const override { return 0; }  // the walls are mirrors and a projection, not a guard
   const StepLimits& last_limits() const override { return limits_; }
@@ -72,7 +80,8 @@ class DfsphSolverImpl final : public Solver {
     return b(pos_) + b(vel_) + b(warm_) + b(pos_tmp_) + b(vel_tmp_) + b(warm_tmp_) + b(acc_) + b(presence_) +
            b(presence_tmp_) + b(press_) + b(factor_) + b(source_) + b(residual_) + b(error_) + b(sparse_) + b(id_) +
            b(id_tmp_) + b(status_) + b(status_tmp_) + b(keys_) + b(order_) + b(offsets_) + b(fine_offsets_) +
-           b(pairs_) + b(pair_count_) + b(wall_sum_) + walls_.bytes() + raw_copies_.bytes() + lists_.bytes();
+           b(pairs_) + b(pair_count_) + b(wall_sum_) + walls_.bytes() + raw_copies_.bytes() + lists_.bytes() +
+           exchange_.bytes() + refresh_.bytes();
   }
 
   void step(double until) override {
@@ -85,20 +94,28 @@ class DfsphSolverImpl final : public Solver {
     FlowControl* control = raw(control_);
     parallel_for("dfsph_choose_step", 1,
                  ChooseFlowStep{cfl_ * prm_.spacing, double(df_.speed_floor), max_dt_, double(df_.max_dt_viscous), min_dt_,
-                                std::max(until - t_, 0.0), control, 0.0, 0u});
+                                std::max(until - t_, 0.0), control, 0.0});
     forces();
+    refresh(vel_);
     parallel_for("dfsph_warm_pressure", n_, DfsphWarmStart<false>{control, raw(warm_), raw(source_), raw(press_)});
+    refresh(press_);
     SolveResult pressure = iterate<false>(df_.min_iterations, df_.max_iterations, df_.tolerance);
     kick<true>();
     pos_.swap(pos_tmp_);
     clock_.end_of("pairs");
     walls_.move(obstacles_.view, control);
+    if (transport_) {
+      exchange();
+      clock_.end_of("exchange");
+    }
     sort_and_mask();
     clock_.end_of("grid");
     density(presence_now, control);
     parallel_for("dfsph_warm_divergence", n_, DfsphWarmStart<true>{control, raw(warm_), raw(source_), raw(press_)});
+    refresh(press_);
     SolveResult divergence = iterate<true>(1, df_.max_divergence_iterations, df_.divergence_tolerance);
     kick<false>();
+    refresh(vel_);  // the next step's forces read the neighbours' velocities
     reduce_stats();
     control_read_.start(control);
     clock_.end_of("integrate");
@@ -106,21 +123,37 @@ class DfsphSolverImpl final : public Solver {
     const FlowControl& c = control_read_.value();
     if (c.outcome == kStepBelowFloor)
       throw SimulationError(describe_flow_dt_floor(c.limits, min_dt_, cfl_, t_, steps_));
-    check_flow_state("DFSPH", "lower sph.cfl or raise dfsph.max_iterations", c.stats, n_, steps_, t_, pos_, vel_, id_);
+    check_flow_state("DFSPH", "lower sph.cfl or raise dfsph.max_iterations", c.stats, steps_, t_, pos_, vel_, id_);
     limits_ = c.limits;
     times_ = {clock_.ms("grid"), clock_.ms("pairs"), clock_.ms("integrate")};
+    times_.exchange = transport_ ? clock_.ms("exchange") : 0.0;
     solve_.iterations = pressure.iterations;
     solve_.divergence_iterations = divergence.iterations;
-    solve_.density_error_mean = n_ ? c.stats.error_sum / n_ : 0.0;
+    solve_.density_error_mean = c.stats.count > 0 ? c.stats.error_sum / c.stats.count : 0.0;
     solve_.density_error_max = c.stats.error_max;
     solve_.converged = pressure.converged && divergence.converged;
     t_ += limits_.dt;
     ++steps_;
   }
 
+  // A decomposed run: this rank's slab. The exchange at once (collective),
+  // then the grid and the density pass with the ghosts, so that the next
+  // step starts as every later one does.
+  void set_slab(const SlabBounds& bounds) override {
+    if (!transport_) throw std::logic_error("DFSPH: set_slab without a transport (SolverInput::transport)");
+    if (bounds.halo_free < df_.kernel.support()) throw std::logic_error("DFSPH: a halo narrower than its support");
+    bounds_ = bounds;
+    exchange();
+    sort_and_mask();
+    density(false, steps_ > 0 ? raw(control_) : nullptr);
+    reduce_stats();
+  }
+
   FlowSums flow_sums() const override { return reduce_flow_sums(n_, pos_, vel_, status_); }
   HostParticles download() const override {
-    return download_particles(id_, pos_, vel_, presence_valid_ ? &presence_ : nullptr, n_);
+    HostParticles h = download_particles(id_, pos_, vel_, presence_valid_ ? &presence_ : nullptr, n_);
+    if (transport_) h.status = sphray::SPHRAY_BK::download(status_, n_);  // which are ghosts
+    return h;
   }
   void download_raw(RawParticles& out, bool velocity, bool presence) const override {
     raw_copies_.take(out, pos_, vel_, id_, presence && presence_valid_ ? &presence_ : nullptr, n_, velocity);
@@ -161,12 +194,17 @@ class DfsphSolverImpl final : public Solver {
   // Sorts every particle array by the cell of its position, drops the
   // particles outside the grid (an open top only), and builds the pair masks
   // within the support (the grid's cells are two supports wide).
+  // After an exchange it also drops what the exchange sent away and lists
+  // the ghosts' owners (GhostRefresh).
   void sort_and_mask() {
     static constexpr const char* kNames[2] = {"dfsph_keys", "dfsph_gather"};
-    const uint32_t active = sort_flow_particles(kNames, grid_, prm_.open_top, n_, pos_, presence_valid_, arrays(), keys_,
-                                                order_, fine_offsets_, offsets_);
-    removed_ += n_ - active;
-    n_ = active;
+    const FlowSort r = sort_flow_particles(kNames, grid_, prm_.open_top, n_, pos_, presence_valid_, arrays(), keys_,
+                                           order_, fine_offsets_, offsets_, gone_);
+    gone_ = false;
+    removed_ += r.dropped_owned;
+    ghosts_ -= r.dropped_ghosts;
+    n_ = r.active;
+    if (transport_) refresh_.build(bounds_, raw(pos_), status_, id_, n_, *transport_);
     const float s = df_.kernel.support();
     BuildPairMask b{grid_, raw(fine_offsets_), raw(pos_), raw(pos_), s * s, true, pairs()};
     b.search_radius = s;
@@ -189,6 +227,46 @@ class DfsphSolverImpl final : public Solver {
     mirror_pass_launches<DfsphViscosity>(kNames, lists_, false, prm_, df_, grid_, raw(fine_offsets_), pairs(), control,
                                          raw(pos_), raw(vel_), raw(vel_tmp_), walls_.view(), raw(wall_sum_));
     vel_.swap(vel_tmp_);
+  }
+
+  // The exchange (exchange_impl.inl) at the positions: the particles this
+  // rank holds until the next, unsorted (sort_and_mask follows).
+  void exchange() {
+    const ConstParticleArrays s{raw(pos_), raw(vel_), raw(warm_), raw(id_), raw(status_), nullptr};
+    const ExchangeResult r = exchange_particles(exchange_, bounds_, grid_, nullptr, *transport_, s, raw(pos_),
+                                                raw(status_), n_, [&](uint32_t n) {
+                                                  fit(n);
+                                                  return ParticleArrays{raw(pos_), raw(vel_), raw(warm_), raw(id_),
+                                                                        raw(status_), nullptr};
+                                                });
+    n_ = r.n;
+    ghosts_ = r.ghosts;
+    gone_ = true;
+    presence_valid_ = false;  // the exchange carries none
+  }
+
+  // Grows every per-particle buffer to hold n particles, keeping the
+  // contents (a tenth more: a decomposed run's count changes every step).
+  void fit(uint32_t n) {
+    auto grow = [](auto& v, size_t size) {
+      if (v.size() < size) v.resize(size + size / 10);
+    };
+    for (auto* v : {&pos_, &vel_, &warm_, &pos_tmp_, &vel_tmp_, &warm_tmp_, &acc_}) grow(*v, n);
+    for (auto* v : {&press_, &factor_, &source_, &residual_, &error_}) grow(*v, n);
+    for (auto* v : {&id_, &id_tmp_, &keys_, &order_, &pair_count_}) grow(*v, n);
+    for (auto* v : {&status_, &status_tmp_, &sparse_}) grow(*v, n);
+    if (walls_.size()) grow(wall_sum_, n);
+    grow(pairs_, size_t(mask_words_) * n);
+    if (presence_mode_ != PresenceMode::Off) {
+      grow(presence_, 6 * size_t(n));
+      grow(presence_tmp_, 6 * size_t(n));
+    }
+  }
+
+  // The ghosts of a decomposed run take their owners' values of `values`.
+  template <class T>
+  void refresh(Vector<T>& values) {
+    if (transport_) refresh_.refresh(values, *transport_);
   }
 
   // The density pass (dfsph.h, DfsphDensity) into pos_ (density), factor_,
@@ -234,13 +312,26 @@ class DfsphSolverImpl final : public Solver {
     for (int k = 0; k < max_it;) {
       if (!Divergence && k == 0) accel<true>();
       else accel<false>();
+      refresh(acc_);
       mirror_pass_launches<WithFlag<Divergence, DfsphUpdate>::template pass>(
           Divergence ? kDivNames : kNames, lists_, walls_.size() > 0, prm_, df_, grid_, raw(fine_offsets_), pairs(),
           raw(control_), raw(pos_), raw(acc_), raw(factor_), raw(source_), raw(sparse_), raw(press_), raw(residual_),
           walls_.view(), raw(wall_sum_));
+      refresh(press_);
       ++k;
-      // The residual is read on the host: one reduction per iteration.
-      const double mean = n_ ? thrust::reduce(policy(), residual_.begin(), residual_.begin() + n_, 0.0) / n_ : 0.0;
+      // The residual is read on the host: one reduction per iteration (a
+      // decomposed run's over its own particles, summed over the ranks).
+      double sum[2] = {0.0, double(n_)};
+      if (!transport_) {
+        sum[0] = thrust::reduce(policy(), residual_.begin(), residual_.begin() + n_, 0.0);
+      } else {
+        sum[0] = thrust::transform_reduce(policy(), thrust::counting_iterator<uint32_t>(0),
+                                          thrust::counting_iterator<uint32_t>(n_),
+                                          OwnedError{raw(residual_), raw(status_)}, 0.0, thrust::plus<double>());
+        sum[1] = double(n_ - ghosts_);
+        transport_->sum(sum, 2);
+      }
+      const double mean = sum[1] > 0 ? sum[0] / sum[1] : 0.0;
       r.iterations = k;
       r.converged = mean <= tol;
       if (r.converged && k >= min_it) break;
@@ -259,10 +350,15 @@ class DfsphSolverImpl final : public Solver {
   }
 
   // Speed, density error and finiteness of the current state, into the
-  // control that the next step's size is chosen from.
+  // control that the next step's size is chosen from (a decomposed run's
+  // over all ranks, as PbfSolverImpl::reduce_stats).
   void reduce_stats() {
-    transform_reduce_into(n_, FlowStatsOf{raw(pos_), raw(vel_), raw(error_)}, CombineFlowStats(), kEmptyFlowStats,
-                          &raw(control_)->stats);
+    FlowStats* stats = &raw(control_)->stats;
+    transform_reduce_into(n_, FlowStatsOf{raw(pos_), raw(vel_), raw(error_), transport_ ? raw(status_) : nullptr},
+                          CombineFlowStats(), kEmptyFlowStats, stats);
+    if (!transport_) return;
+    transport_->max(&stats->max_speed2, 2);
+    transport_->sum(&stats->error_sum, 2);
   }
 
 
@@ -298,4 +394,13 @@ class DfsphSolverImpl final : public Solver {
   Vector<PairWord> pairs_;
   Vector<uint32_t> pair_count_;
   LaunchLists lists_;  // the neighbour passes' particles per launch (flow_solver.inl), with the masks
+  // A decomposed run (set_slab): the transport, the slabs (halo: the
+  // support), the exchange's buffers, the ghosts' refresh lists, and how
+  // many of the n_ particles are ghosts.
+  ParticleTransport* transport_ = nullptr;
+  SlabBounds bounds_;
+  ExchangeBuffers exchange_;
+  GhostRefresh refresh_;
+  uint32_t ghosts_ = 0;
+  bool gone_ = false;  // the arrays hold particles the last exchange sent away
 };

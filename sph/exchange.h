@@ -73,12 +73,28 @@ class ParticleTransport {
   virtual ~ParticleTransport() = default;
   // In place, element-wise maximum over all ranks.
   virtual void max(float* values, int n) = 0;
+  // In place, element-wise sum over all ranks.
+  virtual void sum(double* values, int n) = 0;
   // Sends `send` (host) to each existing peer k != kSelf and returns in
   // `recv` (host) what each sent here.
   virtual void exchange_counts(const SlabBounds& b, const PeerCounts& send, PeerCounts& recv) = 0;
-  // send[k]: send_count[k] records for peer k; recv[k]: room for recv_count[k].
-  virtual void exchange(const SlabBounds& b, ExchangeRecord* const send[kPeers], const uint32_t send_count[kPeers],
-                        ExchangeRecord* const recv[kPeers], const uint32_t recv_count[kPeers]) = 0;
+  // send[k]: send_count[k] records of record_bytes each for peer k; recv[k]:
+  // room for recv_count[k] of them.
+  virtual void exchange_records(const SlabBounds& b, size_t record_bytes, const void* const send[kPeers],
+                                const uint32_t send_count[kPeers], void* const recv[kPeers],
+                                const uint32_t recv_count[kPeers]) = 0;
+  // The same for records of type T.
+  template <class T>
+  void exchange(const SlabBounds& b, T* const send[kPeers], const uint32_t send_count[kPeers], T* const recv[kPeers],
+                const uint32_t recv_count[kPeers]) {
+    const void* s[kPeers];
+    void* r[kPeers];
+    for (int k = 0; k < kPeers; ++k) {
+      s[k] = send[k];
+      r[k] = recv[k];
+    }
+    exchange_records(b, sizeof(T), s, send_count, r, recv_count);
+  }
 };
 
 }  // namespace sphray

@@ -9,6 +9,7 @@
 
 // near_walls: the grid's flags of cells with wall particles in reach
 // (CellsNear; cells are a support wide), or null: near walls everywhere.
+// pos: where the particles are placed (WCSPH: x; PBF: its prediction x*).
 struct ClassifyForExchange {
   SlabBounds bounds;
   const Float4* pos;
@@ -140,17 +141,17 @@ struct ExchangeResult {
   uint32_t n = 0, owned = 0, ghosts = 0;
 };
 
-// Exchanges the n particles of `s` with the peers (near_walls:
-// ClassifyForExchange); `fit(m)` grows the
+// Exchanges the n particles of `s`, placed at `place` (s.pos or s.flow),
+// with the peers (near_walls: ClassifyForExchange); `fit(m)` grows the
 // particle arrays to m (keeping their contents) and returns them, for the
 // records received, appended after the n.
 template <class Fit>
 ExchangeResult exchange_particles(ExchangeBuffers& buf, const SlabBounds& bounds, const GridGeom& grid,
                                   const uint8_t* near_walls, ParticleTransport& transport, ConstParticleArrays s,
-                                  uint8_t* status, uint32_t n, Fit&& fit) {
+                                  const Float4* place, uint8_t* status, uint32_t n, Fit&& fit) {
   grow_to(buf.dest, n);
   parallel_for("exchange_classify", n,
-               ClassifyForExchange{bounds, s.pos, s.status, grid, near_walls, raw(buf.dest)});
+               ClassifyForExchange{bounds, place, s.status, grid, near_walls, raw(buf.dest)});
   transform_reduce_into(n, CountDestinations{raw(buf.dest)}, AddPeerCounts(), PeerCounts{}, raw(buf.counts));
   const PeerCounts send = read_one(buf.counts, 0);
   // The particles that go to a peer, listed; per peer their places.
@@ -198,3 +199,129 @@ ExchangeResult exchange_particles(ExchangeBuffers& buf, const SlabBounds& bounds
   }
   return r;
 }
+
+// The ghosts of a decomposed run refreshed from their owners within a step
+// (PBF's and DFSPH's iterations: each pass reads its neighbours' values from
+// the pass before, and a ghost's own pass, short of the neighbours beyond
+// the halo, would be wrong). After the step's exchange and sort, both sides list the
+// same particles: the owner, per peer, those of its own whose destinations
+// (destinations_of at the place they were exchanged by) include that peer;
+// the peer, its ghosts whose owner it is. The exchange gave every such peer
+// its copy (it placed them by the same function at the same place), so the
+// two lists hold the same ids; each is sorted by id, so that the k-th
+// record sent is the k-th ghost received. The counts are compared once per
+// step: a mismatch is a logic error, not a hang.
+struct PeerBits {
+  SlabBounds bounds;
+  const Float4* place;
+  const uint8_t* status;
+  uint8_t* bits;
+  SPHRAY_HD void operator()(uint32_t i) const {
+    const Destinations d = destinations_of(bounds, place[i], true);  // as exchange_particles without wall flags
+    bits[i] = status[i] == kStatusGhost ? uint8_t(1u << d.owner) : uint8_t(d.to & kToPeers);
+  }
+};
+
+// Particle i is to be listed for peer k: an owned one it holds a ghost of
+// (ghost == false), or a ghost it owns (ghost == true).
+struct ListedForPeer {
+  const uint8_t* bits;
+  const uint8_t* status;
+  int k;
+  bool ghost;
+  SPHRAY_HD bool operator()(uint32_t i) const {
+    return ((bits[i] >> k) & 1u) && (status[i] == kStatusGhost) == ghost;
+  }
+};
+
+template <class T>
+struct PackByIndex {
+  const T* values;
+  const uint32_t* index;
+  T* out;
+  SPHRAY_HD void operator()(uint32_t j) const { out[j] = values[index[j]]; }
+};
+
+template <class T>
+struct UnpackByIndex {
+  const T* in;
+  const uint32_t* index;
+  T* values;
+  SPHRAY_HD void operator()(uint32_t j) const { values[index[j]] = in[j]; }
+};
+
+class GhostRefresh {
+ public:
+  // The lists of the particles as sorted now (after the step's exchange and
+  // sort), placed at `place` as the exchange placed them.
+  void build(const SlabBounds& bounds, const Float4* place, const Vector<uint8_t>& status, const Vector<uint32_t>& id,
+             uint32_t n, ParticleTransport& transport) {
+    bounds_ = bounds;
+    grow_to(bits_, n);
+    grow_to(keys_, n);
+    if (n > 0) parallel_for("ghost_peers", n, PeerBits{bounds, place, raw(status), raw(bits_)});
+    PeerCounts mine{}, theirs{};
+    for (int k = 0; k < kPeers; ++k) {
+      send_n_[k] = recv_n_[k] = 0;
+      if (k == kSelf || !bounds.exists[k]) continue;
+      send_n_[k] = list(send_idx_[k], ListedForPeer{raw(bits_), raw(status), k, false}, id, n);
+      recv_n_[k] = list(recv_idx_[k], ListedForPeer{raw(bits_), raw(status), k, true}, id, n);
+      grow_to(send_buf_[k], send_n_[k]);
+      grow_to(recv_buf_[k], recv_n_[k]);
+      mine.total[k] = send_n_[k];
+    }
+    transport.exchange_counts(bounds, mine, theirs);
+    for (int k = 0; k < kPeers; ++k)
+      if (k != kSelf && bounds.exists[k] && theirs.total[k] != recv_n_[k])
+        throw std::logic_error("ghost refresh: rank at offset " + std::to_string(k - kSelf) + " sends " +
+                               std::to_string(theirs.total[k]) + " values for the " + std::to_string(recv_n_[k]) +
+                               " ghosts it owns here");
+  }
+
+  // Every ghost's entry of `values` set to its owner's (T: at most a Float4,
+  // packed into the Float4 buffers).
+  template <class T>
+  void refresh(Vector<T>& values, ParticleTransport& transport) {
+    static_assert(sizeof(T) <= sizeof(Float4) && alignof(T) <= alignof(Float4), "a value per particle, Float4 at most");
+    T* send[kPeers];
+    T* recv[kPeers];
+    for (int k = 0; k < kPeers; ++k) {
+      send[k] = reinterpret_cast<T*>(raw(send_buf_[k]));
+      recv[k] = reinterpret_cast<T*>(raw(recv_buf_[k]));
+      if (send_n_[k] > 0)
+        parallel_for("ghost_pack", send_n_[k], PackByIndex<T>{raw(values), raw(send_idx_[k]), send[k]});
+    }
+    transport.exchange(bounds_, send, send_n_, recv, recv_n_);
+    for (int k = 0; k < kPeers; ++k)
+      if (recv_n_[k] > 0)
+        parallel_for("ghost_unpack", recv_n_[k], UnpackByIndex<T>{recv[k], raw(recv_idx_[k]), raw(values)});
+  }
+
+  size_t bytes() const {
+    size_t b = bits_.size() + keys_.size() * sizeof(uint32_t);
+    for (int k = 0; k < kPeers; ++k)
+      b += (send_idx_[k].size() + recv_idx_[k].size()) * sizeof(uint32_t) +
+           (send_buf_[k].size() + recv_buf_[k].size()) * sizeof(Float4);
+    return b;
+  }
+
+ private:
+  // The particles `pick` selects, into `out` sorted by id; returns how many.
+  template <class Pick>
+  uint32_t list(Vector<uint32_t>& out, Pick pick, const Vector<uint32_t>& id, uint32_t n) {
+    grow_to(out, n);
+    const uint32_t m = uint32_t(thrust::copy_if(policy(), thrust::counting_iterator<uint32_t>(0),
+                                                thrust::counting_iterator<uint32_t>(n), out.begin(), pick) -
+                                out.begin());
+    thrust::gather(policy(), out.begin(), out.begin() + m, id.begin(), keys_.begin());
+    thrust::sort_by_key(policy(), keys_.begin(), keys_.begin() + m, out.begin());
+    return m;
+  }
+
+  SlabBounds bounds_;
+  Vector<uint8_t> bits_;
+  Vector<uint32_t> keys_;
+  Vector<uint32_t> send_idx_[kPeers], recv_idx_[kPeers];
+  Vector<Float4> send_buf_[kPeers], recv_buf_[kPeers];
+  uint32_t send_n_[kPeers] = {}, recv_n_[kPeers] = {};
+};

@@ -12,33 +12,59 @@ struct FlowArrays {
   Vector<float>&presence, &presence_tmp;
 };
 
+// What a sort kept and dropped (sort_flow_particles).
+struct FlowSort {
+  uint32_t active = 0;          // the particles kept, sorted first
+  uint32_t dropped_owned = 0;   // the run's own particles dropped (outside the grid): removed
+  uint32_t dropped_ghosts = 0;  // another rank's ghosts dropped with them
+};
+
 // Sorts every array by the cell of `by` (one of them, read before the
 // gather), carrying presence when `carry_presence`, and drops the particles
-// outside the grid (an open top only). Returns how many stay.
-inline uint32_t sort_flow_particles(const char* const (&names)[2], const GridGeom& grid, bool open_top, uint32_t n,
+// outside the grid (an open top only) and, after an exchange (`exchanged`:
+// exchange_impl.inl), those it sent away (kStatusGone).
+inline FlowSort sort_flow_particles(const char* const (&names)[2], const GridGeom& grid, bool open_top, uint32_t n,
                                     const Vector<Float4>& by, bool carry_presence, FlowArrays a, Vector<uint32_t>& keys,
-                                    Vector<uint32_t>& order, Vector<uint32_t>& fine_offsets, Vector<uint32_t>& offsets) {
-  parallel_for(names[0], n, KeyOf<Float4>{grid, raw(by), raw(keys)});
+                                    Vector<uint32_t>& order, Vector<uint32_t>& fine_offsets, Vector<uint32_t>& offsets,
+                                    bool exchanged = false) {
+  if (exchanged) parallel_for(names[0], n, KeyOfStaying{grid, raw(by), raw(a.status), raw(keys)});
+  else parallel_for(names[0], n, KeyOf<Float4>{grid, raw(by), raw(keys)});
   sort_and_offsets(grid, n, keys, order, fine_offsets, &offsets);
-  const uint32_t active = open_top ? read_one(offsets, grid.num_cells()) : n;
+  FlowSort r;
+  r.active = open_top || exchanged ? read_one(offsets, grid.num_cells()) : n;
+  r.dropped_owned = n - r.active;
+  if (exchanged && r.active < n) {
+    const auto dropped = thrust::make_permutation_iterator(a.status.begin(), order.begin() + r.active);
+    r.dropped_ghosts = uint32_t(thrust::count(policy(), dropped, dropped + (n - r.active), uint8_t(kStatusGhost)));
+    const uint32_t sent = uint32_t(thrust::count(policy(), dropped, dropped + (n - r.active), uint8_t(kStatusGone)));
+    r.dropped_owned -= r.dropped_ghosts + sent;
+  }
   const ConstParticleArrays in{raw(a.pos), raw(a.vel), raw(a.flow), raw(a.id), raw(a.status),
                                carry_presence ? raw(a.presence) : nullptr};
   const ParticleArrays out{raw(a.pos_tmp), raw(a.vel_tmp), raw(a.flow_tmp), raw(a.id_tmp), raw(a.status_tmp),
                            raw(a.presence_tmp)};
-  parallel_for(names[1], active, GatherParticles{raw(order), in, n, out, active});
+  parallel_for(names[1], r.active, GatherParticles{raw(order), in, n, out, r.active});
   a.pos.swap(a.pos_tmp); a.vel.swap(a.vel_tmp); a.flow.swap(a.flow_tmp); a.id.swap(a.id_tmp);
   a.status.swap(a.status_tmp);
   if (carry_presence) a.presence.swap(a.presence_tmp);
-  return active;
+  return r;
 }
+
+// A per-particle value (PBF's density error, DFSPH's residual), another
+// rank's ghosts' none: a decomposed run's sums count its own particles.
+struct OwnedError {
+  const float* error;
+  const uint8_t* status;
+  SPHRAY_HD double operator()(uint32_t i) const { return status[i] == kStatusGhost ? 0.0 : double(error[i]); }
+};
 
 // A non-finite value, or a density error that no longer means anything (the
 // liquid compressed to twice its rest density on average), ends the run:
 // throws SimulationError naming the step (and the particle), with `remedy`.
-inline void check_flow_state(const char* solver, const char* remedy, const FlowStats& s, uint32_t n, uint64_t steps,
-                             double t, const Vector<Float4>& pos, const Vector<Float4>& vel, const Vector<uint32_t>& id) {
+inline void check_flow_state(const char* solver, const char* remedy, const FlowStats& s, uint64_t steps, double t,
+                             const Vector<Float4>& pos, const Vector<Float4>& vel, const Vector<uint32_t>& id) {
   constexpr double kDivergedError = 1.0;
-  const double mean = n ? s.error_sum / n : 0.0;
+  const double mean = s.count > 0 ? s.error_sum / s.count : 0.0;
   if (s.first_bad == kNoBadParticle && mean <= kDivergedError) return;
   std::ostringstream os;
   if (s.first_bad != kNoBadParticle) {

@@ -18,27 +18,31 @@ struct FlowStats {
   float max_speed2;
   float error_max;   // largest compression rho / rho0 - 1 (>= 0)
   double error_sum;  // summed over the particles
+  double count;      // the particles summed (a decomposed run's over all ranks: solvers reduce the pairs together)
   uint32_t first_bad;
 };
-constexpr FlowStats kEmptyFlowStats{0.0f, 0.0f, 0.0, kNoBadParticle};
+constexpr FlowStats kEmptyFlowStats{0.0f, 0.0f, 0.0, 0.0, kNoBadParticle};
 
 struct CombineFlowStats {
   SPHRAY_HD FlowStats operator()(const FlowStats& a, const FlowStats& b) const {
     return {a.max_speed2 > b.max_speed2 ? a.max_speed2 : b.max_speed2, a.error_max > b.error_max ? a.error_max : b.error_max,
-            a.error_sum + b.error_sum, a.first_bad < b.first_bad ? a.first_bad : b.first_bad};
+            a.error_sum + b.error_sum, a.count + b.count, a.first_bad < b.first_bad ? a.first_bad : b.first_bad};
   }
 };
 
-// Per particle: speed, density error (from error[]), finiteness.
+// Per particle: speed, density error (from error[]), finiteness; another
+// rank's ghosts (status, where given: kStatusGhost) count for nothing.
 struct FlowStatsOf {
   const Float4* pos;  // x, density
   const Float4* vel;
   const float* error;
+  const uint8_t* status = nullptr;
   SPHRAY_HD FlowStats operator()(uint32_t i) const {
+    if (status && status[i] == kStatusGhost) return kEmptyFlowStats;
     const Float4 p = pos[i], v = vel[i];
     const bool finite = all_finite(xyz(p)) && std::isfinite(p.w) && all_finite(xyz(v));
     const float e = error[i];
-    return {length2(xyz(v)), e, double(e), finite && std::isfinite(e) ? kNoBadParticle : i};
+    return {length2(xyz(v)), e, double(e), 1.0, finite && std::isfinite(e) ? kNoBadParticle : i};
   }
 };
 
@@ -58,8 +62,8 @@ struct FlowControl {
 // explicit viscosity's (dfsph.h; DFSPH iterates to a tolerance and needs no
 // depth limit). With error_target > 0 (PBF's pbf.step_error) max_dt_solver
 // sizes the first step and is the floor after it; the limit then follows the
-// compression the steps leave: with e the larger of the last step's mean over
-// the n particles and its running mean (weight kKeep on the past), a step of
+// compression the steps leave: with e the larger of the last step's mean
+// (stats.error_sum / stats.count) and its running mean (weight kKeep on the past), a step of
 // dt asks for dt sqrt(error_target / e) (the compression a step leaves grows
 // as dt^2, pbf.h), changed by at most the factors kShrink and kGrow per step,
 // so that the speeds, position changes over dt, do not jump
@@ -69,7 +73,6 @@ struct ChooseFlowStep {
   double cfl_dx, speed_floor, max_dt, max_dt_solver, min_dt, remaining;
   FlowControl* control;
   double error_target;  // mean compression the step is sized to; 0: max_dt_solver throughout
-  uint32_t n;           // particles in the error sum
   SPHRAY_HD void operator()(uint32_t) const {
     FlowControl& c = *control;
     StepLimits& l = c.limits;
@@ -77,7 +80,7 @@ struct ChooseFlowStep {
     const double v = l.max_speed > speed_floor ? l.max_speed : speed_floor;
     l.dt_cfl = v > 0 ? cfl_dx / v : HUGE_VAL;
     l.dt_force = max_dt_solver;
-    const double e_now = n > 0 ? c.stats.error_sum / n : 0.0;
+    const double e_now = c.stats.count > 0 ? c.stats.error_sum / c.stats.count : 0.0;
     c.error_mean = c.dt_chosen > 0 ? kKeep * c.error_mean + (1.0 - kKeep) * e_now : e_now;
     if (error_target > 0 && c.dt_chosen > 0) {
       const double e = e_now > c.error_mean ? e_now : c.error_mean;

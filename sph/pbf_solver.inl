@@ -8,21 +8,27 @@
 // the cell table is off by the step's corrections: view() sorts again by the
 // final positions before a later stage reads the grid (once per output frame,
 // not per step).
+// A decomposed run (set_slab, dist/slab_solver.h): the particles are
+// exchanged after the prediction, placed at x* (each rank owns those in its
+// slab, and holds copies of its neighbours' within one PBF support of it:
+// the pair masks are found at x* and kept through the step, so these are
+// all the neighbours its own particles read); after every pass of the
+// iterations the ghosts take their owners' values (GhostRefresh,
+// exchange_impl.inl), and the step's statistics are reduced over the ranks
+// before the next step's size is chosen.
 
 class PbfSolverImpl final : public Solver {
  public:
   explicit PbfSolverImpl(const SolverInput& in)
       : prm_(in.params), pbf_(in.pbf), grid_(in.grid), cfl_(in.cfl), min_dt_(in.min_dt), max_dt_(in.max_dt),
         n_(uint32_t(in.fluid_pos_rho.size())), obstacles_(make_obstacle_set(kBackend, in.obstacles, in.params.spacing)),
-        walls_(in, in.grid) {
+        walls_(in, in.grid), transport_(in.transport) {
     t_ = in.start_time;
     steps_ = in.start_step;
     const size_t n = n_;
     upload(pos_, in.fluid_pos_rho);
     upload(vel_, in.fluid_vel);
-    std::vector<uint32_t> ids(n);
-    for (size_t i = 0; i < n; ++i) ids[i] = uint32_t(i);
-    upload(id_, ids);
+    upload(id_, initial_ids(in, "PBF"));
     pred_.assign(n, Float4{0, 0, 0, 0});
     pos_tmp_.resize(n); vel_tmp_.resize(n); pred_tmp_.resize(n); id_tmp_.resize(n);
     status_.assign(n, uint8_t(kStatusOk)); status_tmp_.resize(n);
@@ -44,7 +50,7 @@ class PbfSolverImpl final : public Solver {
   SolverKind kind() const override { return SolverKind::Pbf; }
   double time() const override { return t_; }
   uint64_t steps() const override { return steps_; }
-  size_t num_fluid() const override { return n_; }
+  size_t num_fluid() const override { return n_ - ghosts_; }
   size_t num_removed() const override { return removed_; }
   uint64_t num_clamped() const override { return 0; }  // the walls are projections, not a guard
   const StepLimits& last_limits() const override { return limits_; }
@@ -73,7 +79,7 @@ class PbfSolverImpl final : public Solver {
     return b(pos_) + b(vel_) + b(pred_) + b(pos_tmp_) + b(vel_tmp_) + b(pred_tmp_) + b(presence_) + b(presence_tmp_) +
            b(id_) + b(id_tmp_) + b(status_) + b(status_tmp_) + b(error_) + b(keys_) + b(order_) + b(offsets_) +
            b(fine_offsets_) + b(pairs_) + b(pair_count_) + b(wall_grad_) + walls_.bytes() + raw_copies_.bytes() +
-           lists_.bytes();
+           lists_.bytes() + exchange_.bytes() + refresh_.bytes();
   }
 
   void step(double until) override {
@@ -87,10 +93,15 @@ class PbfSolverImpl final : public Solver {
     FlowControl* control = raw(control_);
     parallel_for("pbf_choose_step", 1,
                  ChooseFlowStep{cfl_ * prm_.spacing, double(pbf_.speed_floor), max_dt_, double(pbf_.max_dt_depth), min_dt_,
-                               std::max(until - t_, 0.0), control, double(pbf_.step_error), n_});
+                               std::max(until - t_, 0.0), control, double(pbf_.step_error)});
     walls_.move(obstacles_.view, control);  // to the step's end, where the corrections meet them
     parallel_for("pbf_predict", n_, Predict{prm_, control, raw(pos_), raw(vel_), raw(pred_), obstacles_.view});
+    if (transport_) {
+      exchange(pred_);
+      clock_.end_of("exchange");
+    }
     sort_by(pred_);
+    if (transport_) refresh_.build(bounds_, raw(pred_), status_, id_, n_, *transport_);
     grid_current_ = false;
     build_masks();
     clock_.end_of("grid");
@@ -106,20 +117,37 @@ class PbfSolverImpl final : public Solver {
     // reported, not continued from.
     if (c.outcome == kStepBelowFloor)
       throw SimulationError(describe_flow_dt_floor(c.limits, min_dt_, cfl_, t_, steps_));
-    check_flow_state("PBF", "lower sph.cfl or raise pbf.iterations", c.stats, n_, steps_, t_, pos_, vel_, id_);
+    check_flow_state("PBF", "lower sph.cfl or raise pbf.iterations", c.stats, steps_, t_, pos_, vel_, id_);
     limits_ = c.limits;
     times_ = {clock_.ms("grid"), clock_.ms("pairs"), clock_.ms("integrate")};
+    times_.exchange = transport_ ? clock_.ms("exchange") : 0.0;
     solve_.iterations = iterations;
-    solve_.density_error_mean = n_ ? c.stats.error_sum / n_ : 0.0;
+    solve_.density_error_mean = c.stats.count > 0 ? c.stats.error_sum / c.stats.count : 0.0;
     solve_.density_error_max = c.stats.error_max;
     solve_.converged = pbf_.tolerance <= 0 || solve_.density_error_mean <= pbf_.tolerance;
     t_ += limits_.dt;
     ++steps_;
   }
 
+  // A decomposed run: this rank's slab; the particles go where it says at
+  // the next step's exchange. Its halo must hold the PBF support (see above).
+  // The exchange at once, placed at x (the next step's places them at x*
+  // again): the grid then holds the ghosts, as between steps, and the
+  // transport has carried its first records before a step is timed (NCCL
+  // connects its peers on the first, about a second).
+  void set_slab(const SlabBounds& bounds) override {
+    if (!transport_) throw std::logic_error("PBF: set_slab without a transport (SolverInput::transport)");
+    if (bounds.halo_free < pbf_.kernel.s) throw std::logic_error("PBF: a halo narrower than its support");
+    bounds_ = bounds;
+    exchange(pos_);
+    sort_by(pos_);
+  }
+
   FlowSums flow_sums() const override { return reduce_flow_sums(n_, pos_, vel_, status_); }
   HostParticles download() const override {
-    return download_particles(id_, pos_, vel_, presence_valid_ ? &presence_ : nullptr, n_);
+    HostParticles h = download_particles(id_, pos_, vel_, presence_valid_ ? &presence_ : nullptr, n_);
+    if (transport_) h.status = sphray::SPHRAY_BK::download(status_, n_);  // which are ghosts
+    return h;
   }
   void download_raw(RawParticles& out, bool velocity, bool presence) const override {
     raw_copies_.take(out, pos_, vel_, id_, presence && presence_valid_ ? &presence_ : nullptr, n_, velocity);
@@ -128,19 +156,63 @@ class PbfSolverImpl final : public Solver {
 
  private:
   PairMask pairs() { return {raw(pairs_), raw(pair_count_), n_, mask_words_}; }
+  // The ghosts of a decomposed run take their owners' values of `values`.
+  void refresh(Vector<Float4>& values) {
+    if (transport_) refresh_.refresh(values, *transport_);
+  }
   FlowArrays arrays() {
     return {pos_, vel_, pred_, pos_tmp_, vel_tmp_, pred_tmp_, id_, id_tmp_, status_, status_tmp_, presence_, presence_tmp_};
   }
 
   // Sorts every particle array by the cell of `by` (pos_ or pred_) and drops
-  // the particles outside the grid (an open top only).
+  // the particles outside the grid (an open top only) and those the
+  // step's exchange sent away.
   void sort_by(const Vector<Float4>& by) {
     static constexpr const char* kNames[2] = {"pbf_keys", "pbf_gather"};
-    const uint32_t active = sort_flow_particles(kNames, grid_, prm_.open_top, n_, by, presence_valid_, arrays(), keys_,
-                                                order_, fine_offsets_, offsets_);
-    removed_ += n_ - active;
-    n_ = active;
+    const FlowSort r = sort_flow_particles(kNames, grid_, prm_.open_top, n_, by, presence_valid_, arrays(), keys_,
+                                           order_, fine_offsets_, offsets_, gone_);
+    gone_ = false;
+    removed_ += r.dropped_owned;
+    ghosts_ -= r.dropped_ghosts;
+    n_ = r.active;
     grid_current_ = true;
+  }
+
+  // The exchange (exchange_impl.inl) after the prediction, placed at x*
+  // (`place` pred_; set_slab: pos_): the particles this rank holds for the
+  // step, unsorted (sort_by follows).
+  void exchange(const Vector<Float4>& place) {
+    const ConstParticleArrays s{raw(pos_), raw(vel_), raw(pred_), raw(id_), raw(status_), nullptr};
+    const ExchangeResult r = exchange_particles(exchange_, bounds_, grid_, nullptr, *transport_, s, raw(place),
+                                                raw(status_), n_, [&](uint32_t n) {
+                                                  fit(n);
+                                                  return ParticleArrays{raw(pos_), raw(vel_), raw(pred_), raw(id_),
+                                                                        raw(status_), nullptr};
+                                                });
+    n_ = r.n;
+    ghosts_ = r.ghosts;
+    gone_ = true;
+    presence_valid_ = false;  // the exchange carries none
+  }
+
+  // Grows every per-particle buffer to hold n particles, keeping the
+  // contents (a tenth more, so that a decomposed run's count, which changes
+  // a little every step, rarely makes it grow).
+  void fit(uint32_t n) {
+    auto grow = [](auto& v, size_t size) {
+      if (v.size() < size) v.resize(size + size / 10);
+    };
+    for (auto* v : {&pos_, &vel_, &pred_, &pos_tmp_, &vel_tmp_, &pred_tmp_}) grow(*v, n);
+    for (auto* v : {&id_, &id_tmp_, &keys_, &order_, &pair_count_}) grow(*v, n);
+    grow(status_, n);
+    grow(status_tmp_, n);
+    grow(error_, n);
+    if (walls_.size()) grow(wall_grad_, n);
+    grow(pairs_, size_t(mask_words_) * n);
+    if (presence_mode_ != PresenceMode::Off) {
+      grow(presence_, 6 * size_t(n));
+      grow(presence_tmp_, 6 * size_t(n));
+    }
   }
 
   // The pair masks at the predicted positions, searched within the support
@@ -170,15 +242,27 @@ class PbfSolverImpl final : public Solver {
       mirror_pass_launches<Lambda>(kLambdaNames, lists_, walls_.size() > 0, prm_, pbf_, grid_, raw(fine_offsets_), pairs(),
                                    raw(pred_), raw(pred_tmp_), raw(error_), walls_.view(), raw(wall_grad_));
       pred_.swap(pred_tmp_);
+      refresh(pred_);
       if (pbf_.tolerance > 0) {
         // Ending early needs the error on the host: one read per iteration.
-        const double sum = thrust::reduce(policy(), error_.begin(), error_.begin() + n_, 0.0);
-        if (n_ == 0 || sum / n_ <= pbf_.tolerance) return k;
+        // (A decomposed run's over its own particles, summed over the ranks.)
+        double sum[2] = {0.0, double(n_)};
+        if (!transport_) {
+          sum[0] = thrust::reduce(policy(), error_.begin(), error_.begin() + n_, 0.0);
+        } else {
+          sum[0] = thrust::transform_reduce(policy(), thrust::counting_iterator<uint32_t>(0),
+                                            thrust::counting_iterator<uint32_t>(n_), OwnedError{raw(error_), raw(status_)},
+                                            0.0, thrust::plus<double>());
+          sum[1] = double(n_ - ghosts_);
+          transport_->sum(sum, 2);
+        }
+        if (sum[1] == 0 || sum[0] / sum[1] <= pbf_.tolerance) return k;
       }
       mirror_pass_launches<Correct>(kCorrectNames, lists_, walls_.size() > 0, prm_, pbf_, grid_, raw(fine_offsets_), pairs(),
                                     raw(pred_), raw(pred_tmp_), obstacles_.view, raw(control_), walls_.view(),
                                     raw(wall_grad_));
       pred_.swap(pred_tmp_);
+      refresh(pred_);
     }
     return pbf_.iterations;
   }
@@ -196,10 +280,12 @@ class PbfSolverImpl final : public Solver {
   // then the velocities.
   void confine_vorticity() {
     const FlowControl* control = raw(control_);
+    refresh(vel_);  // a ghost's XSPH smoothing lacked the neighbours beyond the halo
     parallel_for("pbf_vorticity", n_,
                  Vorticity<false>{pbf_, grid_, raw(fine_offsets_), pairs(), raw(pos_), raw(vel_), raw(vel_tmp_)});
     parallel_for("pbf_vorticity_direct", n_,
                  Vorticity<true>{pbf_, grid_, raw(fine_offsets_), pairs(), raw(pos_), raw(vel_), raw(vel_tmp_)});
+    refresh(vel_tmp_);
     parallel_for("pbf_confine", n_,
                  Confine<false>{pbf_, grid_, raw(fine_offsets_), pairs(), control, raw(pos_), raw(vel_tmp_), raw(vel_)});
     parallel_for("pbf_confine_direct", n_,
@@ -220,10 +306,20 @@ class PbfSolverImpl final : public Solver {
   }
 
   // Speed, density error and finiteness of the current state, into the
-  // control that the next step's size is chosen from.
+  // control that the next step's size is chosen from; a decomposed run's
+  // over all ranks (its own particles only), so that every rank takes the
+  // same step. first_bad stays the rank's own: the rank that has one
+  // raises the step's error (check_flow_state).
   void reduce_stats() {
-    transform_reduce_into(n_, FlowStatsOf{raw(pos_), raw(vel_), raw(error_)}, CombineFlowStats(), kEmptyFlowStats,
-                          &raw(control_)->stats);
+    FlowStats* stats = &raw(control_)->stats;
+    transform_reduce_into(n_, FlowStatsOf{raw(pos_), raw(vel_), raw(error_), transport_ ? raw(status_) : nullptr},
+                          CombineFlowStats(), kEmptyFlowStats, stats);
+    if (!transport_) return;
+    static_assert(offsetof(FlowStats, error_max) == offsetof(FlowStats, max_speed2) + sizeof(float) &&
+                      offsetof(FlowStats, count) == offsetof(FlowStats, error_sum) + sizeof(double),
+                  "the extremes and the sums are reduced as two arrays");
+    transport_->max(&stats->max_speed2, 2);
+    transport_->sum(&stats->error_sum, 2);
   }
 
 
@@ -257,4 +353,13 @@ class PbfSolverImpl final : public Solver {
   Vector<PairWord> pairs_;
   Vector<uint32_t> pair_count_;
   LaunchLists lists_;  // the neighbour passes' particles per launch (flow_solver.inl), with the masks
+  // A decomposed run (set_slab): the transport, the slabs (halo: the PBF
+  // support), the exchange's buffers, the ghosts' refresh lists, and how
+  // many of the n_ particles are ghosts.
+  ParticleTransport* transport_ = nullptr;
+  SlabBounds bounds_;
+  ExchangeBuffers exchange_;
+  GhostRefresh refresh_;
+  uint32_t ghosts_ = 0;
+  bool gone_ = false;  // the arrays hold particles the step's exchange sent away
 };

@@ -77,8 +77,8 @@ struct SolverInput {
   // whole run's initial list (empty: 0, 1, ..., n - 1), and the transport
   // over the ranks (sph/exchange.h; it outlives the solver): the step's
   // extremes are reduced over the ranks before its size is chosen, so that
-  // every rank takes the same dt, and each step ends with the exchange of
-  // particles with the other ranks (Solver::set_slab). WCSPH only.
+  // every rank takes the same dt, and each step exchanges particles with
+  // the other ranks (Solver::set_slab). WCSPH and PBF.
   std::vector<uint32_t> fluid_id;
   ParticleTransport* transport = nullptr;
   // A resumed run (--resume): the time and step count of the state above.
@@ -204,11 +204,12 @@ class Solver {
   virtual const float* device_pressure() { return nullptr; }
   // A decomposed run: this rank's slab and its neighbours' (sph/exchange.h).
   // Exchanges particles with the other ranks at once (collective), and so
-  // does every later step, after it moves them: the particles that left the
-  // slab go to their owners, and copies of those within the halo of a
-  // neighbouring slab go there as ghosts (integrate.h, kStatusGhost: read by
-  // the neighbour loops, never moved, counted, or returned by num_fluid()).
-  // Solvers other than WCSPH throw std::logic_error.
+  // does every later step (WCSPH after it moves them, PBF after its
+  // prediction): the particles that left the slab go to their owners, and
+  // copies of those within the halo of a neighbouring slab go there as
+  // ghosts (integrate.h, kStatusGhost: read by the neighbour loops, never
+  // moved by the step, counted, or returned by num_fluid()).
+  // Solvers other than WCSPH and PBF throw std::logic_error.
   virtual void set_slab(const SlabBounds&) { throw std::logic_error("this solver cannot run over several ranks"); }
   // Called by the run loop at every output frame before the sinks read the
   // solver (a decomposed run gathers its ranks' particles then).

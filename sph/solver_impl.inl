@@ -51,6 +51,20 @@ struct KeyOfStaying {
   }
 };
 
+// The particles' ids: in.fluid_id (a resumed run's, a rank's share of a
+// decomposed run's), or their indices.
+inline std::vector<uint32_t> initial_ids(const SolverInput& in, const char* solver) {
+  const size_t n = in.fluid_pos_rho.size();
+  if (!in.fluid_id.empty() && in.fluid_id.size() != n)
+    throw std::invalid_argument(std::string(solver) + ": fluid_id and fluid_pos_rho differ in length");
+  std::vector<uint32_t> ids(in.fluid_id);
+  if (ids.empty()) {
+    ids.resize(n);
+    for (size_t i = 0; i < n; ++i) ids[i] = uint32_t(i);
+  }
+  return ids;
+}
+
 class SolverImpl final : public Solver {
  public:
   explicit SolverImpl(const SolverInput& in)
@@ -64,17 +78,10 @@ class SolverImpl final : public Solver {
     steps_ = in.start_step;
     transport_ = in.transport;
     moving_walls_ = !in.boundary_obstacle.empty();
-    if (!in.fluid_id.empty() && in.fluid_id.size() != n)
-      throw std::invalid_argument("WCSPH: fluid_id and fluid_pos_rho differ in length");
     upload(pos_, in.fluid_pos_rho);
     upload(vel_, in.fluid_vel);
     flow_ = vel_;  // u = v until there is an acceleration to predict with
-    std::vector<uint32_t> ids(in.fluid_id);
-    if (ids.empty()) {
-      ids.resize(n);
-      for (size_t i = 0; i < n; ++i) ids[i] = uint32_t(i);
-    }
-    upload(id_, ids);
+    upload(id_, initial_ids(in, "WCSPH"));
     status_.assign(n, uint8_t(kStatusOk));
     offsets_.resize(cells); fine_offsets_.resize(slabs);
     mask_words_ = in.pair_mask_words >= 0 ? uint32_t(in.pair_mask_words)
@@ -214,7 +221,7 @@ class SolverImpl final : public Solver {
   void exchange() {
     const ExchangeResult r =
         exchange_particles(exchange_, bounds_, grid_, moving_walls_ ? nullptr : walls_.near(), *transport_,
-                           const_state(), raw(status_), n_, [&](uint32_t n) {
+                           const_state(), raw(pos_), raw(status_), n_, [&](uint32_t n) {
                              fit(n, true);
                              return state();
                            });

@@ -7,12 +7,15 @@
 # A one-GPU run is the ordinary run (no MPI).
 #   tools/scaling.sh [BUILD_DIR]
 #   env: GPUS="1 2" (rank counts), WEAK="1 4" (millions per GPU), STRONG="4 8"
-#   (millions in all), STEPS=150, OUT (default ./scaling-out)
+#   (millions in all), STEPS=150, SOLVER=wcsph (or pbf, dfsph), OUT (default ./scaling-out)
 set -euo pipefail
 B=${1:-build}
 OUT=${OUT:-$PWD/scaling-out}
 mkdir -p "$OUT"
-GPUS=${GPUS:-"1 2"} WEAK=${WEAK:-"1 4"} STRONG=${STRONG:-"4 8"} STEPS=${STEPS:-150}
+GPUS=${GPUS:-"1 2"} WEAK=${WEAK:-"1 4"} STRONG=${STRONG:-"4 8"} STEPS=${STEPS:-150} SOLVER=${SOLVER:-wcsph}
+# the step at 4.32 mm, which scales with the spacing: WCSPH's acoustic one; PBF's and DFSPH's
+# (the flow CFL; PBF's depth limit, then its error-sized step) about 1 ms over the first steps
+case $SOLVER in wcsph) DT=0.11e-3 ;; pbf | dfsph) DT=1.0e-3 ;; *) echo "SOLVER: wcsph, pbf or dfsph"; exit 2 ;; esac
 export OMPI_ALLOW_RUN_AS_ROOT=1 OMPI_ALLOW_RUN_AS_ROOT_CONFIRM=1
 export NCCL_NVLS_ENABLE=${NCCL_NVLS_ENABLE:-0}  # no NVLink multicast (shared machines)
 scene=scenes/dam_break.json
@@ -20,13 +23,12 @@ results="$OUT/scaling.jsonl"
 : > "$results"
 run() {  # kind millions ranks
   local kind=$1 m=$2 r=$3
-  # the dam break's 0.4 x 0.67 x 0.3 m column holds m million particles at this spacing;
-  # dt is about 0.11 ms at 4.32 mm and scales with it
+  # the dam break's 0.4 x 0.67 x 0.3 m column holds m million particles at this spacing
   local dx end name
   dx=$(python3 -c "print(f'{(0.0804 / ($m * 1e6)) ** (1 / 3):.6f}')")
-  end=$(python3 -c "print(f'{$STEPS * 0.11e-3 * $dx / 4.32e-3:.6f}')")
-  name="${kind}_${m}M_${r}gpu"
-  local cmd=("$B/sphray" run "$scene" --backend cuda --quiet --set "sph.spacing=$dx" --set "run.end_time=$end"
+  end=$(python3 -c "print(f'{$STEPS * $DT * $dx / 4.32e-3:.6f}')")
+  name="${SOLVER}_${kind}_${m}M_${r}gpu"
+  local cmd=("$B/sphray" run "$scene" --backend cuda --quiet --set "sph.solver=$SOLVER" --set "sph.spacing=$dx" --set "run.end_time=$end"
              --set "run.output_interval=$end" --summary-json "$OUT/$name.json")
   if [ "$r" -gt 1 ]; then cmd=(mpirun -np "$r" -x NCCL_NVLS_ENABLE "${cmd[@]}"); fi
   "${cmd[@]}" > "$OUT/$name.log" 2>&1 || { echo "$name failed:"; tail -5 "$OUT/$name.log"; return 1; }
@@ -34,7 +36,7 @@ run() {  # kind millions ranks
 import json, sys
 j = json.load(open(sys.argv[1]))
 s = j.get("stage_ms", {})
-print(json.dumps({"kind": sys.argv[2], "millions": float(sys.argv[3]), "gpus": int(sys.argv[4]),
+print(json.dumps({"solver": j.get("solver", ""), "kind": sys.argv[2], "millions": float(sys.argv[3]), "gpus": int(sys.argv[4]),
                   "spacing_m": float(sys.argv[5]), "particles": j["fluid_start"], "steps": j["steps"],
                   "ms_per_step": 1e3 * j["wall_s"] / j["steps"], "exchange_ms": s.get("exchange", 0.0),
                   "stage_ms": s}))
