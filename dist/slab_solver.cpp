@@ -43,6 +43,8 @@ class SlabSolver final : public Solver {
   uint64_t num_clamped() const override { return uint64_t(totals_[2]); }
   const StepLimits& last_limits() const override { return inner_->last_limits(); }
   const StageTimes& last_stage_times() const override { return inner_->last_stage_times(); }
+  // The iterations (the same on every rank) and the density error over all ranks.
+  SolveStats last_solve() const override { return inner_->last_solve(); }
   void set_presence(PresenceMode mode) override { inner_->set_presence(mode); }
   PresenceMode presence_mode() const override { return inner_->presence_mode(); }
   bool has_presence() const override { return false; }  // the exchange reorders it (cmd_run refuses what needs it)

@@ -39,6 +39,7 @@ s = j.get("stage_ms", {})
 print(json.dumps({"solver": j.get("solver", ""), "kind": sys.argv[2], "millions": float(sys.argv[3]), "gpus": int(sys.argv[4]),
                   "spacing_m": float(sys.argv[5]), "particles": j["fluid_start"], "steps": j["steps"],
                   "ms_per_step": 1e3 * j["wall_s"] / j["steps"], "exchange_ms": s.get("exchange", 0.0),
+                  "iterations_mean": j.get("constraint", {}).get("iterations_mean"),
                   "stage_ms": s}))
 PY
 }
