@@ -8,6 +8,7 @@
 
 #include "cli.h"
 #include "commands.h"
+#include "ranks.h"
 #include "dist/slab_solver.h"
 #include "io/export.h"
 #include "io/frames_h5.h"
@@ -182,15 +183,6 @@ Frame last_frame(const std::string& path) {
   }
 }
 
-// The ranks of this run: MPI's when an MPI launcher started it, else one.
-std::unique_ptr<Comm> run_ranks() {
-  if (!started_by_mpi_launcher()) return make_single_comm();
-  if (!mpi_built())
-    throw std::runtime_error("started by an MPI launcher, but this sphray was built without MPI: each process would "
-                             "run the whole scene (install libopenmpi-dev and rebuild; tools/setup.sh does)");
-  return make_mpi_comm();
-}
-
 // What a run over several ranks cannot do yet, refused before it starts:
 // presence (the exchange reorders the particles after the pair loop that
 // sums it). The presence builder then builds with full extents, as from an
@@ -202,17 +194,6 @@ void check_several_ranks(const Scene& scene, const std::set<std::string>& fields
   };
   if (fields.count("presence")) refuse("--export-fields presence");
   if (scene.sph.presence) refuse("particle presence on every step (sph.presence)");
-}
-
-// The CUDA device of this rank: one per rank on each node.
-void pick_rank_device(Backend b) {
-  if (b != Backend::Cuda) return;
-  const int have = cuda_device_count(), ranks_here = local_size();
-  if (ranks_here > have)
-    throw std::runtime_error(std::to_string(ranks_here) + " ranks on this node but " + std::to_string(have) +
-                             " CUDA device(s): a run over several ranks takes one GPU per rank (start fewer ranks "
-                             "per node, or use --backend cpu)");
-  use_cuda_device(local_rank());
 }
 
 int cmd_run(RunArgs a) {

@@ -1,12 +1,56 @@
-// `sphray view [SCENE]`: the real-time viewer (viewer/).
+// `sphray view [SCENE]`: the real-time viewer (viewer/); under mpirun rank 0
+// shows the window and drives the other ranks' slabs (dist/driven.h).
 #include <iostream>
 #include <tuple>
 
 #include "cli.h"
 #include "commands.h"
+#include "dist/driven.h"
+#include "dist/slab_solver.h"
+#include "pipeline/pipeline.h"
+#include "ranks.h"
 #include "viewer/viewer.h"
 
 namespace sphray::cli {
+
+namespace {
+
+// The viewer over the ranks of an MPI launcher: every rank makes its slab's
+// solver (make_slab_solver, rank 0 with a grid of the gathered particles for
+// the field and the renderer); rank 0 runs the window, telling the others
+// each step, gather and reset as it makes them; they follow until it quits.
+int view_over_ranks(ViewOptions v, std::ostream& log) {
+  if (!viewer_built()) return run_viewer(v, log);  // the error that says why
+  const std::unique_ptr<Comm> comm = run_ranks();
+  const bool root = comm->rank() == 0;
+  std::ostream quiet(nullptr);
+  const ResolvedScene rs = resolve_view_scene(v);
+  const Backend b = choose_backend(v.backend, quiet);  // the viewer reports its own choice
+  pick_rank_device(b);
+  const SolverMaker maker = b == Backend::Cuda ? SolverMaker(make_cuda_solver) : SolverMaker(make_cpu_solver);
+  auto make = [&] {
+    const SolverInput in = make_solver_input(rs, PresenceMode::Off);
+    SlabOptions so;
+    so.frame_view = true;
+    return make_slab_solver(in, plan_slabs(in, comm->size()), *comm, b, maker, so);
+  };
+  if (!root) {
+    serve_root(*comm, make);
+    return 0;
+  }
+  bool first = true;
+  v.make_solver = [&](const ResolvedScene&, Backend) {
+    if (!first) tell_new_solver(*comm);
+    first = false;
+    return drive_from_root(make(), *comm);
+  };
+  log << "viewer: " << comm->size() << " ranks; rank 0 draws the particles it gathers each frame\n";
+  const int rc = run_viewer(v, log);
+  tell_quit(*comm);
+  return rc;
+}
+
+}  // namespace
 
 CLI::App* add_view_command(CLI::App& app, int& exit_code) {
   struct Args {
@@ -39,7 +83,8 @@ CLI::App* add_view_command(CLI::App& app, int& exit_code) {
       if (v.resize_w < 16 || v.resize_h < 16 || v.resize_w > 8192 || v.resize_h > 8192)
         throw std::runtime_error("--resize '" + a->resize + "': each side must be 16 to 8192 pixels");
     }
-    exit_code = run_viewer(v, std::cout);
+    exit_code = started_by_mpi_launcher() && launcher_size() > 1 ? view_over_ranks(v, std::cout)
+                                                                  : run_viewer(v, std::cout);
   });
   return view;
 }

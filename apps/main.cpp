@@ -33,9 +33,9 @@ int main(int argc, char** argv) {
     return 2;
   }
   // Each process of a launcher would run its own copy of any other command.
-  if (launcher_size() > 1 && (argc < 2 || std::string(argv[1]) != "run")) {
-    std::fprintf(stderr, "sphray: error: only 'sphray run' runs over several ranks (started as one of %d)\n",
-                 launcher_size());
+  if (launcher_size() > 1 && (argc < 2 || (std::string(argv[1]) != "run" && std::string(argv[1]) != "view"))) {
+    std::fprintf(stderr, "sphray: error: only 'sphray run' and 'sphray view' run over several ranks (started as one "
+                         "of %d)\n", launcher_size());
     return 2;
   }
   // In a run over several ranks (dist/): a failed step is raised on every

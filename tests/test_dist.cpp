@@ -445,13 +445,45 @@ TEST_CASE("a scene too large for a rank's memory is refused before the particles
   CHECK(has(r.output, "or run on more ranks"));
 }
 
+TEST_CASE("sphray view over 2 ranks shows what one rank shows", "[dist][mpi]") {
+  if (!SPHRAY_TEST_VIEWER || std::system("command -v xvfb-run > /dev/null 2>&1") != 0) {
+    WARN("no viewer in this build, or no xvfb-run: not tested");
+    return;
+  }
+  setenv("OMPI_ALLOW_RUN_AS_ROOT", "1", 1);
+  setenv("OMPI_ALLOW_RUN_AS_ROOT_CONFIRM", "1", 1);
+  setenv("OMPI_MCA_rmaps_base_oversubscribe", "1", 1);
+  setenv("OMP_NUM_THREADS", "1", 1);
+  // Fixed substeps (real-time playback steps by the wall clock): both runs
+  // take the same 12 steps; rank 0 draws the particles it gathered.
+  auto view = [&](int ranks, const std::string& png) {
+    const std::string log = tmp_dir() + "/view_ranks.log";
+    const std::string cmd = "xvfb-run -a -s '-screen 0 1024x768x24' " + std::string(SPHRAY_MPIEXEC) + " -n " +
+                            std::to_string(ranks) + " " + SPHRAY_EXE +
+                            " view --backend cpu --frames 6 --substeps 2 --size 480x270 --screenshot " + png + " > " +
+                            log + " 2>&1";
+    const int status = std::system(cmd.c_str());
+    INFO(slurp(log));
+    REQUIRE(WIFEXITED(status));
+    REQUIRE(WEXITSTATUS(status) == 0);
+    return slurp(log);
+  };
+  const std::string one = tmp_dir() + "/view_1.png", two = tmp_dir() + "/view_2.png";
+  view(1, one);
+  CHECK(has(view(2, two), "viewer: 2 ranks"));
+  const Image a = read_png(one), b = read_png(two);
+  REQUIRE(a.rgba.size() == b.rgba.size());
+  // The same particles to round-off (identical here: measured 0 pixels).
+  CHECK(pixels_differing(a, b, 20) < a.rgba.size() / 1000);
+}
+
 TEST_CASE("what a run over several ranks cannot do yet is refused by name", "[dist][mpi]") {
   const std::string base =
       source_path("scenes/dam_break.json") + " --backend cpu --quiet --set sph.spacing=0.04 --set run.end_time=0.01 ";
   const CliResult bench = run_ranks(2, "sim --backend cpu --sizes 8k", "bench");
   INFO(bench.output);
   CHECK(bench.code == 2);
-  CHECK(has(bench.output, "only 'sphray run' runs over several ranks (started as one of 2)"));
+  CHECK(has(bench.output, "only 'sphray run' and 'sphray view' run over several ranks (started as one of 2)"));
   const CliResult presence = run_ranks(2, base + "--export " + tmp_dir() + "/p.h5 --export-fields presence");
   INFO(presence.output);
   CHECK(presence.code == 2);

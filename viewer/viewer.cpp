@@ -29,16 +29,6 @@ namespace sphray {
 
 bool viewer_built() { return true; }
 
-const char* small_view_scene() {
-  return R"({"name": "small_dam_break",
-  "description": "The dam break at 4 cm spacing (1,120 particles): interactive on the CPU backend.",
-  "tank": {"min": [0, 0, 0], "max": [1.6, 0.67, 0.6]},
-  "fluid": [{"min": [0, 0, 0], "max": [0.4, 0.67, 0.3]}],
-  "sph": {"spacing": 0.04},
-  "render": {"width": 640, "height": 360},
-  "run": {"end_time": 3.0, "output_interval": 0.02}})";
-}
-
 namespace {
 
 GLuint compile(GLenum type, const char* src) {
@@ -390,9 +380,7 @@ void screenshot(const std::string& path, int fw, int fh) {
 
 int run_viewer(const ViewOptions& opt, std::ostream& log) {
   const auto t_start = std::chrono::steady_clock::now();
-  const ResolvedScene rscene = resolve_scene(opt.scene.empty()
-                                                 ? parse_scene(small_view_scene(), "(built-in small dam break)", opt.sets)
-                                                 : load_scene(opt.scene, opt.sets));
+  const ResolvedScene rscene = resolve_view_scene(opt);
   const Scene& scene = rscene.scene;
   const Backend b = choose_backend(opt.backend, log);
   int W = scene.render.width, H = scene.render.height;  // the raycast image: the window's framebuffer
@@ -412,7 +400,9 @@ int run_viewer(const ViewOptions& opt, std::ostream& log) {
   s.builder_index = int(s.kind);
   s.anisotropic = scene.field.kernel == FieldKernel::Anisotropic;
   const StageNeeds needs{PresenceMode::Off, true};
-  std::unique_ptr<Solver> solver = make_solver(rscene, b, needs);
+  auto new_solver = [&] { return opt.make_solver ? opt.make_solver(rscene, b) : make_solver(rscene, b, needs); };
+  std::unique_ptr<Solver> solver = new_solver();
+  bool gather = true;  // the particles moved since the last gather (a run over several ranks)
   std::unique_ptr<FieldBuilder> field = make_field(rscene, b, needs);
   std::unique_ptr<Renderer> renderer = make_renderer(b);
   renderer->set_obstacles(drawn_obstacles(obstacle_meshes(scene), *solver));
@@ -432,7 +422,9 @@ int run_viewer(const ViewOptions& opt, std::ostream& log) {
     if (fw > 0 && fh > 0 && (fw != W || fh != H)) display.allocate(W = fw, H = fh);  // resized (not minimised)
     mouse_move(win.w, ctl);
     if (ctl.reset) {
-      solver = make_solver(rscene, b, needs);
+      solver.reset();  // its buffers first
+      solver = new_solver();
+      gather = true;
       ctl.reset = false;
       s.status.clear();
     }
@@ -440,6 +432,8 @@ int run_viewer(const ViewOptions& opt, std::ostream& log) {
     s.draws_field = method_needs_field(rs.method);
     simulate(scene, *solver, s, ctl, opt.max_sim_per_frame);
     s.sim_advance_s = solver->time() - t_before;
+    if (gather || s.steps > 0) solver->gather_frame();
+    gather = false;
     const ParticleView pv = solver->view();
     if (field->kind() != s.kind || field->setup().aniso.on != s.anisotropic)  // switched in the panel
       field = switch_field(rscene, b, *field, s);

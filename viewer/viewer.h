@@ -6,11 +6,20 @@
 // host) and by texture upload on the CPU. docs/rendering.md, "The viewer".
 #pragma once
 
+#include <functional>
 #include <iosfwd>
+#include <memory>
 #include <string>
 #include <vector>
 
+#include "pipeline/setup.h"
+#include "sph/solver.h"
+
 namespace sphray {
+
+// Makes the viewer's solver for the resolved scene on a backend (at start
+// and on reset).
+using ViewSolverMaker = std::function<std::unique_ptr<Solver>(const ResolvedScene&, Backend)>;
 
 struct ViewOptions {
   std::string scene;  // empty: the built-in small dam break
@@ -25,6 +34,10 @@ struct ViewOptions {
   int substeps = 0;
   double max_sim_per_frame = 1.0 / 30.0;
   int resize_w = 0, resize_h = 0;  // > 0: resize the window to this after the first frame (tests)
+  // The solver; empty: the scene's own (make_solver). A run over several
+  // ranks gives rank 0's (dist/driven.h), whose particles the viewer reads
+  // after a gather (Solver::gather_frame) at each frame that stepped.
+  ViewSolverMaker make_solver;
 };
 
 // Whether this sphray was built with the viewer (GLFW, GLEW, Dear ImGui found).
@@ -36,5 +49,8 @@ int run_viewer(const ViewOptions& opt, std::ostream& log);
 // The built-in scene of `sphray view` without a scene file: a small dam break
 // that the CPU backend runs at interactive rates.
 const char* small_view_scene();
+
+// The scene the viewer shows: opt.scene with opt.sets, or the built-in one.
+ResolvedScene resolve_view_scene(const ViewOptions& opt);
 
 }  // namespace sphray
