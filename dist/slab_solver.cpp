@@ -238,6 +238,9 @@ SlabPlan plan_slabs(const SolverInput& in, int ranks) {
   // DFSPH's: within its support at the step's end, kept until the next; its
   // walls are planes or wall particles that need no fluid sums.
   if (in.kind == SolverKind::Dfsph) p.halo = p.halo_free = double(in.dfsph.kernel.support());
+  // A ghost's owner is a neighbouring slab (sph/exchange.h; PBF's and
+  // DFSPH's refresh lists rely on it).
+  if (p.halo_free > p.min_width) throw std::logic_error("plan_slabs: a halo wider than the least slab");
   check_rank_count(ranks, p.lo, p.hi, p.min_width, axis_name(p.axis));
   p.bin = 0.5 * double(in.params.spacing);
   AxisHistogram h = AxisHistogram::over(p.lo, p.hi, p.bin);

@@ -263,7 +263,10 @@ class GhostRefresh {
     PeerCounts mine{}, theirs{};
     for (int k = 0; k < kPeers; ++k) {
       send_n_[k] = recv_n_[k] = 0;
-      if (k == kSelf || !bounds.exists[k]) continue;
+      // Only the slabs beside this one: the halo is narrower than a slab
+      // (plan_slabs), so ghosts' owners and owned particles' ghost holders
+      // are neighbours.
+      if ((k != kSelf - 1 && k != kSelf + 1) || !bounds.exists[k]) continue;
       send_n_[k] = list(send_idx_[k], ListedForPeer{raw(bits_), raw(status), k, false}, id, n);
       recv_n_[k] = list(recv_idx_[k], ListedForPeer{raw(bits_), raw(status), k, true}, id, n);
       grow_to(send_buf_[k], send_n_[k]);
