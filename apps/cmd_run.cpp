@@ -1,6 +1,7 @@
 // `sphray run SCENE`: simulates a scene, with the outputs its flags ask for
 // (metrics CSV, summary JSON, HDF5 export, PNG frames).
 #include <cerrno>
+#include <cstring>
 #include <iomanip>
 #include <iostream>
 #include <optional>
@@ -31,6 +32,7 @@ struct RunArgs {
   std::string scene_path, backend = "auto", metrics_csv, summary_json, resume;
   std::vector<std::string> sets;
   bool quiet = false;
+  int rebalance_every = SlabOptions{}.rebalance_every;
   ExportArgs ex;
   FrameArgs fa;
 };
@@ -183,6 +185,19 @@ Frame last_frame(const std::string& path) {
   }
 }
 
+// Each rank's mean stage times (rank 0 receives them; the others an empty list).
+std::vector<StageTimes> stage_times_by_rank(Comm& comm, const StageTimes& mine) {
+  std::vector<char> bytes(sizeof(StageTimes));
+  std::memcpy(bytes.data(), &mine, sizeof(StageTimes));
+  std::vector<StageTimes> out;
+  for (const std::vector<char>& b : comm.gather(bytes)) {
+    StageTimes t;
+    if (b.size() == sizeof(StageTimes)) std::memcpy(&t, b.data(), sizeof(StageTimes));
+    out.push_back(t);
+  }
+  return out;
+}
+
 // What a run over several ranks cannot do yet, refused before it starts:
 // presence (the exchange reorders the particles after the pair loop that
 // sums it). The presence builder then builds with full extents, as from an
@@ -247,6 +262,7 @@ int cmd_run(RunArgs a) {
     std::cout << " m, halo " << plan.halo << " m\n";
     SlabOptions so;
     so.frame_view = needs.field || out.png;  // rank 0 builds the field and renders from the gathered particles
+    so.rebalance_every = a.rebalance_every;
     solver = make_slab_solver(in, plan, *comm, b, make, so);
   } else {
     solver = make_solver(rs, b, needs, resume ? &*resume : nullptr);
@@ -280,9 +296,21 @@ int cmd_run(RunArgs a) {
   }
   if (out.png) out.png->frames().finish();  // the last PNGs are still being written
   if (out.metrics) out.metrics->finish();
+  const std::vector<StageTimes> by_rank = several ? stage_times_by_rank(*comm, r.mean_stage_ms) : std::vector<StageTimes>{};
   print_summary(r, std::cout);
+  for (size_t k = 0; k < by_rank.size(); ++k) {
+    const StageTimes& t = by_rank[k];
+    std::cout << (k == 0 ? "  by rank        " : "                 ") << "rank " << k << ": grid " << t.grid
+              << ", pairs " << t.pairs << ", integrate " << t.integrate << ", exchange " << t.exchange << " ms per step\n";
+  }
   print_outputs(out, a, scene);
-  if (out.summary.is_open()) write_json(out.summary, completed_json(r, a, scene), "--summary-json", a.summary_json);
+  if (out.summary.is_open()) {
+    nlohmann::json j = completed_json(r, a, scene);
+    for (const StageTimes& t : by_rank)
+      j["stage_ms_by_rank"].push_back(
+          {{"grid", t.grid}, {"pairs", t.pairs}, {"integrate", t.integrate}, {"exchange", t.exchange}});
+    write_json(out.summary, j, "--summary-json", a.summary_json);
+  }
   return 0;
 }
 
@@ -297,6 +325,10 @@ CLI::App* add_run_command(CLI::App& app, int& exit_code) {
   run->add_option("--metrics-csv", a->metrics_csv, "write time, surge front, kinetic energy per output interval");
   run->add_option("--summary-json", a->summary_json, "write the run summary as JSON");
   run->add_flag("--quiet", a->quiet, "no progress lines");
+  run->add_option("--rebalance-every", a->rebalance_every,
+                  "a run over several ranks: steps between balance checks of the ranks' particle counts (the cuts "
+                  "move past 10% imbalance; 0: never)")
+      ->check(CLI::Range(0, 1000000));
   run->add_option("--resume", a->resume,
                   "start from the last frame of this export (written with --export-fields velocity,density), on any "
                   "number of ranks");

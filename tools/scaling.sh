@@ -7,7 +7,8 @@
 # A one-GPU run is the ordinary run (no MPI).
 #   tools/scaling.sh [BUILD_DIR]
 #   env: GPUS="1 2" (rank counts), WEAK="1 4" (millions per GPU), STRONG="4 8"
-#   (millions in all), STEPS=150, SOLVER=wcsph (or pbf, dfsph), OUT (default ./scaling-out)
+#   (millions in all), STEPS=150, SOLVER=wcsph (or pbf, dfsph), EXTRA (more `run` arguments, e.g.
+#   "--rebalance-every 10"), OUT (default ./scaling-out)
 set -euo pipefail
 B=${1:-build}
 OUT=${OUT:-$PWD/scaling-out}
@@ -29,7 +30,7 @@ run() {  # kind millions ranks
   end=$(python3 -c "print(f'{$STEPS * $DT * $dx / 4.32e-3:.6f}')")
   name="${SOLVER}_${kind}_${m}M_${r}gpu"
   local cmd=("$B/sphray" run "$scene" --backend cuda --quiet --set "sph.solver=$SOLVER" --set "sph.spacing=$dx" --set "run.end_time=$end"
-             --set "run.output_interval=$end" --summary-json "$OUT/$name.json")
+             --set "run.output_interval=$end" --summary-json "$OUT/$name.json" ${EXTRA:-})
   if [ "$r" -gt 1 ]; then cmd=(mpirun -np "$r" -x NCCL_NVLS_ENABLE "${cmd[@]}"); fi
   "${cmd[@]}" > "$OUT/$name.log" 2>&1 || { echo "$name failed:"; tail -5 "$OUT/$name.log"; return 1; }
   python3 - "$OUT/$name.json" "$kind" "$m" "$r" "$dx" >> "$results" <<'PY'
@@ -40,6 +41,7 @@ print(json.dumps({"solver": j.get("solver", ""), "kind": sys.argv[2], "millions"
                   "spacing_m": float(sys.argv[5]), "particles": j["fluid_start"], "steps": j["steps"],
                   "ms_per_step": 1e3 * j["wall_s"] / j["steps"], "exchange_ms": s.get("exchange", 0.0),
                   "iterations_mean": j.get("constraint", {}).get("iterations_mean"),
+                  "stage_ms_by_rank": j.get("stage_ms_by_rank", []),
                   "stage_ms": s}))
 PY
 }
