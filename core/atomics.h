@@ -82,6 +82,15 @@ SPHRAY_HD SPHRAY_FORCEINLINE void atomic_max(uint32_t* p, uint32_t v) {
 #endif
 }
 
+// ++*p, unordered (counters read after the launch).
+SPHRAY_HD SPHRAY_FORCEINLINE void atomic_increment(uint32_t* p) {
+#if defined(__CUDA_ARCH__)
+  atomicAdd(reinterpret_cast<unsigned int*>(p), 1u);
+#else
+  __atomic_fetch_add(p, 1u, __ATOMIC_RELAXED);
+#endif
+}
+
 // ++*p, returning the value before, ordered after this thread's earlier
 // writes (a release fence first) and before its later reads: the bottom-up
 // passes (mesh/bvh_build.inl) let the second child to arrive read what the

@@ -178,10 +178,10 @@ class SlabSolver final : public Solver {
     counts[size_t(comm_.rank())] = double(inner_->num_fluid());
     comm_.sum(counts.data(), ranks);
     if (imbalance(counts) <= opt_.rebalance_above) return;
-    const HostParticles h = inner_->download();
+    // The counts along the axis on the solver's backend: only the bins
+    // leave the device, not the particles.
     AxisHistogram hist = AxisHistogram::over(plan_.lo, plan_.hi, plan_.bin);
-    for (size_t i = 0; i < h.id.size(); ++i)
-      if (h.status[i] != kStatusGhost) hist.add(along(h.pos[i], plan_.axis));
+    hist.counts = inner_->axis_counts(plan_.axis, hist.lo, hist.width, hist.counts.size());
     comm_.sum(hist.counts.data(), int(hist.counts.size()));
     const std::vector<double> target = balanced_cuts(hist, ranks, plan_.lo, plan_.hi, plan_.min_width);
     const double reach = 0.49 * plan_.min_width;

@@ -129,9 +129,12 @@ struct ExchangeBuffers {
   }
 };
 
+// At least n elements, keeping the contents; a tenth more when it grows,
+// so that a count that creeps up step by step does not reallocate (and copy)
+// every step.
 template <class T>
 void grow_to(Vector<T>& v, size_t n) {
-  if (v.size() < n) v.resize(n);
+  if (v.size() < n) v.resize(n + n / 10);
 }
 
 // What an exchange left: the particles now in the arrays (gone ones
@@ -328,3 +331,33 @@ class GhostRefresh {
   Vector<Float4> send_buf_[kPeers], recv_buf_[kPeers];
   uint32_t send_n_[kPeers] = {}, recv_n_[kPeers] = {};
 };
+
+// The run's own particles (not ghosts, not gone) per bin of `bin` metres
+// along `axis` from `lo`, the first and last bins holding those beyond, as
+// AxisHistogram::add bins them (dist/slabs.h): the balance of a decomposed
+// run (SlabSolver::rebalance) without the particles leaving the device.
+struct CountAlongAxis {
+  const Float4* pos;
+  const uint8_t* status;
+  int axis;
+  double lo, bin;
+  uint32_t bins;
+  uint32_t* counts;
+  SPHRAY_HD void operator()(uint32_t i) const {
+    if (status[i] == kStatusGhost || status[i] == kStatusGone) return;
+    const double k = floor((double(along(xyz(pos[i]), axis)) - lo) / bin);
+    const uint32_t b = k < 0 ? 0u : k >= double(bins - 1) ? bins - 1 : uint32_t(k);
+    atomic_increment(counts + b);
+  }
+};
+
+inline std::vector<double> owned_axis_counts(uint32_t n, const Vector<Float4>& pos, const Vector<uint8_t>& status,
+                                             int axis, double lo, double bin, size_t bins) {
+  std::vector<double> out(bins, 0.0);
+  if (bins == 0) return out;
+  Vector<uint32_t> counts(bins, 0u);
+  if (n > 0) parallel_for("axis_counts", n, CountAlongAxis{raw(pos), raw(status), axis, lo, bin, uint32_t(bins), raw(counts)});
+  const std::vector<uint32_t> c = sphray::SPHRAY_BK::download(counts, bins);
+  for (size_t k = 0; k < bins; ++k) out[k] = double(c[k]);
+  return out;
+}

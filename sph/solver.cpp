@@ -1,6 +1,7 @@
 #include "solver.h"
 
 #include <algorithm>
+#include <cmath>
 
 #include "integrate.h"
 #include "skin.h"
@@ -18,6 +19,18 @@ FlowSums flow_sums_of(const HostParticles& p) {
 }
 
 FlowSums Solver::flow_sums() const { return flow_sums_of(download()); }
+
+std::vector<double> Solver::axis_counts(int axis, double lo, double bin, size_t bins) const {
+  std::vector<double> out(bins, 0.0);
+  if (bins == 0) return out;
+  const HostParticles h = download();
+  for (size_t i = 0; i < h.pos.size(); ++i) {
+    if (!h.status.empty() && h.status[i] == kStatusGhost) continue;
+    const double k = std::floor((double(along(h.pos[i], axis)) - lo) / bin);
+    out[k < 0 ? 0 : std::min(bins - 1, size_t(k))] += 1.0;
+  }
+  return out;
+}
 
 const char* solver_name(SolverKind k) {
   switch (k) {

@@ -211,6 +211,11 @@ class Solver {
   // moved by the step, counted, or returned by num_fluid()).
   // Solvers other than WCSPH and PBF throw std::logic_error.
   virtual void set_slab(const SlabBounds&) { throw std::logic_error("this solver cannot run over several ranks"); }
+  // A decomposed run: this rank's own particles (not its ghosts) per bin of
+  // `bin` metres along `axis` from `lo`, the first and last of `bins` bins
+  // holding those beyond (dist/slabs.h, AxisHistogram). On the solver's
+  // backend where it can; by default from download().
+  virtual std::vector<double> axis_counts(int axis, double lo, double bin, size_t bins) const;
   // Called by the run loop at every output frame before the sinks read the
   // solver (a decomposed run gathers its ranks' particles then).
   virtual void gather_frame() {}

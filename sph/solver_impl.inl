@@ -187,6 +187,10 @@ class SolverImpl final : public Solver {
   }
 
   FlowSums flow_sums() const override { return reduce_flow_sums(n_, pos_, vel_, status_); }
+  std::vector<double> axis_counts(int axis, double lo, double bin, size_t bins) const override {
+    return owned_axis_counts(n_, pos_, status_, axis, lo, bin, bins);
+  }
+
   HostParticles download() const override {
     HostParticles h = download_particles(id_, pos_, vel_, presence_valid_ ? &presence_ : nullptr, n_);
     if (transport_) h.status = sphray::SPHRAY_BK::download(status_, n_);  // which are ghosts

@@ -10,6 +10,7 @@
 #include <type_traits>
 
 #include "boundary.h"
+#include "core/atomics.h"
 #include "integrate.h"
 #include "interaction.h"
 #include "nsearch/grid.h"

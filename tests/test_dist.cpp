@@ -89,6 +89,25 @@ TEST_CASE("each particle's owner and ghost copies agree with brute force", "[dis
   }
 }
 
+TEST_CASE("each solver counts its particles along an axis as the host bins them", "[dist]") {
+  // The balance's histogram on the solver's backend (axis_counts) against
+  // the host's binning of the downloaded particles (Solver's default).
+  for (const char* solver : {"wcsph", "pbf", "dfsph"}) {
+    INFO(solver);
+    const Scene s = load_scene(source_path("scenes/dam_break.json"),
+                               {"sph.spacing=0.04", std::string("sph.solver=") + solver});
+    auto sv = make_cpu_solver(make_solver_input(resolve_scene(s), PresenceMode::Off));
+    for (int k = 0; k < 5; ++k) sv->step(1.0);
+    for (int axis : {0, 1, 2}) {
+      // Bins of 3 cm from 0.1 m: the first and last bins hold those beyond.
+      const std::vector<double> got = sv->axis_counts(axis, 0.1, 0.03, 12),
+                                ref = sv->Solver::axis_counts(axis, 0.1, 0.03, 12);
+      CHECK(got == ref);
+      CHECK(std::accumulate(got.begin(), got.end(), 0.0) == double(sv->num_fluid()));
+    }
+  }
+}
+
 TEST_CASE("a rank count the domain cannot hold is refused with the numbers", "[dist]") {
   CHECK_NOTHROW(check_rank_count(5, 0.0, 1.6, 0.32, "x"));
   try {
