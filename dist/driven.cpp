@@ -5,6 +5,7 @@
 #include <string>
 
 #include "slab_solver.h"
+#include "sph/forwarding_solver.h"
 
 namespace sphray {
 
@@ -31,9 +32,9 @@ void tell(Comm& comm, Op op, double arg = 0.0) {
   comm.broadcast(m, 0);
 }
 
-class DrivingSolver final : public Solver {
+class DrivingSolver final : public ForwardingSolver {
  public:
-  DrivingSolver(std::unique_ptr<Solver> inner, Comm& comm) : inner_(std::move(inner)), comm_(comm) {}
+  DrivingSolver(std::unique_ptr<Solver> inner, Comm& comm) : ForwardingSolver(std::move(inner)), comm_(comm) {}
 
   void step(double until) override {
     tell(comm_, kStep, until);
@@ -47,30 +48,10 @@ class DrivingSolver final : public Solver {
     tell(comm_, kPresence, double(int(mode)));
     inner_->set_presence(mode);
   }
-
-  Backend backend() const override { return inner_->backend(); }
-  SolverKind kind() const override { return inner_->kind(); }
-  double time() const override { return inner_->time(); }
-  uint64_t steps() const override { return inner_->steps(); }
-  size_t num_fluid() const override { return inner_->num_fluid(); }
-  size_t num_removed() const override { return inner_->num_removed(); }
-  uint64_t num_clamped() const override { return inner_->num_clamped(); }
-  const StepLimits& last_limits() const override { return inner_->last_limits(); }
-  const StageTimes& last_stage_times() const override { return inner_->last_stage_times(); }
-  SolveStats last_solve() const override { return inner_->last_solve(); }
-  bool has_presence() const override { return inner_->has_presence(); }
-  PresenceMode presence_mode() const override { return inner_->presence_mode(); }
-  ParticleView view() const override { return inner_->view(); }
-  size_t device_bytes() const override { return inner_->device_bytes(); }
-  std::vector<Vec3f> boundary_positions() const override { return inner_->boundary_positions(); }
-  FlowSums flow_sums() const override { return inner_->flow_sums(); }
-  HostParticles download() const override { return inner_->download(); }
-  void download_raw(RawParticles& out, bool velocity, bool presence) const override {
-    inner_->download_raw(out, velocity, presence);
-  }
+  // Rank 0 cannot change the cut alone.
+  void set_slab(const SlabBounds&) override { throw std::logic_error("a driven run's cuts are the slab solver's"); }
 
  private:
-  std::unique_ptr<Solver> inner_;
   Comm& comm_;
 };
 

@@ -38,18 +38,10 @@ class NcclTransport final : public ParticleTransport {
   }
   ~NcclTransport() override { ncclCommDestroy(comm_); }
   void max(float* v, int n) override {
-    float h[8];
-    if (n > 8) throw std::logic_error("NcclTransport::max: at most 8 values");
-    check(cudaMemcpy(h, v, sizeof(float) * size_t(n), cudaMemcpyDefault), "cudaMemcpy");
-    mpi_->max(h, n);
-    check(cudaMemcpy(v, h, sizeof(float) * size_t(n), cudaMemcpyDefault), "cudaMemcpy");
+    through_host(v, n, [&](float* h) { mpi_->max(h, n); });
   }
   void sum(double* v, int n) override {
-    double h[8];
-    if (n > 8) throw std::logic_error("NcclTransport::sum: at most 8 values");
-    check(cudaMemcpy(h, v, sizeof(double) * size_t(n), cudaMemcpyDefault), "cudaMemcpy");
-    mpi_->sum(h, n);
-    check(cudaMemcpy(v, h, sizeof(double) * size_t(n), cudaMemcpyDefault), "cudaMemcpy");
+    through_host(v, n, [&](double* h) { mpi_->sum(h, n); });
   }
   void exchange_counts(const SlabBounds& b, const PeerCounts& send, PeerCounts& recv) override {
     mpi_->exchange_counts(b, send, recv);
@@ -72,6 +64,16 @@ class NcclTransport final : public ParticleTransport {
   }
 
  private:
+  // A few values (device or host memory) reduced by `reduce` on a host copy.
+  template <class T, class Reduce>
+  static void through_host(T* v, int n, Reduce reduce) {
+    T h[8];
+    if (n > 8) throw std::logic_error("NcclTransport: at most 8 values per reduction");
+    check(cudaMemcpy(h, v, sizeof(T) * size_t(n), cudaMemcpyDefault), "cudaMemcpy");
+    reduce(h);
+    check(cudaMemcpy(v, h, sizeof(T) * size_t(n), cudaMemcpyDefault), "cudaMemcpy");
+  }
+
   int rank_;
   std::unique_ptr<ParticleTransport> mpi_;  // the counts and the extremes
   ncclComm_t comm_{};

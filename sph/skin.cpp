@@ -1,4 +1,5 @@
 #include "skin.h"
+#include "forwarding_solver.h"
 
 #include <algorithm>
 #include <cmath>
@@ -109,17 +110,15 @@ std::vector<Vec3f> displaced_surface(const SkinGeometry& g, const std::vector<fl
 
 namespace {
 
-class SkinnedSolver final : public Solver {
+class SkinnedSolver final : public ForwardingSolver {
  public:
   SkinnedSolver(std::unique_ptr<Solver> inner, std::unique_ptr<SkinSet> skins)
-      : inner_(std::move(inner)), skins_(std::move(skins)) {
+      : ForwardingSolver(std::move(inner)), skins_(std::move(skins)) {
     interval_ = std::numeric_limits<double>::infinity();
     for (size_t k = 0; k < skins_->size(); ++k) interval_ = std::min(interval_, 0.5 * skins_->geometry(k).max_substep);
     if (inner_->kind() != SolverKind::Wcsph) interval_ = 0;
   }
 
-  Backend backend() const override { return inner_->backend(); }
-  SolverKind kind() const override { return inner_->kind(); }
   // Under WCSPH the skins advance once their own step's worth of time has
   // passed (half the stablest skin's substep limit), the load sampled then:
   // its pressure follows the density smoothly, and its acoustic steps are
@@ -136,31 +135,13 @@ class SkinnedSolver final : public Solver {
     pending_ = 0;
     times_.skin = skins_->last_ms();
   }
-  double time() const override { return inner_->time(); }
-  uint64_t steps() const override { return inner_->steps(); }
-  size_t num_fluid() const override { return inner_->num_fluid(); }
-  size_t num_removed() const override { return inner_->num_removed(); }
-  uint64_t num_clamped() const override { return inner_->num_clamped(); }
-  const StepLimits& last_limits() const override { return inner_->last_limits(); }
   const StageTimes& last_stage_times() const override { return times_; }
-  SolveStats last_solve() const override { return inner_->last_solve(); }
-  void set_presence(PresenceMode mode) override { inner_->set_presence(mode); }
-  PresenceMode presence_mode() const override { return inner_->presence_mode(); }
-  bool has_presence() const override { return inner_->has_presence(); }
-  ParticleView view() const override { return inner_->view(); }
-  size_t device_bytes() const override { return inner_->device_bytes(); }
-  HostParticles download() const override { return inner_->download(); }
-  void download_raw(RawParticles& out, bool velocity, bool presence) const override {
-    inner_->download_raw(out, velocity, presence);
-  }
-  std::vector<Vec3f> boundary_positions() const override { return inner_->boundary_positions(); }
-  std::vector<float> pressures() const override { return inner_->pressures(); }
-  const float* device_pressure() override { return inner_->device_pressure(); }
   SkinSet* skins() override { return skins_.get(); }
   const SkinSet* skins() const override { return skins_.get(); }
+  // A run over several ranks cannot carry skins (make_slab_solver refuses them).
+  void set_slab(const SlabBounds&) override { throw std::logic_error("an obstacle's skin waves cannot run over several ranks"); }
 
  private:
-  std::unique_ptr<Solver> inner_;
   std::unique_ptr<SkinSet> skins_;
   StageTimes times_{};
   double interval_ = 0, pending_ = 0;
