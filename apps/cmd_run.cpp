@@ -200,7 +200,7 @@ std::vector<StageTimes> stage_times_by_rank(Comm& comm, const StageTimes& mine) 
 
 // What a run over several ranks cannot do yet, refused before it starts:
 // presence (the exchange reorders the particles after the pair loop that
-// sums it). The presence builder then builds with full extents, as from an
+// sums it) and DFSPH's pressures. The presence builder then builds with full extents, as from an
 // export (`sphray render --from`).
 void check_several_ranks(const Scene& scene, const std::set<std::string>& fields) {
   auto refuse = [](const std::string& what) {
@@ -209,6 +209,9 @@ void check_several_ranks(const Scene& scene, const std::set<std::string>& fields
   };
   if (fields.count("presence")) refuse("--export-fields presence");
   if (scene.sph.presence) refuse("particle presence on every step (sph.presence)");
+  // DFSPH's pressure is its solve's, which the gather does not carry (an
+  // export would hold the equation of state's instead).
+  if (fields.count("pressure") && scene.sph.solver == SolverKind::Dfsph) refuse("--export-fields pressure under dfsph");
 }
 
 int cmd_run(RunArgs a) {

@@ -9,7 +9,7 @@
 
 // near_walls: the grid's flags of cells with wall particles in reach
 // (CellsNear; cells are a support wide), or null: near walls everywhere.
-// pos: where the particles are placed (WCSPH: x; PBF: its prediction x*).
+// pos: where the particles are placed (WCSPH, DFSPH: x; PBF: its prediction x*).
 struct ClassifyForExchange {
   SlabBounds bounds;
   const Float4* pos;
@@ -206,10 +206,11 @@ ExchangeResult exchange_particles(ExchangeBuffers& buf, const SlabBounds& bounds
 // The ghosts of a decomposed run refreshed from their owners within a step
 // (PBF's and DFSPH's iterations: each pass reads its neighbours' values from
 // the pass before, and a ghost's own pass, short of the neighbours beyond
-// the halo, would be wrong). After the step's exchange and sort, both sides list the
-// same particles: the owner, per peer, those of its own whose destinations
-// (destinations_of at the place they were exchanged by) include that peer;
-// the peer, its ghosts whose owner it is. The exchange gave every such peer
+// the halo, would be wrong). After the step's exchange and sort, both
+// sides list the same particles: the owner, per peer, those of its own whose
+// destinations (destinations_of at the place they were exchanged by, with
+// no wall flags: the halo `halo` everywhere) include that peer; the peer,
+// its ghosts whose owner it is. The exchange gave every such peer
 // its copy (it placed them by the same function at the same place), so the
 // two lists hold the same ids; each is sorted by id, so that the k-th
 // record sent is the k-th ghost received. The counts are compared once per

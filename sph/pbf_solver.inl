@@ -129,12 +129,11 @@ class PbfSolverImpl final : public Solver {
     ++steps_;
   }
 
-  // A decomposed run: this rank's slab; the particles go where it says at
-  // the next step's exchange. Its halo must hold the PBF support (see above).
-  // The exchange at once, placed at x (the next step's places them at x*
-  // again): the grid then holds the ghosts, as between steps, and the
-  // transport has carried its first records before a step is timed (NCCL
-  // connects its peers on the first, about a second).
+  // A decomposed run: this rank's slab, whose halo must hold the PBF
+  // support (see above). The exchange at once, placed at x (each step's
+  // places them at x* again): the grid then holds the ghosts, as between
+  // steps, and the transport has carried its first records before a step is
+  // timed (NCCL connects its peers on the first, about a second).
   void set_slab(const SlabBounds& bounds) override {
     if (!transport_) throw std::logic_error("PBF: set_slab without a transport (SolverInput::transport)");
     if (bounds.halo_free < pbf_.kernel.s) throw std::logic_error("PBF: a halo narrower than its support");

@@ -507,5 +507,9 @@ TEST_CASE("what a run over several ranks cannot do yet is refused by name", "[di
   INFO(presence.output);
   CHECK(presence.code == 2);
   CHECK(has(presence.output, "--export-fields presence is not available in a run over several ranks"));
+  const CliResult pressure = run_ranks(2, base + "--set sph.solver=dfsph --export " + tmp_dir() + "/p.h5 --export-fields pressure");
+  INFO(pressure.output);
+  CHECK(pressure.code == 2);
+  CHECK(has(pressure.output, "--export-fields pressure under dfsph is not available in a run over several ranks"));
 }
 #endif
