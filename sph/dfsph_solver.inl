@@ -250,20 +250,18 @@ class DfsphSolverImpl final : public Solver {
   }
 
   // Grows every per-particle buffer to hold n particles, keeping the
-  // contents (a tenth more: a decomposed run's count changes every step).
+  // contents (grow_to: a tenth to spare, as a decomposed run's count changes
+  // every step).
   void fit(uint32_t n) {
-    auto grow = [](auto& v, size_t size) {
-      if (v.size() < size) v.resize(size + size / 10);
-    };
-    for (auto* v : {&pos_, &vel_, &warm_, &pos_tmp_, &vel_tmp_, &warm_tmp_, &acc_}) grow(*v, n);
-    for (auto* v : {&press_, &factor_, &source_, &residual_, &error_}) grow(*v, n);
-    for (auto* v : {&id_, &id_tmp_, &keys_, &order_, &pair_count_}) grow(*v, n);
-    for (auto* v : {&status_, &status_tmp_, &sparse_}) grow(*v, n);
-    if (walls_.size()) grow(wall_sum_, n);
-    grow(pairs_, size_t(mask_words_) * n);
+    for (auto* v : {&pos_, &vel_, &warm_, &pos_tmp_, &vel_tmp_, &warm_tmp_, &acc_}) grow_to(*v, n);
+    for (auto* v : {&press_, &factor_, &source_, &residual_, &error_}) grow_to(*v, n);
+    for (auto* v : {&id_, &id_tmp_, &keys_, &order_, &pair_count_}) grow_to(*v, n);
+    for (auto* v : {&status_, &status_tmp_, &sparse_}) grow_to(*v, n);
+    if (walls_.size()) grow_to(wall_sum_, n);
+    grow_to(pairs_, size_t(mask_words_) * n);
     if (presence_mode_ != PresenceMode::Off) {
-      grow(presence_, 6 * size_t(n));
-      grow(presence_tmp_, 6 * size_t(n));
+      grow_to(presence_, 6 * size_t(n));
+      grow_to(presence_tmp_, 6 * size_t(n));
     }
   }
 
@@ -323,19 +321,8 @@ class DfsphSolverImpl final : public Solver {
           walls_.view(), raw(wall_sum_));
       refresh(press_);
       ++k;
-      // The residual is read on the host: one reduction per iteration (a
-      // decomposed run's over its own particles, summed over the ranks).
-      double sum[2] = {0.0, double(n_)};
-      if (!transport_) {
-        sum[0] = thrust::reduce(policy(), residual_.begin(), residual_.begin() + n_, 0.0);
-      } else {
-        sum[0] = thrust::transform_reduce(policy(), thrust::counting_iterator<uint32_t>(0),
-                                          thrust::counting_iterator<uint32_t>(n_),
-                                          OwnedError{raw(residual_), raw(status_)}, 0.0, thrust::plus<double>());
-        sum[1] = double(n_ - ghosts_);
-        transport_->sum(sum, 2);
-      }
-      const double mean = sum[1] > 0 ? sum[0] / sum[1] : 0.0;
+      // The residual is read on the host: one reduction per iteration.
+      const double mean = mean_over_run(residual_, n_, ghosts_, status_, transport_);
       r.iterations = k;
       r.converged = mean <= tol;
       if (r.converged && k >= min_it) break;
@@ -354,16 +341,8 @@ class DfsphSolverImpl final : public Solver {
   }
 
   // Speed, density error and finiteness of the current state, into the
-  // control that the next step's size is chosen from (a decomposed run's
-  // over all ranks, as PbfSolverImpl::reduce_stats).
-  void reduce_stats() {
-    FlowStats* stats = &raw(control_)->stats;
-    transform_reduce_into(n_, FlowStatsOf{raw(pos_), raw(vel_), raw(error_), transport_ ? raw(status_) : nullptr},
-                          CombineFlowStats(), kEmptyFlowStats, stats);
-    if (!transport_) return;
-    transport_->max(&stats->max_speed2, 2);
-    transport_->sum(&stats->error_sum, 2);
-  }
+  // control that the next step's size is chosen from.
+  void reduce_stats() { reduce_flow_stats(n_, pos_, vel_, error_, status_, transport_, &raw(control_)->stats); }
 
 
   SphParams prm_;

@@ -58,6 +58,42 @@ struct OwnedError {
   SPHRAY_HD double operator()(uint32_t i) const { return status[i] == kStatusGhost ? 0.0 : double(error[i]); }
 };
 
+// The mean of `values` over the run's own particles (0 without any): over
+// the n here, or, with a transport (a decomposed run), over every rank's own
+// particles (n - ghosts here). Read on the host: it decides the iterations.
+inline double mean_over_run(const Vector<float>& values, uint32_t n, uint32_t ghosts, const Vector<uint8_t>& status,
+                            ParticleTransport* transport) {
+  double sum[2] = {0.0, double(n)};
+  if (!transport) {
+    sum[0] = thrust::reduce(policy(), values.begin(), values.begin() + n, 0.0);
+  } else {
+    sum[0] = thrust::transform_reduce(policy(), thrust::counting_iterator<uint32_t>(0),
+                                      thrust::counting_iterator<uint32_t>(n), OwnedError{raw(values), raw(status)},
+                                      0.0, thrust::plus<double>());
+    sum[1] = double(n - ghosts);
+    transport->sum(sum, 2);
+  }
+  return sum[1] > 0 ? sum[0] / sum[1] : 0.0;
+}
+
+// Speed, density error (error[]) and finiteness of the n particles into
+// *stats, on the device; a decomposed run's over all ranks (its own
+// particles only: status marks the ghosts), so that every rank takes the
+// same step. first_bad stays the rank's own: the rank that has one raises
+// the step's error (check_flow_state).
+inline void reduce_flow_stats(uint32_t n, const Vector<Float4>& pos, const Vector<Float4>& vel,
+                              const Vector<float>& error, const Vector<uint8_t>& status, ParticleTransport* transport,
+                              FlowStats* stats) {
+  transform_reduce_into(n, FlowStatsOf{raw(pos), raw(vel), raw(error), transport ? raw(status) : nullptr},
+                        CombineFlowStats(), kEmptyFlowStats, stats);
+  if (!transport) return;
+  static_assert(offsetof(FlowStats, error_max) == offsetof(FlowStats, max_speed2) + sizeof(float) &&
+                    offsetof(FlowStats, count) == offsetof(FlowStats, error_sum) + sizeof(double),
+                "the extremes and the sums are reduced as two arrays");
+  transport->max(&stats->max_speed2, 2);
+  transport->sum(&stats->error_sum, 2);
+}
+
 // A non-finite value, or a density error that no longer means anything (the
 // liquid compressed to twice its rest density on average), ends the run:
 // throws SimulationError naming the step (and the particle), with `remedy`.

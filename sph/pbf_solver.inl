@@ -199,22 +199,18 @@ class PbfSolverImpl final : public Solver {
   }
 
   // Grows every per-particle buffer to hold n particles, keeping the
-  // contents (a tenth more, so that a decomposed run's count, which changes
-  // a little every step, rarely makes it grow).
+  // contents (grow_to: a tenth to spare, as a decomposed run's count changes
+  // every step).
   void fit(uint32_t n) {
-    auto grow = [](auto& v, size_t size) {
-      if (v.size() < size) v.resize(size + size / 10);
-    };
-    for (auto* v : {&pos_, &vel_, &pred_, &pos_tmp_, &vel_tmp_, &pred_tmp_}) grow(*v, n);
-    for (auto* v : {&id_, &id_tmp_, &keys_, &order_, &pair_count_}) grow(*v, n);
-    grow(status_, n);
-    grow(status_tmp_, n);
-    grow(error_, n);
-    if (walls_.size()) grow(wall_grad_, n);
-    grow(pairs_, size_t(mask_words_) * n);
+    for (auto* v : {&pos_, &vel_, &pred_, &pos_tmp_, &vel_tmp_, &pred_tmp_}) grow_to(*v, n);
+    for (auto* v : {&id_, &id_tmp_, &keys_, &order_, &pair_count_}) grow_to(*v, n);
+    for (auto* v : {&status_, &status_tmp_}) grow_to(*v, n);
+    grow_to(error_, n);
+    if (walls_.size()) grow_to(wall_grad_, n);
+    grow_to(pairs_, size_t(mask_words_) * n);
     if (presence_mode_ != PresenceMode::Off) {
-      grow(presence_, 6 * size_t(n));
-      grow(presence_tmp_, 6 * size_t(n));
+      grow_to(presence_, 6 * size_t(n));
+      grow_to(presence_tmp_, 6 * size_t(n));
     }
   }
 
@@ -248,18 +244,7 @@ class PbfSolverImpl final : public Solver {
       refresh(pred_);
       if (pbf_.tolerance > 0) {
         // Ending early needs the error on the host: one read per iteration.
-        // (A decomposed run's over its own particles, summed over the ranks.)
-        double sum[2] = {0.0, double(n_)};
-        if (!transport_) {
-          sum[0] = thrust::reduce(policy(), error_.begin(), error_.begin() + n_, 0.0);
-        } else {
-          sum[0] = thrust::transform_reduce(policy(), thrust::counting_iterator<uint32_t>(0),
-                                            thrust::counting_iterator<uint32_t>(n_), OwnedError{raw(error_), raw(status_)},
-                                            0.0, thrust::plus<double>());
-          sum[1] = double(n_ - ghosts_);
-          transport_->sum(sum, 2);
-        }
-        if (sum[1] == 0 || sum[0] / sum[1] <= pbf_.tolerance) return k;
+        if (mean_over_run(error_, n_, ghosts_, status_, transport_) <= pbf_.tolerance) return k;
       }
       mirror_pass_launches<Correct>(kCorrectNames, lists_, walls_.size() > 0, prm_, pbf_, grid_, raw(fine_offsets_), pairs(),
                                     raw(pred_), raw(pred_tmp_), obstacles_.view, raw(control_), walls_.view(),
@@ -309,21 +294,8 @@ class PbfSolverImpl final : public Solver {
   }
 
   // Speed, density error and finiteness of the current state, into the
-  // control that the next step's size is chosen from; a decomposed run's
-  // over all ranks (its own particles only), so that every rank takes the
-  // same step. first_bad stays the rank's own: the rank that has one
-  // raises the step's error (check_flow_state).
-  void reduce_stats() {
-    FlowStats* stats = &raw(control_)->stats;
-    transform_reduce_into(n_, FlowStatsOf{raw(pos_), raw(vel_), raw(error_), transport_ ? raw(status_) : nullptr},
-                          CombineFlowStats(), kEmptyFlowStats, stats);
-    if (!transport_) return;
-    static_assert(offsetof(FlowStats, error_max) == offsetof(FlowStats, max_speed2) + sizeof(float) &&
-                      offsetof(FlowStats, count) == offsetof(FlowStats, error_sum) + sizeof(double),
-                  "the extremes and the sums are reduced as two arrays");
-    transport_->max(&stats->max_speed2, 2);
-    transport_->sum(&stats->error_sum, 2);
-  }
+  // control that the next step's size is chosen from.
+  void reduce_stats() { reduce_flow_stats(n_, pos_, vel_, error_, status_, transport_, &raw(control_)->stats); }
 
 
   SphParams prm_;
