@@ -36,11 +36,7 @@ AxisHistogram AxisHistogram::over(double lo, double hi, double width) {
   return h;
 }
 
-void AxisHistogram::add(double x) {
-  const double k = std::floor((x - lo) / width);
-  const size_t bin = k < 0 ? 0 : std::min(counts.size() - 1, size_t(k));
-  counts[bin] += 1.0;
-}
+void AxisHistogram::add(double x) { counts[axis_bin(x, lo, width, uint32_t(counts.size()))] += 1.0; }
 
 const char* axis_name(int axis) { return axis == 0 ? "x" : axis == 1 ? "y" : "z"; }
 

@@ -5,6 +5,7 @@
 // particles never leave the GPU.
 #pragma once
 
+#include <cmath>
 #include <cstdint>
 
 #include "core/vec.h"
@@ -38,6 +39,14 @@ struct SlabBounds {
 
 // A point's coordinate along axis 0 (x), 1 (y) or 2 (z).
 SPHRAY_HD inline float along(const Vec3f& p, int axis) { return axis == 0 ? p.x : axis == 1 ? p.y : p.z; }
+
+// The bin of coordinate x among `bins` (>= 1) bins `bin` wide from `lo`, the
+// first and last holding what lies beyond: the balance's histogram
+// (dist/slabs.h, AxisHistogram; Solver::axis_counts).
+SPHRAY_HD inline uint32_t axis_bin(double x, double lo, double bin, uint32_t bins) {
+  const double k = floor((x - lo) / bin);
+  return k < 0 ? 0u : k >= double(bins - 1) ? bins - 1 : uint32_t(k);
+}
 
 // Where each particle goes: bit k of `to` for peer k; `owner` the peer that
 // owns it. near_walls: wall particles lie within a support of p.

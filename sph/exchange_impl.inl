@@ -333,9 +333,8 @@ class GhostRefresh {
   uint32_t send_n_[kPeers] = {}, recv_n_[kPeers] = {};
 };
 
-// The run's own particles (not ghosts, not gone) per bin of `bin` metres
-// along `axis` from `lo`, the first and last bins holding those beyond, as
-// AxisHistogram::add bins them (dist/slabs.h): the balance of a decomposed
+// The run's own particles (not ghosts, not gone) per bin (axis_bin) of
+// `bin` metres along `axis` from `lo`: the balance of a decomposed
 // run (SlabSolver::rebalance) without the particles leaving the device.
 struct CountAlongAxis {
   const Float4* pos;
@@ -346,9 +345,7 @@ struct CountAlongAxis {
   uint32_t* counts;
   SPHRAY_HD void operator()(uint32_t i) const {
     if (status[i] == kStatusGhost || status[i] == kStatusGone) return;
-    const double k = floor((double(along(xyz(pos[i]), axis)) - lo) / bin);
-    const uint32_t b = k < 0 ? 0u : k >= double(bins - 1) ? bins - 1 : uint32_t(k);
-    atomic_increment(counts + b);
+    atomic_increment(counts + axis_bin(double(along(xyz(pos[i]), axis)), lo, bin, bins));
   }
 };
 

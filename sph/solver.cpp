@@ -1,7 +1,6 @@
 #include "solver.h"
 
 #include <algorithm>
-#include <cmath>
 
 #include "integrate.h"
 #include "skin.h"
@@ -26,8 +25,7 @@ std::vector<double> Solver::axis_counts(int axis, double lo, double bin, size_t 
   const HostParticles h = download();
   for (size_t i = 0; i < h.pos.size(); ++i) {
     if (!h.status.empty() && h.status[i] == kStatusGhost) continue;
-    const double k = std::floor((double(along(h.pos[i], axis)) - lo) / bin);
-    out[k < 0 ? 0 : std::min(bins - 1, size_t(k))] += 1.0;
+    out[axis_bin(double(along(h.pos[i], axis)), lo, bin, uint32_t(bins))] += 1.0;
   }
   return out;
 }
