@@ -8,20 +8,18 @@
 
 namespace sphray {
 
-double surge_front(double max_x, double back_wall_x, double spacing) {
-  return std::max(back_wall_x, max_x + 0.5 * spacing) - back_wall_x;
+double surge_front(const FlowSums& f, double back_wall_x, double spacing) {
+  return std::max(back_wall_x, f.max_x + 0.5 * spacing) - back_wall_x;
 }
 
 double surge_front(const HostParticles& p, double back_wall_x, double spacing) {
-  double max_x = -1e300;
-  for (const auto& x : p.pos) max_x = std::max(max_x, double(x.x));
-  return surge_front(max_x, back_wall_x, spacing);
+  return surge_front(flow_sums_of(p), back_wall_x, spacing);
 }
 
+double kinetic_energy(const FlowSums& f, double particle_mass) { return 0.5 * particle_mass * f.speed2_sum; }
+
 double kinetic_energy(const HostParticles& p, double particle_mass) {
-  double e = 0;
-  for (const auto& v : p.vel) e += 0.5 * particle_mass * double(length2(v));
-  return e;
+  return kinetic_energy(flow_sums_of(p), particle_mass);
 }
 
 Curve read_csv_curve(const std::string& path) {

@@ -14,10 +14,11 @@ namespace sphray {
 // foremost particle centre plus half a spacing (a particle's own extent), so a
 // column of width a at rest reads exactly a.
 double surge_front(const HostParticles& p, double back_wall_x, double spacing);
-// The same from the particles' largest x (Solver::flow_sums).
-double surge_front(double max_x, double back_wall_x, double spacing);
+// The same from the particles' sums (Solver::flow_sums).
+double surge_front(const FlowSums& f, double back_wall_x, double spacing);
 
 double kinetic_energy(const HostParticles& p, double particle_mass);
+double kinetic_energy(const FlowSums& f, double particle_mass);
 
 // The force of the liquid's pressure on an obstacle, -sum p A n over its
 // surface (n outward), and the share of that surface the liquid wets. The

@@ -68,9 +68,8 @@ MetricsSink::MetricsSink(const std::string& path, const Scene& scene, const SphP
 void MetricsSink::write(const Solver& s, const FieldBuilder*, int) {
   const FlowSums f = s.flow_sums();
   errno = 0;
-  csv_ << s.time() << "," << s.steps() << "," << s.num_fluid() << "," << surge_front(f.max_x, back_wall_x_, spacing_)
-       << "," << 0.5 * mass_ * f.speed2_sum
-       << "," << s.last_limits().max_speed;
+  csv_ << s.time() << "," << s.steps() << "," << s.num_fluid() << "," << surge_front(f, back_wall_x_, spacing_) << ","
+       << kinetic_energy(f, mass_) << "," << s.last_limits().max_speed;
   if (!gauges_.empty()) {
     const HostParticles p = s.download();
     for (const Gauge& g : gauges_) csv_ << "," << water_height(p, g.x, g.y, kernel_, volume_, floor_, top_, spacing_);
