@@ -275,6 +275,23 @@ double largest_offset(const Frame& a, const Frame& b) {
   return worst;
 }
 
+// `args` (ending in --export) on 1 and 2 ranks, into TAG1.h5 and TAG2.h5:
+// both write `frames` frames, and each frame of the 2-rank run is at the
+// one-rank run's step, its particles within `bound` metres of theirs.
+void check_2_ranks_follow(const std::string& args, const std::string& tag, size_t frames, double bound) {
+  const std::string one = tmp_dir() + "/" + tag + "1.h5", two = tmp_dir() + "/" + tag + "2.h5";
+  run_on_1_and_2(args, one, two);
+  const FrameReader a(one), b(two);
+  REQUIRE(a.frames().size() == frames);
+  REQUIRE(b.frames().size() == frames);
+  for (size_t k = 0; k < frames; ++k) {
+    const Frame fa = a.read(k), fb = b.read(k);
+    INFO("frame " << k);
+    CHECK(fb.step == fa.step);
+    CHECK(largest_offset(fa, fb) <= bound);
+  }
+}
+
 TEST_CASE("ghosts one support wide away from the walls change nothing", "[dist][mpi]") {
   // A column wide and deep enough that its middle lies beyond the walls'
   // reach (cells of wall particles' neighbours): there a rank copies only
@@ -284,12 +301,7 @@ TEST_CASE("ghosts one support wide away from the walls change nothing", "[dist][
                            " --backend cpu --quiet --set sph.spacing=0.04 --set run.end_time=0.3 "
                            "--set run.output_interval=0.1 --set tank.max=[1.6,1.2,0.8] --set fluid.0.max=[0.4,1.2,0.6] "
                            "--export-fields velocity,density --export ";
-  const std::string one = tmp_dir() + "/wide1.h5", two = tmp_dir() + "/wide2.h5";
-  run_on_1_and_2(args, one, two);
-  const FrameReader a(one), b(two);
-  REQUIRE(a.frames().size() == 4);
-  REQUIRE(b.frames().size() == 4);
-  for (size_t k = 0; k < 4; ++k) CHECK(largest_offset(a.read(k), b.read(k)) <= 1e-3 * spacing);
+  check_2_ranks_follow(args, "wide", 4, 1e-3 * spacing);
 }
 
 TEST_CASE("a run resumes from its export's last frame, on one rank or several", "[dist][mpi]") {
@@ -350,15 +362,7 @@ TEST_CASE("mesh obstacles over 2 ranks: every solver follows its one-rank run", 
                              " --backend cpu --quiet --set sph.spacing=0.03 --set run.end_time=0.1 "
                              "--set run.output_interval=0.05 --export-fields velocity,density --set sph.solver=" +
                              solver + " --export ";
-    const std::string one = tmp_dir() + "/obstacles1.h5", two = tmp_dir() + "/obstacles2.h5";
-    run_on_1_and_2(args, one, two);
-    const FrameReader a(one), b(two);
-    REQUIRE(a.frames().size() == 3);
-    REQUIRE(b.frames().size() == 3);
-    for (size_t k = 0; k < 3; ++k) {
-      CHECK(b.read(k).step == a.read(k).step);
-      CHECK(largest_offset(a.read(k), b.read(k)) <= 1e-4 * spacing);
-    }
+    check_2_ranks_follow(args, "obstacles", 3, 1e-4 * spacing);
   }
 }
 
@@ -372,11 +376,7 @@ TEST_CASE("PBF over 2 ranks with vorticity confinement and a density tolerance f
                            " --backend cpu --quiet --set sph.spacing=0.04 --set run.end_time=0.1 "
                            "--set run.output_interval=0.05 --set sph.solver=pbf --set pbf.vorticity=0.5 "
                            "--set pbf.tolerance=0.002 --export-fields velocity,density --export ";
-  const std::string one = tmp_dir() + "/vorticity1.h5", two = tmp_dir() + "/vorticity2.h5";
-  run_on_1_and_2(args, one, two);
-  const FrameReader a(one), b(two);
-  REQUIRE(a.frames().size() == 3);
-  for (size_t k = 0; k < 3; ++k) CHECK(largest_offset(a.read(k), b.read(k)) <= 1e-4 * spacing);
+  check_2_ranks_follow(args, "vorticity", 3, 1e-4 * spacing);
 }
 
 TEST_CASE("PBF and DFSPH resume from an export on one rank or several", "[dist][mpi]") {
