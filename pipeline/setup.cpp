@@ -356,9 +356,16 @@ SceneSize measure_scene(const Scene& s) {
   // an export's staging copies (60: position, id, velocity, presence), the
   // two pair masks (fluid and walls); the coarse + 2 slab tables and the two
   // near-cell flags.
-  const size_t mask_bytes = 2 * (sizeof(PairWord) * pair_mask_capacity(support / dx) + sizeof(uint32_t));
+  // PBF's step sorts by cells of one support (sph/flow_solver.inl,
+  // support_grid): its slab table has 8 times the entries, and its masks
+  // search the support in cells of that size.
+  const bool pbf = s.sph.solver == SolverKind::Pbf;
+  z.step_cells = pbf ? 8 * z.cells : z.cells;
+  const double mask_span = pbf ? s.sph.pbf.support : support / dx;
+  const size_t mask_bytes = 2 * (sizeof(PairWord) * pair_mask_capacity(mask_span) + sizeof(uint32_t));
   z.per_fluid = 248 + 60 + mask_bytes;
-  z.bytes = z.fluid * z.per_fluid + z.boundary * 64 + z.cells * (4 + 8 * GridGeom::kSubX + 2);
+  z.bytes = z.fluid * z.per_fluid + z.boundary * 64 + z.cells * (4 + 4 * GridGeom::kSubX + 2) +
+            z.step_cells * 4 * GridGeom::kSubX;
   return z;
 }
 
@@ -372,9 +379,9 @@ void check_fits(const ResolvedScene& r, Backend backend, bool field, const RankS
   const SceneSize& z = r.size;
   const double gib = 1024.0 * 1024.0 * 1024.0;
   std::ostringstream os;
-  if (z.cells * GridGeom::kSubX >= 0xffffffffull || z.fluid >= 0x7fffffffull || z.boundary >= 0x7fffffffull) {
+  if (z.step_cells * GridGeom::kSubX >= 0xffffffffull || z.fluid >= 0x7fffffffull || z.boundary >= 0x7fffffffull) {
     os << s.file << ": sph.spacing = " << s.sph.spacing << " gives " << z.fluid << " fluid particles, " << z.boundary
-       << " wall particles and " << z.cells << " grid cells: more than sphray can index (2^31 particles, 2^30 cells). "
+       << " wall particles and " << z.step_cells << " grid cells: more than sphray can index (2^31 particles, 2^30 cells). "
        << "Raise sph.spacing or shrink the tank.";
     throw SceneError(os.str());
   }

@@ -119,7 +119,7 @@ struct DfsphDensity {
     const float s2 = k.support() * k.support();
     const Vec3f xi = xyz(pos[i]), vi = xyz(vel[i]);
     const Mirrors mirrors = mirrors_of(prm, k.support(), xi);
-    const bool near_mesh = walls.near_point(grid, xi);
+    const bool near_mesh = walls.near_point(xi);
     float w_sum = k.W(0.0f), g2 = 0.0f, rate = 0.0f, ux = 0.0f, uy = 0.0f, uz = 0.0f;
     Vec3f grad = {0.0f, 0.0f, 0.0f}, lobes = {0.0f, 0.0f, 0.0f};
     uint32_t count = 0;
@@ -149,7 +149,7 @@ struct DfsphDensity {
       float wall_volume = 0.0f;
       const float dt = control ? float(control->limits.dt) : 0.0f;
       const float p_last = dt > 0.0f ? warm[i].x / (dt * dt) : 0.0f;
-      walls.for_each_near(grid, xi, k.support(), [&](uint32_t b, Float4 pb, Vec3f r, float r2) {
+      walls.for_each_near(xi, k.support(), [&](uint32_t b, Float4 pb, Vec3f r, float r2) {
         const float dist = std::sqrt(r2);
         wall_volume += pb.w * k.W(dist);
         const Vec3f g = (pb.w * k.dW_over_r(dist)) * r;
@@ -200,7 +200,7 @@ struct DfsphAccel {
     const Float4 pi4 = pos[i];
     const Vec3f xi = xyz(pi4);
     const Mirrors mirrors = mirrors_of(prm, k.support(), xi);
-    const bool near_mesh = walls.near_point(grid, xi);
+    const bool near_mesh = walls.near_point(xi);
     const float pi = press[i];
     const Vec3f vi = WithSource ? xyz(vel[i]) : Vec3f{0.0f, 0.0f, 0.0f};
     Vec3f a = {0.0f, 0.0f, 0.0f};
@@ -257,7 +257,7 @@ struct DfsphUpdate {
     const float s2 = k.support() * k.support();
     const Vec3f xi = xyz(pos[i]);
     const Mirrors mirrors = mirrors_of(prm, k.support(), xi);
-    const bool near_mesh = walls.near_point(grid, xi);
+    const bool near_mesh = walls.near_point(xi);
     const Vec3f ai = xyz(acc[i]);
     float ap = 0.0f;
     auto accel = [&](uint32_t j, Float4) { return xyz(load(acc + j)); };
@@ -306,7 +306,7 @@ struct DfsphViscosity {
     });
     const float dt = float(control->limits.dt);
     Vec3f a = prm.gravity + df.viscosity * lap;
-    if (walls.near_point(grid, xi)) a -= wall_sum[i].push;
+    if (walls.near_point(xi)) a -= wall_sum[i].push;
     const Vec3f v = vi + dt * a;
     vel_out[i] = {v.x, v.y, v.z, 0.0f};
   }
@@ -315,7 +315,6 @@ struct DfsphViscosity {
 // v* = v + dt g where there is no viscosity pass (with the walls' hydrostatic part).
 struct DfsphGravity {
   SphParams prm;
-  GridGeom grid;
   const FlowControl* control;
   const Float4* pos;
   Float4* vel;
@@ -323,7 +322,7 @@ struct DfsphGravity {
   const WallSum* wall_sum;
   SPHRAY_HD void operator()(uint32_t i) const {
     Vec3f a = prm.gravity;
-    if (walls.near_point(grid, xyz(pos[i]))) a -= wall_sum[i].push;
+    if (walls.near_point(xyz(pos[i]))) a -= wall_sum[i].push;
     const Vec3f v = xyz(vel[i]) + float(control->limits.dt) * a;
     vel[i] = {v.x, v.y, v.z, 0.0f};
   }
@@ -375,7 +374,6 @@ struct DfsphKick {
   const Float4* pos;
   Float4* pos_out;
   Obstacles obstacles;  // the advection is stopped at them (obstacles.h)
-  GridGeom grid;
   WallsView walls;  // the obstacles' wall particles
   SPHRAY_HD void operator()(uint32_t i) const {
     const float dt = float(control->limits.dt);
@@ -390,7 +388,7 @@ struct DfsphKick {
       // the Martin & Moyce front at a/20 erred by 6.0% instead of 4.9%).
       const Vec3f x0 = xyz(pos[i]), want = x0 + dt * v;
       x = inside_tank(prm, want);
-      if (walls.near_point(grid, x0)) {
+      if (walls.near_point(x0)) {
         if (x.x != want.x && x.x == x0.x) v.x = 0.0f;
         if (x.y != want.y && x.y == x0.y) v.y = 0.0f;
         if (x.z != want.z && x.z == x0.z) v.z = 0.0f;

@@ -203,7 +203,7 @@ class DfsphSolverImpl final : public Solver {
   void sort_and_mask() {
     static constexpr const char* kNames[2] = {"dfsph_keys", "dfsph_gather"};
     const FlowSort r = sort_flow_particles(kNames, grid_, prm_.open_top, n_, pos_, presence_valid_, arrays(), keys_,
-                                           order_, fine_offsets_, offsets_, gone_);
+                                           order_, fine_offsets_, &offsets_, gone_);
     gone_ = false;
     removed_ += r.dropped_owned;
     ghosts_ -= r.dropped_ghosts;
@@ -214,7 +214,7 @@ class DfsphSolverImpl final : public Solver {
     b.search_radius = s;
     parallel_for("dfsph_pair_masks", n_, b);
     // Every neighbour pass until the next sort reads these positions.
-    lists_.classify(n_, prm_, s, 0.0f, grid_, walls_.view(), pairs(), raw(pos_));
+    lists_.classify(n_, prm_, s, 0.0f, walls_.view(), pairs(), raw(pos_));
   }
 
 
@@ -223,7 +223,7 @@ class DfsphSolverImpl final : public Solver {
     const FlowControl* control = raw(control_);
     if (df_.viscosity <= 0) {
       parallel_for("dfsph_gravity", n_,
-                   DfsphGravity{prm_, grid_, control, raw(pos_), raw(vel_), walls_.view(), raw(wall_sum_)});
+                   DfsphGravity{prm_, control, raw(pos_), raw(vel_), walls_.view(), raw(wall_sum_)});
       return;
     }
     static constexpr const char* kNames[3] = {"dfsph_viscosity", "dfsph_viscosity_walls",
@@ -337,7 +337,7 @@ class DfsphSolverImpl final : public Solver {
     accel<false>();
     parallel_for(Advect ? "dfsph_advect" : "dfsph_kick", n_,
                  DfsphKick<Advect>{prm_, raw(control_), raw(acc_), raw(press_), raw(vel_), raw(warm_), raw(pos_), raw(pos_tmp_),
-                                   obstacles_.view, grid_, walls_.view()});
+                                   obstacles_.view, walls_.view()});
   }
 
   // Speed, density error and finiteness of the current state, into the

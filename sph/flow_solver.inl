@@ -12,6 +12,22 @@ struct FlowArrays {
   Vector<float>&presence, &presence_tmp;
 };
 
+// The grid a step of PBF or DFSPH sorts by: the scene's grid (GridGeom,
+// whose cells are two supports wide so that the field's voxels are the
+// same under every solver) with cells of one support, the same origin and
+// extent. Each query of the pair masks then tests about half the
+// candidates: the rows of the wide cells reach a support beyond the sphere
+// on every side. The obstacles' wall particles stay sorted by the scene's
+// grid (WallsView carries it).
+inline GridGeom support_grid(const GridGeom& g) {
+  GridGeom s = g;
+  s.cell_size = 0.5f * g.cell_size;
+  s.nx = 2 * g.nx;
+  s.ny = 2 * g.ny;
+  s.nz = 2 * g.nz;
+  return s;
+}
+
 // What a sort kept and dropped (sort_flow_particles).
 struct FlowSort {
   uint32_t active = 0;          // the particles kept, sorted first
@@ -20,18 +36,19 @@ struct FlowSort {
 };
 
 // Sorts every array by the cell of `by` (one of them, read before the
-// gather), carrying presence when `carry_presence`, and drops the particles
+// gather), carrying presence when `carry_presence`, into the slab table
+// `fine_offsets` and, if given, the cell table `offsets`, and drops the particles
 // outside the grid (an open top only) and, after an exchange (`exchanged`:
 // exchange_impl.inl), those it sent away (kStatusGone).
 inline FlowSort sort_flow_particles(const char* const (&names)[2], const GridGeom& grid, bool open_top, uint32_t n,
                                     const Vector<Float4>& by, bool carry_presence, FlowArrays a, Vector<uint32_t>& keys,
-                                    Vector<uint32_t>& order, Vector<uint32_t>& fine_offsets, Vector<uint32_t>& offsets,
+                                    Vector<uint32_t>& order, Vector<uint32_t>& fine_offsets, Vector<uint32_t>* offsets,
                                     bool exchanged = false) {
   if (exchanged) parallel_for(names[0], n, KeyOfStaying{grid, raw(by), raw(a.status), raw(keys)});
   else parallel_for(names[0], n, KeyOf<Float4>{grid, raw(by), raw(keys)});
-  sort_and_offsets(grid, n, keys, order, fine_offsets, &offsets);
+  sort_and_offsets(grid, n, keys, order, fine_offsets, offsets);
   FlowSort r;
-  r.active = open_top || exchanged ? read_one(offsets, grid.num_cells()) : n;
+  r.active = open_top || exchanged ? read_one(fine_offsets, grid.num_fine_cells()) : n;
   r.dropped_owned = n - r.active;
   if (exchanged && r.active < n) {
     const auto dropped = thrust::make_permutation_iterator(a.status.begin(), order.begin() + r.active);
@@ -121,13 +138,12 @@ inline void check_flow_state(const char* solver, const char* remedy, const FlowS
 struct ClassifyLaunch {
   SphParams prm;
   float support, margin;
-  GridGeom grid;
   WallsView walls;
   PairMask pairs;
   const Float4* pos;
   uint8_t* cls;
   SPHRAY_HD void operator()(uint32_t i) const {
-    cls[i] = launch_class(prm, support, margin, grid, walls, pairs, i, xyz(pos[i]));
+    cls[i] = launch_class(prm, support, margin, walls, pairs, i, xyz(pos[i]));
   }
 };
 
@@ -217,8 +233,8 @@ class LaunchLists {
  public:
   // Classifies the n particles at pos, which move at most `margin` over
   // those passes, into the interior, near-wall and direct lists (in grid order).
-  void classify(uint32_t n, const SphParams& prm, float support, float margin, const GridGeom& grid,
-                const WallsView& walls, const PairMask& pairs, const Float4* pos) {
+  void classify(uint32_t n, const SphParams& prm, float support, float margin, const WallsView& walls,
+                const PairMask& pairs, const Float4* pos) {
     n_ = n;
     if (cls_.size() < n) {
       cls_.resize(n);
@@ -228,7 +244,7 @@ class LaunchLists {
       direct_.resize(n);
     }
     if (n == 0) return;
-    parallel_for("launch_classes", n, ClassifyLaunch{prm, support, margin, grid, walls, pairs, pos, raw(cls_)});
+    parallel_for("launch_classes", n, ClassifyLaunch{prm, support, margin, walls, pairs, pos, raw(cls_)});
     thrust::transform_exclusive_scan(policy(), cls_.begin(), cls_.begin() + n, before_.begin(), CountLaunch{},
                                      LaunchCounts{0u, 0u, 0u}, AddLaunchCounts{});
     parallel_for("launch_lists", n,

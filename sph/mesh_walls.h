@@ -19,30 +19,30 @@
 
 namespace sphray {
 
-// The wall particles sorted by the solver's grid.
+// The wall particles sorted by a grid of their own (the scene's grid, whose
+// cells are two supports wide, whatever grid the fluid is sorted by).
 struct WallsView {
-  const uint32_t* offsets = nullptr;  // slab table (nsearch/grid.h)
+  GridGeom grid{};                    // the grid they are sorted by
+  const uint32_t* offsets = nullptr;  // slab table of `grid` (nsearch/grid.h)
   const Float4* pos = nullptr;        // x, y, z, volume
   const Float4* vel = nullptr;        // velocity over the step; null where no wall moves
   const uint8_t* near = nullptr;      // per cell: wall particles within the 27 around it; null: no walls
 
-  // Whether wall particles may lie within a support of x (a cell of the
-  // incompressible solvers' grid is two supports wide).
-  SPHRAY_HD SPHRAY_FORCEINLINE bool near_point(const GridGeom& g, Vec3f x) const {
-    return near != nullptr && cell_near(g, near, x);
-  }
+  // Whether wall particles may lie within two supports of x (the cells of
+  // `grid` are two supports wide).
+  SPHRAY_HD SPHRAY_FORCEINLINE bool near_point(Vec3f x) const { return near != nullptr && cell_near(grid, near, x); }
 
   // f(b, p_b, r, r2) for each wall particle b within `support` of x, r =
-  // x - x_b, the grid's candidate rows culled to the support (the cells are
-  // wider, grid.h). One exactly at x (r = 0, possible only for a particle on
+  // x - x_b, the candidate rows of `grid` culled to the support (the cells
+  // are wider, grid.h). One exactly at x (r = 0, possible only for a particle on
   // the surface over a lattice point) is left out: its gradient has no
   // direction.
   template <class F>
-  SPHRAY_HD SPHRAY_FORCEINLINE void for_each_near(const GridGeom& g, Vec3f x, float support, F&& f) const {
+  SPHRAY_HD SPHRAY_FORCEINLINE void for_each_near(Vec3f x, float support, F&& f) const {
     const float s2 = support * support;
     for (int row = 0; row < kCandidateRows; ++row) {
       uint32_t begin = 0, end = 0;
-      if (!candidate_row(g, offsets, x, row, begin, end, support)) continue;
+      if (!candidate_row(grid, offsets, x, row, begin, end, support)) continue;
       for (uint32_t b = begin; b < end; ++b) {
         const Float4 pb = load(pos + b);
         const Vec3f r = x - xyz(pb);

@@ -114,10 +114,10 @@ enum LaunchClass : uint8_t { kClassInterior = 0, kClassNearWalls = 1, kClassDire
 // of those passes. A margin of a support or more makes every particle near
 // (the near-wall launch serves any particle; the cell flags reach only that
 // far).
-SPHRAY_HD SPHRAY_FORCEINLINE uint8_t launch_class(const SphParams& prm, float support, float margin, const GridGeom& grid,
+SPHRAY_HD SPHRAY_FORCEINLINE uint8_t launch_class(const SphParams& prm, float support, float margin,
                                                   const WallsView& walls, const PairMask& pairs, uint32_t i, Vec3f x) {
   if (!mask_complete(pairs, i)) return kClassDirect;
-  if (margin >= support || mirrors_of(prm, support + margin, x).axes != 0u || walls.near_point(grid, x))
+  if (margin >= support || mirrors_of(prm, support + margin, x).axes != 0u || walls.near_point(x))
     return kClassNearWalls;
   return kClassInterior;
 }

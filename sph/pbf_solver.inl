@@ -4,9 +4,12 @@
 // One step: the step size from the largest speed (ChooseFlowStep); predict;
 // the grid sort and the pair masks at the predicted positions, found once
 // and reused by every pass of the step; the constraint iterations; the
-// finishing pass. The sort follows the predicted positions, so after a step
-// the cell table is off by the step's corrections: view() sorts again by the
-// final positions before a later stage reads the grid (once per output frame,
+// finishing pass. The step sorts by a grid with cells of one support
+// (support_grid): the scene's grid, whose cells are two supports wide for
+// the field's sake, gave each query twice the candidates. The sort follows
+// the predicted positions, so after a step the cell table is off by the
+// step's corrections: view() sorts again by the final positions, on the
+// scene's grid, before a later stage reads the grid (once per output frame,
 // not per step).
 // A decomposed run (set_slab, dist/slab_solver.h): the particles are
 // exchanged after the prediction, placed at x* (each rank owns those in its
@@ -20,7 +23,7 @@
 class PbfSolverImpl final : public Solver {
  public:
   explicit PbfSolverImpl(const SolverInput& in)
-      : prm_(in.params), pbf_(in.pbf), grid_(in.grid), cfl_(in.cfl), min_dt_(in.min_dt), max_dt_(in.max_dt),
+      : prm_(in.params), pbf_(in.pbf), grid_(in.grid), step_grid_(support_grid(in.grid)), cfl_(in.cfl), min_dt_(in.min_dt), max_dt_(in.max_dt),
         n_(uint32_t(in.fluid_pos_rho.size())), obstacles_(make_obstacle_set(kBackend, in.obstacles, in.params.spacing)),
         walls_(in, in.grid), transport_(in.transport) {
     t_ = in.start_time;
@@ -36,13 +39,13 @@ class PbfSolverImpl final : public Solver {
     if (walls_.size()) wall_grad_.resize(n);
     keys_.resize(n); order_.resize(n);
     offsets_.resize(size_t(grid_.num_cells()) + 1);
-    fine_offsets_.resize(size_t(grid_.num_fine_cells()) + 1);
+    fine_offsets_.resize(size_t(step_grid_.num_fine_cells()) + 1);  // either grid's slab table (sort_by)
     mask_words_ = in.pair_mask_words >= 0 ? uint32_t(in.pair_mask_words)
-                                          : pair_mask_capacity(double(grid_.cell_size) / double(prm_.spacing));
+                                          : pair_mask_capacity(double(pbf_.kernel.s) / double(prm_.spacing));
     pairs_.resize(size_t(mask_words_) * n);
     pair_count_.resize(n);
     set_presence(in.presence);
-    sort_by(pos_);  // the grid of the initial positions, for a view before the first step
+    sort_by(pos_, false);  // the grid of the initial positions, for a view before the first step
     reduce_stats();
   }
 
@@ -69,7 +72,7 @@ class PbfSolverImpl final : public Solver {
   // The grid must match the positions for the stages that read it: sorting
   // again is logically const (the same particles, in cell order).
   ParticleView view() const override {
-    if (!grid_current_) const_cast<PbfSolverImpl*>(this)->sort_by(pos_);
+    if (!grid_current_) const_cast<PbfSolverImpl*>(this)->sort_by(pos_, false);
     return {kBackend, n_, raw(pos_), raw(offsets_), presence_valid_ ? raw(presence_) : nullptr, grid_,
             raw(fine_offsets_)};
   }
@@ -100,7 +103,7 @@ class PbfSolverImpl final : public Solver {
       exchange(pred_);
       clock_.end_of("exchange");
     }
-    sort_by(pred_);
+    sort_by(pred_, true);
     if (transport_) refresh_.build(bounds_, raw(pred_), status_, id_, n_, *transport_);
     grid_current_ = false;
     build_masks();
@@ -139,7 +142,7 @@ class PbfSolverImpl final : public Solver {
     if (bounds.halo_free < pbf_.kernel.s) throw std::logic_error("PBF: a halo narrower than its support");
     bounds_ = bounds;
     exchange(pos_);
-    sort_by(pos_);
+    sort_by(pos_, false);
   }
 
   FlowSums flow_sums() const override { return reduce_flow_sums(n_, pos_, vel_, status_); }
@@ -167,18 +170,19 @@ class PbfSolverImpl final : public Solver {
     return {pos_, vel_, pred_, pos_tmp_, vel_tmp_, pred_tmp_, id_, id_tmp_, status_, status_tmp_, presence_, presence_tmp_};
   }
 
-  // Sorts every particle array by the cell of `by` (pos_ or pred_) and drops
-  // the particles outside the grid (an open top only) and those the
-  // step's exchange sent away.
-  void sort_by(const Vector<Float4>& by) {
+  // Sorts every particle array by the cell of `by` (pos_ or pred_), on the
+  // step's grid (`step`) or the scene's (the view's), and drops the
+  // particles outside the grid (an open top only) and those the step's
+  // exchange sent away.
+  void sort_by(const Vector<Float4>& by, bool step) {
     static constexpr const char* kNames[2] = {"pbf_keys", "pbf_gather"};
-    const FlowSort r = sort_flow_particles(kNames, grid_, prm_.open_top, n_, by, presence_valid_, arrays(), keys_,
-                                           order_, fine_offsets_, offsets_, gone_);
+    const FlowSort r = sort_flow_particles(kNames, step ? step_grid_ : grid_, prm_.open_top, n_, by, presence_valid_,
+                                           arrays(), keys_, order_, fine_offsets_, step ? nullptr : &offsets_, gone_);
     gone_ = false;
     removed_ += r.dropped_owned;
     ghosts_ -= r.dropped_ghosts;
     n_ = r.active;
-    grid_current_ = true;
+    grid_current_ = !step;
   }
 
   // The exchange (exchange_impl.inl) after the prediction, placed at x*
@@ -221,13 +225,13 @@ class PbfSolverImpl final : public Solver {
   // twice for slack), so its class holds within that margin (none without
   // the limit).
   void build_masks() {
-    BuildPairMask b{grid_, raw(fine_offsets_), raw(pred_), raw(pred_), pbf_.kernel.s * pbf_.kernel.s, true, pairs()};
-    b.search_radius = pbf_.kernel.s;
+    BuildPairMask b{step_grid_, raw(fine_offsets_), raw(pred_), raw(pred_), pbf_.kernel.s * pbf_.kernel.s, true, pairs()};
+    b.search_radius = pbf_.kernel.s;  // the cell size, to rounding
     parallel_for("pbf_pair_masks", n_, b);
     const float margin = pbf_.max_correction > 0.0f
                              ? float(pbf_.iterations) * (pbf_.max_correction + 2.0f * obstacles_.view.offset)
                              : pbf_.kernel.s;
-    lists_.classify(n_, prm_, pbf_.kernel.s, margin, grid_, walls_.view(), pairs(), raw(pred_));
+    lists_.classify(n_, prm_, pbf_.kernel.s, margin, walls_.view(), pairs(), raw(pred_));
   }
 
   static constexpr const char* kLambdaNames[3] = {"pbf_lambda", "pbf_lambda_walls",
@@ -238,7 +242,7 @@ class PbfSolverImpl final : public Solver {
   // The constraint iterations; returns how many corrections were applied.
   int solve() {
     for (int k = 0; k < pbf_.iterations; ++k) {
-      mirror_pass_launches<Lambda>(kLambdaNames, lists_, walls_.size() > 0, prm_, pbf_, grid_, raw(fine_offsets_), pairs(),
+      mirror_pass_launches<Lambda>(kLambdaNames, lists_, walls_.size() > 0, prm_, pbf_, step_grid_, raw(fine_offsets_), pairs(),
                                    raw(pred_), raw(pred_tmp_), raw(error_), walls_.view(), raw(wall_grad_));
       pred_.swap(pred_tmp_);
       refresh(pred_);
@@ -246,9 +250,10 @@ class PbfSolverImpl final : public Solver {
         // Ending early needs the error on the host: one read per iteration.
         if (mean_over_run(error_, n_, ghosts_, status_, transport_) <= pbf_.tolerance) return k;
       }
-      mirror_pass_launches<Correct>(kCorrectNames, lists_, walls_.size() > 0, prm_, pbf_, grid_, raw(fine_offsets_), pairs(),
-                                    raw(pred_), raw(pred_tmp_), obstacles_.view, raw(control_), walls_.view(),
-                                    raw(wall_grad_));
+      mirror_pass_launches<Correct>(kCorrectNames, lists_, walls_.size() > 0, prm_, pbf_, step_grid_, raw(fine_offsets_), pairs(),
+                                    raw(pred_), raw(pred_tmp_), walls_.view(), raw(wall_grad_));
+      if (obstacles_.view.count > 0)
+        parallel_for("pbf_stop", n_, StopCorrection{prm_, obstacles_.view, raw(control_), raw(pred_), raw(pred_tmp_)});
       pred_.swap(pred_tmp_);
       refresh(pred_);
     }
@@ -270,14 +275,14 @@ class PbfSolverImpl final : public Solver {
     const FlowControl* control = raw(control_);
     refresh(vel_);  // a ghost's XSPH smoothing lacked the neighbours beyond the halo
     parallel_for("pbf_vorticity", n_,
-                 Vorticity<false>{pbf_, grid_, raw(fine_offsets_), pairs(), raw(pos_), raw(vel_), raw(vel_tmp_)});
+                 Vorticity<false>{pbf_, step_grid_, raw(fine_offsets_), pairs(), raw(pos_), raw(vel_), raw(vel_tmp_)});
     parallel_for("pbf_vorticity_direct", n_,
-                 Vorticity<true>{pbf_, grid_, raw(fine_offsets_), pairs(), raw(pos_), raw(vel_), raw(vel_tmp_)});
+                 Vorticity<true>{pbf_, step_grid_, raw(fine_offsets_), pairs(), raw(pos_), raw(vel_), raw(vel_tmp_)});
     refresh(vel_tmp_);
     parallel_for("pbf_confine", n_,
-                 Confine<false>{pbf_, grid_, raw(fine_offsets_), pairs(), control, raw(pos_), raw(vel_tmp_), raw(vel_)});
+                 Confine<false>{pbf_, step_grid_, raw(fine_offsets_), pairs(), control, raw(pos_), raw(vel_tmp_), raw(vel_)});
     parallel_for("pbf_confine_direct", n_,
-                 Confine<true>{pbf_, grid_, raw(fine_offsets_), pairs(), control, raw(pos_), raw(vel_tmp_), raw(vel_)});
+                 Confine<true>{pbf_, step_grid_, raw(fine_offsets_), pairs(), control, raw(pos_), raw(vel_tmp_), raw(vel_)});
   }
 
   // The finishing pass's launches (pbf.h, MirrorPass), with or without presence.
@@ -287,7 +292,7 @@ class PbfSolverImpl final : public Solver {
   void finish_launches() {
     const FlowControl* control = raw(control_);
     float* presence = Presence ? raw(presence_) : nullptr;
-    mirror_pass_launches<FinishOf<Presence>::template pass>(kFinishNames, lists_, walls_.size() > 0, prm_, pbf_, grid_,
+    mirror_pass_launches<FinishOf<Presence>::template pass>(kFinishNames, lists_, walls_.size() > 0, prm_, pbf_, step_grid_,
                                                             raw(fine_offsets_), pairs(), control, raw(pred_), raw(pos_),
                                                             raw(pos_tmp_), raw(vel_tmp_), raw(error_), presence, n_,
                                                             walls_.view());
@@ -300,14 +305,15 @@ class PbfSolverImpl final : public Solver {
 
   SphParams prm_;
   PbfParams pbf_;
-  GridGeom grid_;
+  GridGeom grid_;       // the scene's (the view's)
+  GridGeom step_grid_;  // the step's: cells of one support
   double cfl_, min_dt_, max_dt_;
   uint32_t n_;
   ObstacleSet obstacles_;  // meshes the particles' paths stop at (obstacles.h)
   WallParticles walls_;    // the obstacles' (mesh_walls.h)
   PresenceMode presence_mode_ = PresenceMode::Off;
   bool presence_valid_ = false;
-  bool grid_current_ = false;  // offsets_ match pos_ (else pred_, as sorted at the step's start)
+  bool grid_current_ = false;  // sorted on grid_ by pos_ (else on step_grid_ by pred_, as at the step's start)
   double t_ = 0;
   uint64_t steps_ = 0;
   size_t removed_ = 0;

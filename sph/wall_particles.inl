@@ -62,7 +62,7 @@ class WallParticles {
   const uint8_t* near() const { return raw(near_); }
   const Float4* vel() const { return moving_ ? raw(vel_) : nullptr; }
   // The incompressible solvers' view (mesh_walls.h): no flags where there are no walls.
-  WallsView view() const { return {raw(offsets_), raw(pos_), vel(), size() ? raw(near_) : nullptr}; }
+  WallsView view() const { return {grid_, raw(offsets_), raw(pos_), vel(), size() ? raw(near_) : nullptr}; }
   std::vector<Vec3f> positions() const { return download_positions(pos_); }
 
   // The walls of moving obstacles to their pose at obstacles.time + the
