@@ -17,11 +17,14 @@
 //   k:  0-2     3-5     6-8     9    10   11   12
 //   A:  -2yh    -2yh    -2yl    1    1    Ch   Cl
 //   B:  th      tl      th      t2h  t2l  1    1
-// With the warp's queries within 1 s of O in each axis (checked; a warp
-// spread wider, e.g. across the end of a grid row, keeps the FMA test) and
-// the candidates that can be neighbours within 1 s of a query, every term is
-// below about 10 and the float accumulation errs by at most about 2e-5 of
-// s^2, inside the relative slack of the test (BuildPairMask::kTileSlack,
+// With the warp's queries within 2 s of O in each axis (checked; a warp
+// spread wider, e.g. across the end of a grid row, keeps the FMA test; in
+// cells of one support, as PBF's step sorts by, a warp's 32 queries lie
+// along about 3.5 s of a row) and the candidates that can be neighbours
+// within 1 s of a query, every term is below about 20 and the float
+// accumulation errs by at most about 4e-5 of s^2 (the halves' residuals
+// 2^-22 of each term, the accumulation's rounding 2^-24 of the largest
+// partial sum per term), inside the relative slack of the test (BuildPairMask::kTileSlack,
 // 1e-4): the test keeps every neighbour and at most a candidate a hair
 // beyond, as the FMA test does (tests/test_gpu.cpp checks both against the
 // CPU's lists).
@@ -72,7 +75,7 @@ class TileMma {
     }
     inv_s_ = inv_sqrt(support2);
     const float spread = fmaxf(hi_x - lo_x, fmaxf(hi_y - lo_y, hi_z - lo_z)) * inv_s_;
-    if (!(spread <= 2.0f)) return false;  // (and a NaN position)
+    if (!(spread <= 4.0f)) return false;  // (and a NaN position)
     origin_ = {0.5f * (lo_x + hi_x), 0.5f * (lo_y + hi_y), 0.5f * (lo_z + hi_z)};
     const Vec3f y = (x - origin_) * inv_s_;
     const float reach = support2 * inv_s_ * inv_s_ * (1.0f + slack);

@@ -76,7 +76,9 @@ TEST_CASE("cuda pair masks visit the cpu's neighbours in the same order", "[gpu]
   // the CPU builds each query's own. Walked, both must give every query the
   // same neighbours in the same order: uniform points (a particle count that
   // leaves a partial last warp), a jittered lattice at h = 2 dx (rows shared by
-  // a warp's lanes), a pile-up in one cell (masks overflow), and with few words
+  // a warp's lanes) and at a support of 2.1 spacings in cells of that size
+  // (PBF's step grid: a warp spread along its row), a pile-up in one cell
+  // (masks overflow), and with few words
   // kept (the direct loop takes over). Both tile tests of the GPU build: the
   // tensor cores' (tile_mma.h; the lattice's warps are compact enough for it,
   // the sparse uniform points' are not and take the FMA test) and the FMA
@@ -90,13 +92,20 @@ TEST_CASE("cuda pair masks visit the cpu's neighbours in the same order", "[gpu]
       for (int x = 0; x < 40; ++x)
         lattice.push_back({0.0125f * (x + 0.5f + jit(rng)), 0.0125f * (y + 0.5f + jit(rng)), 0.0125f * (z + 0.5f + jit(rng))});
   for (auto& p : pile) p = {0.54f + 0.03f * u(rng), 0.54f + 0.03f * u(rng), 0.54f + 0.03f * u(rng)};
-  const GridGeom g{{0, 0, 0}, 0.05f, 20, 20, 20};  // support 4 lattice spacings, as h = 2 dx
-  struct Case { const char* name; const std::vector<Vec3f>* pts; uint32_t capacity; };
-  const Case cases[] = {{"uniform", &uniform, pair_mask_capacity(4.0)}, {"lattice", &lattice, pair_mask_capacity(4.0)},
-                        {"lattice, 4 words", &lattice, 4u}, {"pile", &pile, pair_mask_capacity(4.0)}};
-  const double s2 = double(g.cell_size) * double(g.cell_size);
+  const GridGeom wide{{0, 0, 0}, 0.05f, 20, 20, 20};  // support 4 lattice spacings, as h = 2 dx
+  // Cells of a support of 2.1 spacings, as PBF's step sorts by: a warp's
+  // queries lie along about 3.5 supports of a row, which the tensor test takes.
+  const GridGeom narrow{{0, 0, 0}, 0.02625f, 20, 20, 20};
+  struct Case { const char* name; const std::vector<Vec3f>* pts; uint32_t capacity; const GridGeom* grid; };
+  const Case cases[] = {{"uniform", &uniform, pair_mask_capacity(4.0), &wide},
+                        {"lattice", &lattice, pair_mask_capacity(4.0), &wide},
+                        {"lattice, 4 words", &lattice, 4u, &wide},
+                        {"pile", &pile, pair_mask_capacity(4.0), &wide},
+                        {"lattice, support 2.1 spacings", &lattice, pair_mask_capacity(2.1), &narrow}};
   for (const Case& c : cases) {
     INFO(c.name);
+    const GridGeom& g = *c.grid;
+    const double s2 = double(g.cell_size) * double(g.cell_size);
     const PairMaskBuild cpu = build_pair_masks(Backend::Cpu, g, *c.pts, g.cell_size, c.capacity);
     REQUIRE(cpu.neighbours.size() == c.pts->size());
     size_t pairs = 0;
