@@ -88,6 +88,7 @@ class ReadBack {
  public:
   void start(const T* value) { value_ = *value; }
   const T& value() const { return value_; }
+  const T& wait() const { return value_; }
 
  private:
   T value_{};

@@ -222,21 +222,34 @@ void transform_reduce_into(uint32_t n, const F& f, const Op& op, const T& init, 
 // A value on the device that the host reads without a wait of its own:
 // start() queues its copy into pinned memory behind the work before it;
 // value() is valid once the host has waited for something queued after
-// start() (the solver's stage clock at the end of a step).
+// start() (the solver's stage clock at the end of a step); wait() waits for
+// the copy alone, while the work queued after it goes on.
 template <class T>
 class ReadBack {
  public:
-  ReadBack() { SPHRAY_CUDA_CHECK(cudaMallocHost(&host_, sizeof(T))); }
-  ~ReadBack() { cudaFreeHost(host_); }
+  ReadBack() {
+    SPHRAY_CUDA_CHECK(cudaMallocHost(&host_, sizeof(T)));
+    SPHRAY_CUDA_CHECK(cudaEventCreateWithFlags(&copied_, cudaEventDisableTiming));
+  }
+  ~ReadBack() {
+    cudaEventDestroy(copied_);
+    cudaFreeHost(host_);
+  }
   ReadBack(const ReadBack&) = delete;
   ReadBack& operator=(const ReadBack&) = delete;
   void start(const T* device_value) {
     SPHRAY_CUDA_CHECK(cudaMemcpyAsync(host_, device_value, sizeof(T), cudaMemcpyDeviceToHost));
+    SPHRAY_CUDA_CHECK(cudaEventRecord(copied_));
   }
   const T& value() const { return *host_; }
+  const T& wait() const {
+    SPHRAY_CUDA_CHECK(cudaEventSynchronize(copied_));
+    return *host_;
+  }
 
  private:
   T* host_ = nullptr;
+  cudaEvent_t copied_ = nullptr;
 };
 
 // Copies off the device that the run does not wait for (the export's

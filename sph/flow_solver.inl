@@ -212,9 +212,9 @@ struct ListedLaunch {
 };
 
 // The direct loop's particles (overflowed masks: usually none), by a few
-// threads that stride over their list, so that the launch costs next to
-// nothing when it is empty (a full-size grid of idle threads, seven times a
-// step, cost a 125k step several percent).
+// threads that stride over their list (a full-size grid of mostly idle
+// threads, seven times a step, cost a 125k step several percent); not
+// launched at all when the list is empty (LaunchLists::direct_count).
 constexpr uint32_t kDirectThreads = 4096;
 template <class Pass>
 struct StridedLaunch {
@@ -243,12 +243,26 @@ class LaunchLists {
       near_.resize(n);
       direct_.resize(n);
     }
+    direct_known_ = n == 0;
+    direct_count_ = 0;
     if (n == 0) return;
     parallel_for("launch_classes", n, ClassifyLaunch{prm, support, margin, walls, pairs, pos, raw(cls_)});
     thrust::transform_exclusive_scan(policy(), cls_.begin(), cls_.begin() + n, before_.begin(), CountLaunch{},
                                      LaunchCounts{0u, 0u, 0u}, AddLaunchCounts{});
     parallel_for("launch_lists", n,
                  ScatterLaunchLists{raw(cls_), raw(before_), n, raw(interior_), raw(near_), raw(direct_), raw(counts_)});
+    direct_read_.start(raw(counts_) + 2);
+  }
+  // The direct loop's particles (usually none): read once per grid, when
+  // the first pass asks, so that a pass launches no empty direct loop (seven
+  // a PBF step, sixteen a DFSPH step, a few microseconds each). The host
+  // waits only for the lists; the pass launched before the question runs on.
+  uint32_t direct_count() const {
+    if (!direct_known_) {
+      direct_count_ = direct_read_.wait();
+      direct_known_ = true;
+    }
+    return direct_count_;
   }
   uint32_t size() const { return n_; }
   template <class Interior, class Near>
@@ -268,6 +282,9 @@ class LaunchLists {
   Vector<LaunchCounts> before_;
   Vector<uint32_t> interior_, near_, direct_;
   Vector<uint32_t> counts_ = Vector<uint32_t>(3);
+  ReadBack<uint32_t> direct_read_;
+  mutable bool direct_known_ = true;
+  mutable uint32_t direct_count_ = 0;
 };
 
 // A neighbour pass (mirror_walls.h, MirrorPass) over the particles `lists`
@@ -280,7 +297,7 @@ void mirror_pass_launches(const char* const (&names)[3], const LaunchLists& list
   const uint32_t n = lists.size();
   if (mesh) parallel_for(names[1], n, lists.listed(Pass<kInterior>{args...}, Pass<kNearMesh>{args...}));
   else parallel_for(names[0], n, lists.listed(Pass<kInterior>{args...}, Pass<kNearWalls>{args...}));
-  parallel_for(names[2], lists.direct_threads(), lists.direct(Pass<kDirect>{args...}));
+  if (lists.direct_count() > 0) parallel_for(names[2], lists.direct_threads(), lists.direct(Pass<kDirect>{args...}));
 }
 
 // The message of a step below run.min_dt.
