@@ -67,7 +67,7 @@ namespace sphray {
 
 // V grad W at r, |r|^2 = r2: a neighbour's term in every sum below.
 SPHRAY_HD SPHRAY_FORCEINLINE Vec3f volume_grad(const DfsphParams& df, Vec3f r, float r2) {
-  return (df.volume * df.kernel.dW_over_r(std::sqrt(r2))) * r;
+  return (df.volume * df.kernel.dW_over_r_sq(r2)) * r;
 }
 
 // What the obstacles' wall particles add to a particle's sums at the
@@ -127,9 +127,8 @@ struct DfsphDensity {
     auto velocity = [&](uint32_t j, Float4) { return xyz(load(vel + j)); };
     for_each_neighbour_and_image<P>(grid, offsets, pairs, pos, i, xi, s2, mirrors, vi, velocity,
                                     [&](Vec3f r, float r2, Vec3f vj, uint32_t set) {
-      const float dist = std::sqrt(r2);
-      w_sum += k.W(dist);
-      const float vdw = df.volume * k.dW_over_r(dist);
+      w_sum += k.W(fast_sqrt(r2));
+      const float vdw = df.volume * k.dW_over_r_sq(r2);
       const Vec3f g = vdw * r;
       grad += g;
       g2 += length2(g);
@@ -150,9 +149,8 @@ struct DfsphDensity {
       const float dt = control ? float(control->limits.dt) : 0.0f;
       const float p_last = dt > 0.0f ? warm[i].x / (dt * dt) : 0.0f;
       walls.for_each_near(xi, k.support(), [&](uint32_t b, Float4 pb, Vec3f r, float r2) {
-        const float dist = std::sqrt(r2);
-        wall_volume += pb.w * k.W(dist);
-        const Vec3f g = (pb.w * k.dW_over_r(dist)) * r;
+        wall_volume += pb.w * k.W(fast_sqrt(r2));
+        const Vec3f g = (pb.w * k.dW_over_r_sq(r2)) * r;
         ws.grad += g;
         ws.push += fmaxf(-dot(prm.gravity, r), -p_last) * g;  // r = x_i - x_b
         if (walls.vel) ws.rate += dot(xyz(load(walls.vel + b)), g);

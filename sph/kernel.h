@@ -4,7 +4,12 @@
 // Templated on the scalar so tests evaluate the same formulas in double.
 #pragma once
 
+#include <cfloat>
+#include <cmath>
+#include <type_traits>
+
 #include "core/hd.h"
+#include "core/vec.h"
 
 namespace sphray {
 
@@ -55,6 +60,27 @@ struct SmoothingKernel {
     if (q < T(1)) return grad_coef * (T(-3) + T(2.25) * q);
     const T b = T(2) - q;
     return q > T(0) ? grad_coef * T(-0.75) * b * b / q : T(0);
+  }
+
+  // dW_over_r at the squared distance r2, for the neighbour loops: r and 1 / r
+  // from one inv_sqrt (in float) instead of a square root and, for the cubic
+  // spline's outer part, a division. The same values as dW_over_r to
+  // rounding (tests/test_kernel.cpp); r2 below the smallest normal float
+  // counts as r = 0.
+  SPHRAY_HD SPHRAY_FORCEINLINE T dW_over_r_sq(T r2) const {
+    T inv = T(0);
+    if constexpr (std::is_same_v<T, float>) inv = r2 >= FLT_MIN ? inv_sqrt(r2) : 0.0f;
+    else inv = r2 > T(0) ? T(1) / std::sqrt(r2) : T(0);
+    const T r = r2 * inv;
+    if (!(r < support())) return T(0);
+    const T q = r * inv_h;
+    if (type == KernelType::WendlandC2) {
+      const T a = T(1) - T(0.5) * q;
+      return grad_coef * a * a * a;
+    }
+    if (q < T(1)) return grad_coef * (T(-3) + T(2.25) * q);
+    const T b = T(2) - q;
+    return grad_coef * T(-0.75) * b * b * h * inv;  // 1 / q = h / r
   }
 
   // W for a kernel type fixed at compile time, for the wall pressure

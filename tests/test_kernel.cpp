@@ -43,7 +43,16 @@ TEST_CASE("float kernel agrees with the double reference", "[kernel][cpu]") {
       const double r = q * kd.h;
       CHECK(std::abs(kf.W(float(r)) - kd.W(r)) <= 1e-5 * kd.W(0));
       CHECK(std::abs(kf.dW_over_r(float(r)) - kd.dW_over_r(r)) <= 1e-5 * std::abs(kd.dW_over_r(0)));
+      // The loops' form on r^2 (DFSPH's passes).
+      CHECK(std::abs(kf.dW_over_r_sq(float(r * r)) - kd.dW_over_r(r)) <= 1e-5 * std::abs(kd.dW_over_r(0)));
+      CHECK(kd.dW_over_r_sq(r * r) == Approx(kd.dW_over_r(r)).epsilon(1e-12).margin(1e-12 * std::abs(kd.dW_over_r(0))));
     }
+    // At the support the kernel is continuous (r from rsqrt may round just inside); beyond it, zero.
+    CHECK(std::abs(kf.dW_over_r_sq(4.0f * kf.h * kf.h)) <= 1e-5 * std::abs(kd.dW_over_r(0)));
+    CHECK(kf.dW_over_r_sq(4.1f * kf.h * kf.h) == 0.0f);
+    CHECK(kf.dW_over_r_sq(1e-40f) == kf.dW_over_r(0.0f));  // subnormal r^2: r = 0, no NaN
+    CHECK(fast_sqrt(1e-40f) == 0.0f);
+    CHECK(fast_sqrt(2.25f) == Approx(1.5f).epsilon(1e-6));
   }
 }
 
