@@ -1,7 +1,7 @@
 // Uniform neighbour grid with cell size = SPH support radius (Green 2010,
 // "Particle Simulation using CUDA"; Mishima et al. in docs/references.md): a cell key
-// per particle, a radix sort by key, and an offsets table (a vectorised
-// lower_bound of every cell id in the sorted keys) so that cell c holds sorted
+// per particle, a radix sort by key, and an offsets table (the first sorted
+// index of every cell id, sort.inl) so that cell c holds sorted
 // particles [offsets[c], offsets[c+1]). Keys run x-fastest, so the cells of one
 // row are one contiguous range: a neighbour query reads 9 ranges, not 27.
 //
