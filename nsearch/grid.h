@@ -51,6 +51,10 @@ struct GridGeom {
 
   // Linear (coarse) cell key of a world position, or num_cells() when it is outside.
   SPHRAY_HD SPHRAY_FORCEINLINE uint32_t key_of(Vec3f p) const { return fine_key_of(p) / uint32_t(kSubX); }
+
+  // The same origin and extent in cells half as wide: each cell split in
+  // two along every axis (PBF's step grid, sph/pbf_solver.inl).
+  GridGeom halved() const { return {origin, 0.5f * cell_size, 2 * nx, 2 * ny, 2 * nz}; }
 };
 
 // The candidate rows of a query at p: the 9 rows (dz, dy in -1..1, row =

@@ -357,7 +357,7 @@ SceneSize measure_scene(const Scene& s) {
   // two pair masks (fluid and walls); the coarse + 2 slab tables and the two
   // near-cell flags.
   // PBF's step sorts by cells of one support (sph/flow_solver.inl,
-  // support_grid): its slab table has 8 times the entries, and its masks
+  // GridGeom::halved): its slab table has 8 times the entries, and its masks
   // search the support in cells of that size.
   const bool pbf = s.sph.solver == SolverKind::Pbf;
   z.step_cells = pbf ? 8 * z.cells : z.cells;

@@ -17,7 +17,7 @@ namespace sphray {
 
 struct SceneSize {
   size_t fluid = 0, boundary = 0, cells = 0;
-  size_t step_cells = 0;    // of the grid a step sorts by: `cells`, or 8 x under PBF (support_grid)
+  size_t step_cells = 0;    // of the grid a step sorts by: `cells`, or 8 x under PBF (GridGeom::halved)
   int boundary_layers = 0;  // the tank's wall layers (WCSPH; 0: PBF, DFSPH)
   int mesh_layers = 0;      // the obstacles' wall layers (SphConfig::mesh_wall_layers)
   GridGeom grid{};

@@ -12,24 +12,6 @@ struct FlowArrays {
   Vector<float>&presence, &presence_tmp;
 };
 
-// The grid a PBF step sorts by (pbf_solver.inl): the scene's grid (GridGeom,
-// whose cells are two supports wide so that the field's voxels are the
-// same under every solver) with cells of one support, the same origin and
-// extent. Each query of the pair masks then tests about half the
-// candidates: the rows of the wide cells reach a support beyond the sphere
-// on every side. The obstacles' wall particles stay sorted by the scene's
-// grid (WallsView carries it). (DFSPH steps on the scene's grid: its view
-// reads the grid it steps on, and a re-sort for the view would cost its
-// next step the masks and the density pass again.)
-inline GridGeom support_grid(const GridGeom& g) {
-  GridGeom s = g;
-  s.cell_size = 0.5f * g.cell_size;
-  s.nx = 2 * g.nx;
-  s.ny = 2 * g.ny;
-  s.nz = 2 * g.nz;
-  return s;
-}
-
 // What a sort kept and dropped (sort_flow_particles).
 struct FlowSort {
   uint32_t active = 0;          // the particles kept, sorted first

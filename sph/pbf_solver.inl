@@ -4,9 +4,15 @@
 // One step: the step size from the largest speed (ChooseFlowStep); predict;
 // the grid sort and the pair masks at the predicted positions, found once
 // and reused by every pass of the step; the constraint iterations; the
-// finishing pass. The step sorts by a grid with cells of one support
-// (support_grid): the scene's grid, whose cells are two supports wide for
-// the field's sake, gave each query twice the candidates. The sort follows
+// finishing pass. The step sorts by a grid with cells of one support (the
+// scene's grid halved, GridGeom::halved), where each pair-mask query tests
+// about half the candidates of the scene's grid, whose cells are two
+// supports wide so that the field's voxels are the same under every solver:
+// the rows of the wide cells reach a support beyond the sphere on every
+// side. The obstacles' wall particles stay on the scene's grid (WallsView
+// carries it). (DFSPH steps on the scene's grid: its view reads the grid it
+// steps on, and a re-sort for the view would cost its next step the masks
+// and the density pass again.) The sort follows
 // the predicted positions, so after a step the cell table is off by the
 // step's corrections: view() sorts again by the final positions, on the
 // scene's grid, before a later stage reads the grid (once per output frame,
@@ -23,7 +29,7 @@
 class PbfSolverImpl final : public Solver {
  public:
   explicit PbfSolverImpl(const SolverInput& in)
-      : prm_(in.params), pbf_(in.pbf), grid_(in.grid), step_grid_(support_grid(in.grid)), cfl_(in.cfl), min_dt_(in.min_dt), max_dt_(in.max_dt),
+      : prm_(in.params), pbf_(in.pbf), grid_(in.grid), step_grid_(in.grid.halved()), cfl_(in.cfl), min_dt_(in.min_dt), max_dt_(in.max_dt),
         n_(uint32_t(in.fluid_pos_rho.size())), obstacles_(make_obstacle_set(kBackend, in.obstacles, in.params.spacing)),
         walls_(in, in.grid), transport_(in.transport) {
     t_ = in.start_time;

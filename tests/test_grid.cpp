@@ -138,6 +138,35 @@ TEST_CASE("grid neighbours match brute force on random points", "[grid][cpu]") {
   check_against_brute_force(Backend::Cpu, unit_grid(10, 0.1f), pts, 0.1f);
 }
 
+TEST_CASE("a halved grid covers the same box in cells half as wide, and finds the neighbours", "[grid][cpu]") {
+  // PBF's step grid (GridGeom::halved): every point's cell in it lies inside
+  // its cell of the wide grid, points outside one are outside the other, and
+  // a search of half the radius finds the brute-force neighbours.
+  const GridGeom wide{{-0.05f, 0.02f, 0.0f}, 0.1f, 10, 7, 5};
+  const GridGeom fine = wide.halved();
+  CHECK(fine.cell_size == 0.05f);
+  CHECK(fine.nx * fine.cell_size == Approx(wide.nx * wide.cell_size));
+  CHECK(fine.nz * fine.cell_size == Approx(wide.nz * wide.cell_size));
+  const std::vector<Vec3f> pts = random_points(3000, -0.1f, 1.1f, 29);
+  size_t inside = 0;
+  for (const Vec3f& p : pts) {
+    const uint32_t c = wide.key_of(p), f = fine.key_of(p);
+    REQUIRE((c == wide.num_cells()) == (f == fine.num_cells()));
+    if (c == wide.num_cells()) continue;
+    ++inside;
+    const uint32_t cx = c % uint32_t(wide.nx), cy = c / uint32_t(wide.nx) % uint32_t(wide.ny),
+                   cz = c / (uint32_t(wide.nx) * uint32_t(wide.ny));
+    const uint32_t fx = f % uint32_t(fine.nx), fy = f / uint32_t(fine.nx) % uint32_t(fine.ny),
+                   fz = f / (uint32_t(fine.nx) * uint32_t(fine.ny));
+    CHECK(fx / 2 == cx);
+    CHECK(fy / 2 == cy);
+    CHECK(fz / 2 == cz);
+  }
+  CHECK(inside > 300);                 // about a fifth of the cube lies in the grid
+  CHECK(pts.size() - inside > 1000);  // and the rest outside
+  check_against_brute_force(Backend::Cpu, unit_grid(10, 0.1f).halved(), random_points(1500, 0.0f, 1.0f, 31), 0.05f);
+}
+
 TEST_CASE("grid neighbours match brute force on a jittered lattice", "[grid][cpu]") {
   std::mt19937 rng(11);
   std::uniform_real_distribution<float> j(-0.002f, 0.002f);
