@@ -5,6 +5,7 @@
 
 #include <cfloat>
 #include <cmath>
+#include <type_traits>
 
 #include "hd.h"
 
@@ -114,9 +115,19 @@ SPHRAY_HD SPHRAY_FORCEINLINE float inv_sqrt(float x) {
 #endif
 }
 
+// 1 / sqrt(x) for the neighbour loops, 0 where x has no usable root: in
+// float inv_sqrt (one instruction on the GPU) from the smallest normal float
+// up (below it inv_sqrt flushes to infinity), in double (the tests'
+// references) the exact quotient for x > 0. x inv_sqrt_or_zero(x) is then
+// sqrt(x), and 0 at x = 0, never a NaN.
+template <class T>
+SPHRAY_HD SPHRAY_FORCEINLINE T inv_sqrt_or_zero(T x) {
+  if constexpr (std::is_same_v<T, float>) return x >= FLT_MIN ? inv_sqrt(x) : 0.0f;
+  else return x > T(0) ? T(1) / std::sqrt(x) : T(0);
+}
+
 // sqrt(x) as x inv_sqrt(x): on the GPU one special-function instruction and
-// a multiply instead of the IEEE sequence; 0 below the smallest normal
-// float (where inv_sqrt flushes), so never a NaN.
-SPHRAY_HD SPHRAY_FORCEINLINE float fast_sqrt(float x) { return x >= FLT_MIN ? x * inv_sqrt(x) : 0.0f; }
+// a multiply instead of the IEEE sequence; 0 below the smallest normal float.
+SPHRAY_HD SPHRAY_FORCEINLINE float fast_sqrt(float x) { return x * inv_sqrt_or_zero(x); }
 
 }  // namespace sphray

@@ -4,10 +4,6 @@
 // Templated on the scalar so tests evaluate the same formulas in double.
 #pragma once
 
-#include <cfloat>
-#include <cmath>
-#include <type_traits>
-
 #include "core/hd.h"
 #include "core/vec.h"
 
@@ -68,9 +64,7 @@ struct SmoothingKernel {
   // rounding (tests/test_kernel.cpp); r2 below the smallest normal float
   // counts as r = 0.
   SPHRAY_HD SPHRAY_FORCEINLINE T dW_over_r_sq(T r2) const {
-    T inv = T(0);
-    if constexpr (std::is_same_v<T, float>) inv = r2 >= FLT_MIN ? inv_sqrt(r2) : 0.0f;
-    else inv = r2 > T(0) ? T(1) / std::sqrt(r2) : T(0);
+    const T inv = inv_sqrt_or_zero(r2);
     const T r = r2 * inv;
     if (!(r < support())) return T(0);
     const T q = r * inv_h;

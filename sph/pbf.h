@@ -71,7 +71,7 @@ struct Predict {
 // (m / rho0) grad W of the spiky kernel at r, |r|^2 = r2: a neighbour's
 // term in grad C and in the curl.
 SPHRAY_HD SPHRAY_FORCEINLINE Vec3f volume_grad(const PbfParams& pbf, Vec3f r, float r2) {
-  return (pbf.volume * pbf.kernel.dW_over_r2(r2)) * r;
+  return (pbf.volume * pbf.kernel.dW_over_r_sq(r2)) * r;
 }
 
 // Density at x* and lambda_i: out[i] = {x*_i, lambda_i}; error[i] = C_i.
@@ -114,7 +114,7 @@ struct Lambda {
       Vec3f gw = {0.0f, 0.0f, 0.0f};
       walls.for_each_near(xi, k.s, [&](uint32_t, Float4 pb, Vec3f r, float r2) {
         wall_volume += pb.w * k.W(r2);
-        gw += (pb.w * k.dW_over_r2(r2)) * r;
+        gw += (pb.w * k.dW_over_r_sq(r2)) * r;
       });
       grad += gw;
       wall_grad[i] = {gw.x, gw.y, gw.z, 0.0f};
@@ -162,7 +162,7 @@ struct Correct {
           scale -= pbf.scorr_coef * qn;
         }
       }
-      dx += (scale * pbf.volume * k.dW_over_r2(r2)) * r;
+      dx += (scale * pbf.volume * k.dW_over_r_sq(r2)) * r;
     });
     if (with_mesh_walls(P) && near_mesh) dx += pi.w * xyz(wall_grad[i]);  // lambda_i only, as the images
     // At most pbf.max_correction per iteration (pbf_params.h).
@@ -234,7 +234,7 @@ struct Finish {
       if (set != 0u) return;
       smooth += w * (vj - vi);
       if (WithPresence) {  // V_j = m / rho0: the volume the lobes are normalised with (make_pbf_params)
-        const float v_dwr = pbf.volume * k.dW_over_r2(r2);
+        const float v_dwr = pbf.volume * k.dW_over_r_sq(r2);
         grad += v_dwr * r;
         ux += v_dwr * std::fabs(r.x);
         uy += v_dwr * std::fabs(r.y);
@@ -316,7 +316,7 @@ struct Confine {
     for_each_pair<Direct>(grid, offsets, pos, xi, k.s * k.s, i, pairs, i, [&](uint32_t j) { return load(omega + j); },
                           [&](uint32_t j, Float4 wj) {
       const Vec3f r = xi - xyz(load(pos + j));
-      eta += ((wj.w - wi.w) * pbf.volume * k.dW_over_r2(length2(r))) * r;
+      eta += ((wj.w - wi.w) * pbf.volume * k.dW_over_r_sq(length2(r))) * r;
     });
     const float len = std::sqrt(length2(eta));
     if (!(len > 0.0f)) return;

@@ -4,9 +4,7 @@
 // them in double.
 #pragma once
 
-#include <cfloat>
 #include <cmath>
-#include <type_traits>
 
 #include "core/hd.h"
 #include "core/vec.h"
@@ -44,10 +42,8 @@ struct PbfKernel {
   // IEEE sequence; selects, no branch. The same values as dW_over_r to a few
   // ulps (tests/test_pbf.cpp); zero at r2 = 0 and below the smallest normal
   // float, where inv_sqrt (flushing) gives no direction.
-  SPHRAY_HD SPHRAY_FORCEINLINE T dW_over_r2(T r2) const {
-    T inv = T(0);
-    if constexpr (std::is_same_v<T, float>) inv = r2 >= FLT_MIN ? inv_sqrt(r2) : 0.0f;
-    else inv = r2 > T(0) ? T(1) / std::sqrt(r2) : T(0);
+  SPHRAY_HD SPHRAY_FORCEINLINE T dW_over_r_sq(T r2) const {
+    const T inv = inv_sqrt_or_zero(r2);
     const T r = r2 * inv;
     const T a = r < s ? s - r : T(0);
     return spiky * a * a * inv;

@@ -60,13 +60,13 @@ TEST_CASE("pbf kernels: poly6 integrates to one, the spiky gradient is the deriv
   for (int i = 1; i <= 1000; ++i) {
     const double r = s * i / 1000.0;
     const float r2 = float(r * r);
-    CHECK(std::abs(double(kf.dW_over_r2(r2)) - k.dW_over_r(std::sqrt(double(r2)))) <= 1e-5 * peak);
-    CHECK(k.dW_over_r2(r * r) == Approx(k.dW_over_r(r)).epsilon(1e-12).margin(1e-12 * peak));
+    CHECK(std::abs(double(kf.dW_over_r_sq(r2)) - k.dW_over_r(std::sqrt(double(r2)))) <= 1e-5 * peak);
+    CHECK(k.dW_over_r_sq(r * r) == Approx(k.dW_over_r(r)).epsilon(1e-12).margin(1e-12 * peak));
   }
-  CHECK(kf.dW_over_r2(0.0f) == 0.0f);
-  CHECK(kf.dW_over_r2(1e-40f) == 0.0f);  // subnormal: no direction, no NaN
-  CHECK(kf.dW_over_r2(kf.s * kf.s) == 0.0f);
-  CHECK(kf.dW_over_r2(2.0f * kf.s * kf.s) == 0.0f);
+  CHECK(kf.dW_over_r_sq(0.0f) == 0.0f);
+  CHECK(kf.dW_over_r_sq(1e-40f) == 0.0f);  // subnormal: no direction, no NaN
+  CHECK(kf.dW_over_r_sq(kf.s * kf.s) == 0.0f);
+  CHECK(kf.dW_over_r_sq(2.0f * kf.s * kf.s) == 0.0f);
 }
 
 TEST_CASE("pbf and dfsph: a block in a corner without gravity has the rest density, walls included, and stays still",
