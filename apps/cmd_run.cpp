@@ -143,11 +143,12 @@ void print_outputs(RunOutputs& o, const RunArgs& a, const Scene& scene) {
               << scene.render.height << ", " << scene.render.interfaces << " interfaces) to " << a.fa.dir << ", "
               << o.png->frames().mean_render_ms() << " ms per render\n";
   if (o.exporter) {
-    FrameWriter& w = o.exporter->writer();
-    w.finish();
-    std::cout << "  export         " << w.frames_written() << " frames to " << a.ex.path
-              << " (XDMF sidecar for ParaView next to it); the run waited " << w.seconds_waited()
-              << " s on the writer\n";
+    ExportSink& e = *o.exporter;
+    e.finish();
+    std::cout << "  export         " << e.frames_written() << " frames to " << a.ex.path
+              << " (XDMF sidecar for ParaView next to it); "
+              << (e.by_ranks() ? "every rank wrote its rows (parallel HDF5), " : "the run waited ")
+              << e.seconds_in_run() << (e.by_ranks() ? " s on rank 0\n" : " s on the writer\n");
   }
 }
 
@@ -214,6 +215,22 @@ void check_several_ranks(const Scene& scene, const std::set<std::string>& fields
   if (fields.count("pressure") && scene.sph.solver == SolverKind::Dfsph) refuse("--export-fields pressure under dfsph");
 }
 
+// Whether every rank of a run over several writes its rows of the export
+// (dist/rank_export.h) rather than rank 0 all of it: scene export.writer,
+// "auto" where this build and the export allow it; "parallel" where they do
+// not is refused.
+bool ranks_write_export(const Scene& scene, const std::set<std::string>& fields) {
+  const std::string& w = scene.export_.writer;
+  if (w == "rank0") return false;
+  const std::string why = !parallel_hdf5_built()
+                              ? "this sphray was built without parallel HDF5 (Debian/Ubuntu libhdf5-openmpi-dev, "
+                                "CMake SPHRAY_PARALLEL_HDF5)"
+                              : rank_export_refusal(fields, scene.export_.gzip);
+  if (w == "parallel" && !why.empty())
+    throw std::runtime_error("export.writer \"parallel\": " + why + "; set export.writer to \"auto\" or \"rank0\"");
+  return why.empty();
+}
+
 int cmd_run(RunArgs a) {
   const std::unique_ptr<Comm> comm = run_ranks();
   const bool several = comm->size() > 1, root = comm->rank() == 0;
@@ -229,10 +246,14 @@ int cmd_run(RunArgs a) {
                              "export density instead");
   check_outputs(a);
   const std::set<std::string> fields_asked = export_fields;
-  // Rank 0 writes every output (a run over several ranks gathers its particles there at each output frame).
+  // Rank 0 writes every output (a run over several ranks gathers its
+  // particles there at each output frame), except an export that every rank
+  // writes its rows of.
+  const bool ranks_write = several && !a.ex.path.empty() && ranks_write_export(scene, fields_asked);
   RunOutputs out;
+  if (!a.ex.path.empty() && (root || ranks_write))
+    out.exporter = std::make_unique<ExportSink>(a.ex.every, std::move(export_fields), rs.params);
   if (root) {
-    if (!a.ex.path.empty()) out.exporter = std::make_unique<ExportSink>(a.ex.every, std::move(export_fields), rs.params);
     if (!a.fa.dir.empty()) out.png = std::make_unique<PngSink>(a.fa.dir, scene.render);
     if (!a.metrics_csv.empty()) out.metrics = std::make_unique<MetricsSink>(a.metrics_csv, scene, rs.params);
     if (!a.summary_json.empty()) out.summary = open_output("--summary-json", a.summary_json);
@@ -265,6 +286,8 @@ int cmd_run(RunArgs a) {
     std::cout << " m, halo " << plan.halo << " m\n";
     SlabOptions so;
     so.frame_view = needs.field || out.png;  // rank 0 builds the field and renders from the gathered particles
+    // Alike on every rank: whether an output reads all particles on rank 0.
+    so.gather_to_root = !ranks_write || !a.metrics_csv.empty() || !a.fa.dir.empty() || scene.field.given;
     so.rebalance_every = a.rebalance_every;
     solver = make_slab_solver(in, plan, *comm, b, make, so);
   } else {
@@ -274,7 +297,10 @@ int cmd_run(RunArgs a) {
   if (out.png) out.png->open(scene, b, make_field_setup(rs));
   if (out.exporter) {  // created before the run: an unwritable path fails before any step
     try {
-      out.exporter->open(a.ex.path, export_header(scene, b, *solver), scene.export_.gzip);
+      if (ranks_write)
+        out.exporter->open_ranks(a.ex.path, export_header(scene, b, *solver), *comm);
+      else
+        out.exporter->open(a.ex.path, export_header(scene, b, *solver), scene.export_.gzip);
     } catch (const FrameFileError& e) {
       throw std::runtime_error(std::string("--export: ") + e.what());
     }

@@ -15,6 +15,7 @@ class SingleComm final : public Comm {
   void sum(double*, int) override {}
   void min(int*, int) override {}
   std::vector<std::vector<char>> gather(const std::vector<char>& mine) override { return {mine}; }
+  std::vector<std::vector<char>> all_to_all(const std::vector<std::vector<char>>& out) override { return out; }
   void broadcast(std::string&, int) override {}
 };
 

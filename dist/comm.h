@@ -22,6 +22,9 @@ class Comm {
   // Rank 0 receives every rank's bytes (its own included), by rank; the
   // others receive nothing.
   virtual std::vector<std::vector<char>> gather(const std::vector<char>& mine) = 0;
+  // Every rank sends out[r] to rank r and receives, by rank, what each sent
+  // it (its own included).
+  virtual std::vector<std::vector<char>> all_to_all(const std::vector<std::vector<char>>& out) = 0;
   // Every rank receives `root`'s string.
   virtual void broadcast(std::string& s, int root) = 0;
 };

@@ -76,21 +76,31 @@ class SlabSolver final : public Solver {
     if (opt_.rebalance_every > 0 && steps() % uint64_t(opt_.rebalance_every) == 0) rebalance();
   }
 
-  // Rank 0 receives every rank's own particles, for the outputs: packed
-  // into one buffer sized once, unpacked into arrays sized once (unpacking
-  // with per-particle growth took 13-14 ms of a 1M frame on rank 0).
+  // This rank's own particles are kept (download_owned); where an output
+  // needs them all (SlabOptions::gather_to_root), rank 0 receives every
+  // rank's: packed into one buffer sized once, unpacked into arrays sized
+  // once (unpacking with per-particle growth took 13-14 ms of a 1M frame on rank 0).
   void gather_frame() override {
     const HostParticles h = inner_->download();
     const size_t n = h.id.size();
-    size_t owned = 0;
-    for (size_t i = 0; i < n; ++i) owned += h.status[i] != kStatusGhost;
-    std::vector<char> mine(owned * sizeof(Owned));
-    char* at = mine.data();
+    owned_.id.clear();
+    owned_.pos.clear();
+    owned_.vel.clear();
+    owned_.id.reserve(n), owned_.pos.reserve(n), owned_.vel.reserve(n);
     for (size_t i = 0; i < n; ++i) {
       if (h.status[i] == kStatusGhost) continue;
-      const Owned o{h.id[i], {h.pos[i].x, h.pos[i].y, h.pos[i].z}, {h.vel[i].x, h.vel[i].y, h.vel[i].z}, h.density[i]};
-      std::memcpy(at, &o, sizeof(Owned));
-      at += sizeof(Owned);
+      owned_.id.push_back(h.id[i]);
+      owned_.pos.push_back({h.pos[i].x, h.pos[i].y, h.pos[i].z, h.density[i]});
+      owned_.vel.push_back({h.vel[i].x, h.vel[i].y, h.vel[i].z, 0.0f});
+    }
+    owned_step_ = steps();
+    if (!opt_.gather_to_root) return;
+    const size_t owned = owned_.id.size();
+    std::vector<char> mine(owned * sizeof(Owned));
+    for (size_t i = 0; i < owned; ++i) {
+      const Float4 p = owned_.pos[i], v = owned_.vel[i];
+      const Owned o{owned_.id[i], {p.x, p.y, p.z}, {v.x, v.y, v.z}, p.w};
+      std::memcpy(mine.data() + i * sizeof(Owned), &o, sizeof(Owned));
     }
     const std::vector<std::vector<char>> all = comm_.gather(mine);
     size_t total = 0;
@@ -137,6 +147,17 @@ class SlabSolver final : public Solver {
   FlowSums flow_sums() const override {
     check_gathered();
     return flow_sums_of(gathered_);
+  }
+
+  void download_owned(RawParticles& out, bool velocity) const override {
+    if (owned_step_ != steps())
+      throw std::logic_error("a decomposed run's particles are read at output frames only (gather_frame)");
+    out.pos.assign(owned_.pos.begin(), owned_.pos.end());
+    out.id.assign(owned_.id.begin(), owned_.id.end());
+    if (velocity) out.vel.assign(owned_.vel.begin(), owned_.vel.end());
+    else out.vel.clear();
+    out.presence.clear();
+    out.ready = {};
   }
 
   void download_raw(RawParticles& out, bool velocity, bool /*presence*/) const override {
@@ -205,6 +226,11 @@ class SlabSolver final : public Solver {
   std::vector<double> totals_{0.0, 0.0, 0.0};  // owned, removed, clamped: over all ranks
   HostParticles gathered_;
   uint64_t gathered_step_ = ~uint64_t(0);
+  struct {
+    std::vector<uint32_t> id;
+    std::vector<Float4> pos, vel;  // x, density; v
+  } owned_;  // this rank's own particles at the last output frame
+  uint64_t owned_step_ = ~uint64_t(0);
   SolverInput frame_in_;  // the run's input without its fluid: rank 0's frame grid
   SolverMaker make_;
   std::unique_ptr<Solver> frame_;  // rank 0, frame_view: the gathered particles, sorted

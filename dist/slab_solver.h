@@ -23,8 +23,10 @@
 // prediction), and the ghosts' values refreshed from their owners after
 // every pass of their iterations (docs/design.md, "Scale-out").
 // Outputs: at each output frame the ranks gather their owned particles on
-// rank 0 (gather_frame), which writes every output; with frame_view, rank 0
-// also sorts them into a grid of its own for the field and the renderers.
+// rank 0 (gather_frame), which writes every output, or where the export is
+// the only output and every rank writes its rows of it (rank_export.h), each
+// keeps its own; with frame_view, rank 0 also sorts them into a grid of its
+// own for the field and the renderers.
 #pragma once
 
 #include <functional>
@@ -49,6 +51,11 @@ struct SlabOptions {
   // its own, for view(): the density field and the renderers read them there
   // (on its backend, as `sphray render --from` reads an export's frame).
   bool frame_view = false;
+  // Rank 0 receives every rank's particles at an output frame (download(),
+  // flow_sums(), download_raw() read them there); false where no output
+  // reads them on rank 0 (an export written by every rank, which reads
+  // download_owned() on each).
+  bool gather_to_root = true;
 };
 
 using SolverMaker = std::function<std::unique_ptr<Solver>(const SolverInput&)>;

@@ -114,13 +114,14 @@ void dataset(hid_t loc, const char* name, hid_t mem_type, hid_t file_type, const
 }
 
 
+}  // namespace
 // HDF5 truncates an existing file before it takes its lock (H5Fcreate with
 // H5F_ACC_TRUNC opens it with O_TRUNC, then flock fails): a second run
 // exporting to the file of a run still writing it emptied that file and
 // failed, and the first run went on to finish a corrupt one. So the lock that
 // HDF5 would take (flock, exclusive) is tried first on a descriptor of our
 // own, and given back at once.
-void refuse_if_in_use(const std::string& path) {
+void h5::refuse_if_in_use(const std::string& path) {
   const int fd = ::open(path.c_str(), O_RDONLY | O_CLOEXEC);
   if (fd < 0) return;  // no such file yet (or unreadable: H5Fcreate says so)
   const bool busy = ::flock(fd, LOCK_EX | LOCK_NB) != 0 && errno == EWOULDBLOCK;
@@ -130,7 +131,95 @@ void refuse_if_in_use(const std::string& path) {
                          "not overwritten");
 }
 
-}  // namespace
+
+void h5::write_file_header(hid_t file, const FileHeader& header, const std::string& path) {
+  attr_string(file, "format", kFramesFormat, path);
+  const int version = kFramesFormatVersion;
+  attr_array(file, "format_version", H5T_NATIVE_INT, H5T_STD_I32LE, &version, 1, path);
+  attr_string(file, "scene", header.scene_json, path);
+  attr_string(file, "sphray_version", header.version, path);
+  attr_string(file, "backend", header.backend, path);
+  Handle f{check(H5Gcreate2(file, "frames", H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT), path, "creating /frames"),
+           H5Gclose};
+}
+
+hid_t h5::create_frame_group(hid_t file, const std::string& name, double time, double dt, uint64_t step,
+                             const std::string& path) {
+  Handle frames{check(H5Gopen2(file, "frames", H5P_DEFAULT), path, "opening /frames"), H5Gclose};
+  Handle g{check(H5Gcreate2(frames.id, name.c_str(), H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT), path,
+                 "creating /frames/" + name),
+           H5Gclose};
+  attr_double(g.id, "time", time, path);
+  attr_double(g.id, "dt", dt, path);
+  attr_array(g.id, "step", H5T_NATIVE_UINT64, H5T_STD_U64LE, &step, 1, path);
+  const hid_t id = g.id;
+  g.id = -1;  // the caller's now
+  return id;
+}
+
+XdmfFrame xdmf_frame_of(const Frame& f) {
+  return {f.time,
+          f.count(),
+          !f.velocity.empty(),
+          !f.density.empty(),
+          !f.pressure.empty(),
+          !f.presence.empty(),
+          !f.field.empty(),
+          {f.field_dims[0], f.field_dims[1], f.field_dims[2]},
+          {f.field_origin[0], f.field_origin[1], f.field_origin[2]},
+          f.field_voxel};
+}
+
+void check_frame_space(const std::string& path, const std::string& name, const std::vector<size_t>& values,
+                       double sidecar_bytes, size_t written) {
+  double payload = 0, padding = 0;
+  for (const size_t v : values) {
+    payload += 4.0 * double(v);
+    padding += std::min(4.0 * double(v), 1048576.0);  // the last chunk is stored whole (under 1 MiB)
+  }
+  // chunk indexes, group, attributes; and the sidecar's rewrite (its .tmp beside the old one)
+  const double need = 1.1 * payload + padding + 64.0 * 1024.0 + sidecar_bytes + 16.0 * 1024.0;
+  struct statvfs fs {};
+  const size_t slash = path.rfind('/');
+  const std::string dir = slash == std::string::npos ? "." : (slash == 0 ? "/" : path.substr(0, slash));
+  if (statvfs(dir.c_str(), &fs) == 0 && double(fs.f_bavail) * double(fs.f_frsize) < need) {
+    std::ostringstream os;
+    os.precision(3);
+    os << path << ": not enough free space for frame " << name << " (needs about " << need / 1048576.0 << " MiB, "
+       << double(fs.f_bavail) * double(fs.f_frsize) / 1048576.0 << " MiB free); the file holds the " << written
+       << " frames written before";
+    throw FrameFileError(os.str());
+  }
+}
+
+void XdmfSidecar::add(const XdmfFrame& f) {
+  frames_.push_back(f);
+  // Rewritten after every frame, a long run's sidecars would sum to the
+  // square of its frame count; so paced (the rewrites sum to about 17 sidecars).
+  const size_t behind = frames_.size() - written_;
+  if (behind >= std::max<size_t>(1, written_ / 16) || std::chrono::steady_clock::now() - time_ > std::chrono::seconds(1))
+    write();
+}
+
+void XdmfSidecar::finish() {
+  if (written_ < frames_.size()) write();
+}
+
+void XdmfSidecar::write() {
+  const std::string xmf = xdmf_path(h5_), tmp = xmf + ".tmp";
+  const size_t slash = h5_.rfind('/');
+  errno = 0;
+  std::ofstream o(tmp);
+  write_xdmf_document(o, slash == std::string::npos ? h5_ : h5_.substr(slash + 1), boundary_, frames_);
+  const double bytes = double(o.tellp());
+  o.close();
+  if (!o || std::rename(tmp.c_str(), xmf.c_str()) != 0)
+    throw FrameFileError(xmf + ": cannot write the XDMF sidecar: " + std::strerror(errno));
+  written_ = frames_.size();
+  ++writes_;
+  bytes_ = bytes;
+  time_ = std::chrono::steady_clock::now();
+}
 
 // ---------------- writer ----------------
 
@@ -138,7 +227,7 @@ FrameWriter::FrameWriter(const std::string& path, const FileHeader& header, int 
   if (xdmf_path(path) == path)  // the sidecar would be renamed over the export, its frames lost
     throw FrameFileError(path + ": that is the name of the XDMF sidecar written next to the export (NAME.xmf "
                          "beside NAME.h5); give the export another extension, e.g. .h5");
-  refuse_if_in_use(path);
+  h5::refuse_if_in_use(path);
   errno = 0;
   Handle fapl{check(H5Pcreate(H5P_FILE_ACCESS), path, "property list"), H5Pclose};
   // The 1.8 file format: readable by every HDF5 >= 1.8 (h5py, ParaView).
@@ -146,19 +235,13 @@ FrameWriter::FrameWriter(const std::string& path, const FileHeader& header, int 
   file_ = H5Fcreate(path.c_str(), H5F_ACC_TRUNC, H5P_DEFAULT, fapl.id);
   if (file_ < 0) fail(path, "cannot create the export file");
   try {
-    attr_string(file_, "format", kFramesFormat, path);
-    const int version = kFramesFormatVersion;
-    attr_array(file_, "format_version", H5T_NATIVE_INT, H5T_STD_I32LE, &version, 1, path);
-    attr_string(file_, "scene", header.scene_json, path);
-    attr_string(file_, "sphray_version", header.version, path);
-    attr_string(file_, "backend", header.backend, path);
+    h5::write_file_header(file_, header, path);
     Handle g{check(H5Gcreate2(file_, "boundary", H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT), path, "creating /boundary"),
              H5Gclose};
-    boundary_ = header.boundary.size() / 3;
-    dataset(g.id, "position", H5T_NATIVE_FLOAT, H5T_IEEE_F32LE, header.boundary.data(), {hsize_t(boundary_), 3},
+    const size_t boundary = header.boundary.size() / 3;
+    dataset(g.id, "position", H5T_NATIVE_FLOAT, H5T_IEEE_F32LE, header.boundary.data(), {hsize_t(boundary), 3},
             gzip_, path);
-    Handle f{check(H5Gcreate2(file_, "frames", H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT), path, "creating /frames"),
-             H5Gclose};
+    xdmf_ = std::make_unique<XdmfSidecar>(path, boundary);
     if (H5Fflush(file_, H5F_SCOPE_GLOBAL) < 0) fail(path, "flushing the header");
   } catch (...) {
     H5Fclose(file_);
@@ -196,46 +279,22 @@ void FrameWriter::finish() {
   file_ = -1;
   if (!ok) {
     try {  // the frames written before, if the disk still takes the sidecar
-      if (xdmf_written_ < xdmf_.size()) write_xdmf();
+      xdmf_->finish();
     } catch (const FrameFileError&) {
     }
     throw FrameFileError(queue_->error());
   }
-  if (xdmf_written_ < xdmf_.size()) write_xdmf();
+  xdmf_->finish();
 }
 
 void FrameWriter::write(const Frame& f) {
   errno = 0;
-  const std::string name = frame_name(xdmf_.size());
-  // A frame that cannot fit is refused before the file is touched: a write
-  // that fails half way (disk full) can leave HDF5's metadata inconsistent.
-  double payload = 0, padding = 0;
-  for (const size_t values : {f.id.size(), f.position.size(), f.velocity.size(), f.density.size(), f.pressure.size(),
-                              f.presence.size(), f.field.size()}) {
-    payload += 4.0 * double(values);
-    padding += std::min(4.0 * double(values), 1048576.0);  // the last chunk is stored whole (under 1 MiB)
-  }
-  // chunk indexes, group, attributes; and the sidecar's rewrite (its .tmp beside the old one)
-  const double need = 1.1 * payload + padding + 64.0 * 1024.0 + xdmf_bytes_ + 16.0 * 1024.0;
-  struct statvfs fs {};
-  const size_t slash = path_.rfind('/');
-  const std::string dir = slash == std::string::npos ? "." : (slash == 0 ? "/" : path_.substr(0, slash));
-  if (statvfs(dir.c_str(), &fs) == 0 && double(fs.f_bavail) * double(fs.f_frsize) < need) {
-    std::ostringstream os;
-    os.precision(3);
-    os << path_ << ": not enough free space for frame " << name << " (needs about " << need / 1048576.0
-       << " MiB, " << double(fs.f_bavail) * double(fs.f_frsize) / 1048576.0 << " MiB free); the file holds the "
-       << xdmf_.size() << " frames written before";
-    throw FrameFileError(os.str());
-  }
-  Handle frames{check(H5Gopen2(file_, "frames", H5P_DEFAULT), path_, "opening /frames"), H5Gclose};
-  Handle g{check(H5Gcreate2(frames.id, name.c_str(), H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT), path_,
-                 "creating /frames/" + name),
-           H5Gclose};
-  attr_double(g.id, "time", f.time, path_);
-  attr_double(g.id, "dt", f.dt, path_);
-  const uint64_t step = f.step;
-  attr_array(g.id, "step", H5T_NATIVE_UINT64, H5T_STD_U64LE, &step, 1, path_);
+  const std::string name = frame_name(xdmf_->frames());
+  check_frame_space(path_, name,
+                    {f.id.size(), f.position.size(), f.velocity.size(), f.density.size(), f.pressure.size(),
+                     f.presence.size(), f.field.size()},
+                    xdmf_->bytes(), xdmf_->frames());
+  Handle g{h5::create_frame_group(file_, name, f.time, f.dt, f.step, path_), H5Gclose};
   const hsize_t n = f.count();
   dataset(g.id, "id", H5T_NATIVE_UINT32, H5T_STD_U32LE, f.id.data(), {n}, gzip_, path_);
   dataset(g.id, "position", H5T_NATIVE_FLOAT, H5T_IEEE_F32LE, f.position.data(), {n, 3}, gzip_, path_);
@@ -261,43 +320,7 @@ void FrameWriter::write(const Frame& f) {
             {6, n, n}, gzip_, path_);
   }
   if (H5Fflush(file_, H5F_SCOPE_GLOBAL) < 0) fail(path_, "flushing frame " + name);
-  xdmf_.push_back({f.time,
-                   f.count(),
-                   !f.velocity.empty(),
-                   !f.density.empty(),
-                   !f.pressure.empty(),
-                   !f.presence.empty(),
-                   !f.field.empty(),
-                   {f.field_dims[0], f.field_dims[1], f.field_dims[2]},
-                   {f.field_origin[0], f.field_origin[1], f.field_origin[2]},
-                   f.field_voxel});
-  // The sidecar is rewritten whole (to a .tmp renamed into place, so it is
-  // never seen half written), and it grows with the frames: rewritten after
-  // every frame, a long run's sidecars would sum to the square of its frame
-  // count. So after every frame up to 16, then once the frames not yet in it
-  // reach 1/16 of those in it (the rewrites sum to about 17 sidecars), or a
-  // second has passed; and at the end.
-  const size_t behind = xdmf_.size() - xdmf_written_;
-  if (behind >= std::max<size_t>(1, xdmf_written_ / 16) ||
-      std::chrono::steady_clock::now() - xdmf_time_ > std::chrono::seconds(1))
-    write_xdmf();
-}
-
-// The sidecar (xdmf.h), written to a .tmp and renamed into place, so that a
-// reader never sees half of one.
-void FrameWriter::write_xdmf() {
-  const std::string xmf = xdmf_path(path_), tmp = xmf + ".tmp";
-  const size_t slash = path_.rfind('/');
-  std::ofstream o(tmp);
-  write_xdmf_document(o, slash == std::string::npos ? path_ : path_.substr(slash + 1), boundary_, xdmf_);
-  const double bytes = double(o.tellp());
-  o.close();
-  if (!o || std::rename(tmp.c_str(), xmf.c_str()) != 0)
-    throw FrameFileError(xmf + ": cannot write the XDMF sidecar: " + std::strerror(errno));
-  xdmf_written_ = xdmf_.size();
-  ++xdmf_writes_;
-  xdmf_bytes_ = bytes;
-  xdmf_time_ = std::chrono::steady_clock::now();
+  xdmf_->add(xdmf_frame_of(f));
 }
 
 }  // namespace sphray

@@ -13,6 +13,7 @@
 #include <optional>
 #include <stdexcept>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "core/background.h"
@@ -67,6 +68,40 @@ struct FileHeader {
   std::vector<float> boundary;  // B x 3
 };
 
+// The XDMF sidecar of an export as its frames are written: rewritten whole
+// (to a .tmp renamed into place, so it is never seen half written), after
+// every frame up to 16, then once the frames not yet in it reach 1/16 of
+// those in it or a second has passed, and at finish() (docs/formats.md).
+class XdmfSidecar {
+ public:
+  XdmfSidecar(std::string h5_path, size_t boundary) : h5_(std::move(h5_path)), boundary_(boundary) {}
+  void add(const XdmfFrame& f);  // throws FrameFileError when the sidecar cannot be written
+  void finish();                 // writes the frames not yet in it
+  size_t frames() const { return frames_.size(); }
+  size_t writes() const { return writes_; }
+  double bytes() const { return bytes_; }  // of the sidecar on disk
+
+ private:
+  void write();
+  std::string h5_;
+  size_t boundary_;
+  std::vector<XdmfFrame> frames_;
+  size_t written_ = 0, writes_ = 0;  // frames it describes on disk; times written
+  double bytes_ = 0;
+  std::chrono::steady_clock::time_point time_{};
+};
+
+// What a frame's sidecar entry says of it.
+XdmfFrame xdmf_frame_of(const Frame& f);
+
+// Throws FrameFileError when the file system of `path` has too little room
+// for frame `name` of `values` 4-byte values in `datasets` datasets
+// (checked before a frame is written: a write that fails half way (disk
+// full) can leave HDF5's metadata inconsistent); `sidecar_bytes` for the
+// sidecar's rewrite, `written` for the message.
+void check_frame_space(const std::string& path, const std::string& name, const std::vector<size_t>& values,
+                       double sidecar_bytes, size_t written);
+
 class FrameWriter {
  public:
   // Creates (truncates) `path` and writes the header at once, so a bad path
@@ -86,22 +121,16 @@ class FrameWriter {
   void finish();
   size_t frames_written() const { return queue_ ? queue_->done() : 0; }
   double seconds_waited() const { return queue_ ? queue_->seconds_waited() : 0.0; }  // time submit() blocked the run
-  size_t sidecar_writes() const { return xdmf_writes_; }  // times the XDMF sidecar was written (after finish())
+  size_t sidecar_writes() const { return xdmf_ ? xdmf_->writes() : 0; }  // times the XDMF sidecar was written (after finish())
 
  private:
   void write(const Frame& f);
-  void write_xdmf();
 
   std::string path_;
   int gzip_;
   int64_t file_ = -1;
-  size_t boundary_ = 0;  // wall particles in /boundary/position
-  std::vector<XdmfFrame> xdmf_;  // what the sidecar says of each written frame (writer thread)
-  // The sidecar on disk: frames it describes, its size, when it was written.
-  size_t xdmf_written_ = 0, xdmf_writes_ = 0;
-  double xdmf_bytes_ = 0;
-  std::chrono::steady_clock::time_point xdmf_time_{};
-  std::unique_ptr<BackgroundQueue> queue_;       // last: started once the header is written
+  std::unique_ptr<XdmfSidecar> xdmf_;        // written on the writer thread
+  std::unique_ptr<BackgroundQueue> queue_;   // last: started once the header is written
 };
 
 struct FrameInfo {

@@ -1,10 +1,16 @@
-// What the HDF5 frame writer and reader share (io/ only): one error message
-// of sphray's own for a failed HDF5 call, and handles closed at scope exit.
+// What the HDF5 frame writers (io/frames_h5.h; every rank's, dist/rank_export.h)
+// and the reader share: one error message of sphray's own for a failed HDF5
+// call, handles closed at scope exit, the file's header and a frame's group.
 #pragma once
 
 #include <hdf5.h>
 
+#include <cstdint>
 #include <string>
+
+namespace sphray {
+struct FileHeader;
+}
 
 namespace sphray::h5 {
 
@@ -23,5 +29,18 @@ struct Handle {
     if (id >= 0) close(id);
   }
 };
+
+// Throws FrameFileError when another process holds `path` open for writing
+// or reading (HDF5's lock): HDF5 would empty the file before it finds the
+// lock taken.
+void refuse_if_in_use(const std::string& path);
+
+// The root attributes of an export (format, format_version, scene,
+// sphray_version, backend) and its empty /frames group.
+void write_file_header(hid_t file, const FileHeader& header, const std::string& path);
+
+// /frames/`name`, with its time, dt and step attributes; closed by the caller.
+hid_t create_frame_group(hid_t file, const std::string& name, double time, double dt, uint64_t step,
+                         const std::string& path);
 
 }  // namespace sphray::h5

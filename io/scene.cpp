@@ -389,10 +389,11 @@ Scene parse_scene(const std::string& text, const std::string& file, const std::v
   s.field.given = root.has("field");
   s.render = read_render_settings(root.child("render"));
   const ConfigReader exp = root.child("export");
-  exp.only({"gzip"});
+  exp.only({"gzip", "writer"});
   const double gz = exp.number("gzip", s.export_.gzip, 0, 9);
   if (gz != std::floor(gz)) exp.fail("gzip", exp.at("gzip"), "must be an integer 0 (off) .. 9");
   s.export_.gzip = int(gz);
+  s.export_.writer = exp.string("writer", s.export_.writer, {"auto", "rank0", "parallel"});
   read_run(root.child("run"), s.run, s.sph.solver);
   check_tank(root.child("tank"), s);
   read_fluid(root, s);

@@ -71,6 +71,10 @@ struct Scene {
 
   struct Export {
     int gzip = 0;  // HDF5 export: deflate level 0 (off) .. 9
+    // A run over several ranks: "auto" (every rank writes its rows with
+    // parallel HDF5 where the build has it and the export allows it, else
+    // rank 0 writes), "rank0", "parallel" (refused where it cannot).
+    std::string writer = "auto";
   } export_;
 
   struct Run {

@@ -44,7 +44,9 @@ void PngSink::write(const Solver& s, const FieldBuilder* field, int frame) {
 FrameNeeds ExportSink::needs(int frame) const { return frame % every_ == 0 ? needs_ever() : FrameNeeds{}; }
 
 void ExportSink::write(const Solver& s, const FieldBuilder* field, int frame) {
-  if (frame % every_ == 0) writer_->submit(capture_frame(s, prm_, fields_, field));
+  if (frame % every_ != 0) return;
+  if (ranks_) ranks_->write(s, prm_, fields_);
+  else writer_->submit(capture_frame(s, prm_, fields_, field));
 }
 
 // Opened before the run, so that an unwritable path fails in a second, not

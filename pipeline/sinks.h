@@ -8,6 +8,7 @@
 #include <set>
 #include <string>
 
+#include "dist/rank_export.h"
 #include "io/frames_h5.h"
 #include "pipeline.h"
 #include "render/frame_sink.h"
@@ -41,7 +42,9 @@ class PngSink final : public OutputSink {
 };
 
 // HDF5 frames (--export), every `every`-th output frame, with the datasets
-// in `fields` (io/export.h). Its file is created by open(), before the run.
+// in `fields` (io/export.h). Its file is created by open() (rank 0 writes
+// it, from a background thread) or open_ranks() (every rank of a run over
+// several writes its rows, dist/rank_export.h), before the run.
 class ExportSink final : public OutputSink {
  public:
   ExportSink(int every, std::set<std::string> fields, const SphParams& prm)
@@ -49,7 +52,15 @@ class ExportSink final : public OutputSink {
   void open(const std::string& path, const FileHeader& header, int gzip) {
     writer_ = std::make_unique<FrameWriter>(path, header, gzip);
   }
-  FrameWriter& writer() { return *writer_; }
+  void open_ranks(const std::string& path, const FileHeader& header, Comm& comm) {
+    ranks_ = std::make_unique<RankFrameWriter>(path, header, comm);
+  }
+  bool by_ranks() const { return ranks_ != nullptr; }
+  // Waits for the frames still queued (collective for open_ranks()); throws a write error.
+  void finish() { ranks_ ? ranks_->finish() : writer_->finish(); }
+  size_t frames_written() const { return ranks_ ? ranks_->frames_written() : writer_->frames_written(); }
+  // The run's time spent on the export: waiting on the writer thread, or writing (open_ranks()).
+  double seconds_in_run() const { return ranks_ ? ranks_->seconds_writing() : writer_->seconds_waited(); }
   FrameNeeds needs(int frame) const override;
   FrameNeeds needs_ever() const override { return {fields_.count("field") > 0, fields_.count("presence") > 0}; }
   void write(const Solver& s, const FieldBuilder* field, int frame) override;
@@ -59,6 +70,7 @@ class ExportSink final : public OutputSink {
   std::set<std::string> fields_;
   SphParams prm_;
   std::unique_ptr<FrameWriter> writer_;
+  std::unique_ptr<RankFrameWriter> ranks_;
 };
 
 // The metrics CSV (--metrics-csv): time, steps, particles, surge front,

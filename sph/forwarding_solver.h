@@ -35,6 +35,7 @@ class ForwardingSolver : public Solver {
   void download_raw(RawParticles& out, bool velocity, bool presence) const override {
     inner_->download_raw(out, velocity, presence);
   }
+  void download_owned(RawParticles& out, bool velocity) const override { inner_->download_owned(out, velocity); }
   std::vector<Vec3f> boundary_positions() const override { return inner_->boundary_positions(); }
   std::vector<float> pressures() const override { return inner_->pressures(); }
   const float* device_pressure() override { return inner_->device_pressure(); }

@@ -190,6 +190,11 @@ class Solver {
   // solvers on their backend: no download); this default reduces download().
   virtual FlowSums flow_sums() const;
   virtual void download_raw(RawParticles& out, bool velocity, bool presence) const = 0;
+  // This rank's own particles at the last output frame, as download_raw
+  // gives them (no presence): a decomposed run's without its ghosts and
+  // without gathering them on rank 0 (its export written by every rank,
+  // dist/rank_export.h); every particle otherwise.
+  virtual void download_owned(RawParticles& out, bool velocity) const { download_raw(out, velocity, false); }
   virtual std::vector<Vec3f> boundary_positions() const = 0;  // the wall particles, where they are now
   // Per particle in the order of download(), the pressure [Pa] of the last
   // step's solves (DFSPH: the pressure and the divergence solve's, which

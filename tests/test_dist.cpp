@@ -3,10 +3,13 @@
 // against the one-rank run.
 #include <algorithm>
 #include <cstdlib>
+#include <filesystem>
+#include <fstream>
 #include <numeric>
 #include <random>
 
 #include "catch.h"
+#include "dist/rank_export.h"
 #include "dist/slabs.h"
 #include "helpers.h"
 #include "io/frames_h5.h"
@@ -106,6 +109,29 @@ TEST_CASE("each solver counts its particles along an axis as the host bins them"
       CHECK(std::accumulate(got.begin(), got.end(), 0.0) == double(sv->num_fluid()));
     }
   }
+}
+
+TEST_CASE("the id blocks of an export written by every rank cover every id once", "[dist]") {
+  for (const uint64_t m : {1ull, 2ull, 7ull, 100ull, 1120ull, 983940ull})
+    for (const int ranks : {1, 2, 3, 4, 7, 8}) {
+      const IdBlocks b{m, ranks};
+      INFO(m << " ids over " << ranks << " ranks");
+      CHECK(b.lo(0) == 0);
+      CHECK(b.lo(ranks) == m);
+      // Brute force: the owner is the r whose [lo(r), lo(r + 1)) holds the id;
+      // every id has one, and the blocks differ by at most one id.
+      const uint64_t step = std::max<uint64_t>(1, m / 5000);
+      for (uint64_t id = 0; id < m; id += step) {
+        int owner = -1;
+        for (int r = 0; r < ranks; ++r)
+          if (b.lo(r) <= id && id < b.lo(r + 1)) owner = r;
+        REQUIRE(b.owner(uint32_t(id)) == owner);
+      }
+      for (int r = 0; r + 1 < ranks; ++r) {
+        const uint64_t w0 = b.lo(r + 1) - b.lo(r), w1 = b.lo(r + 2) - b.lo(r + 1);
+        CHECK((w0 > w1 ? w0 - w1 : w1 - w0) <= 1);
+      }
+    }
 }
 
 TEST_CASE("a rank count the domain cannot hold is refused with the numbers", "[dist]") {
@@ -408,36 +434,142 @@ TEST_CASE("PBF and DFSPH resume from an export on one rank or several", "[dist][
   }
 }
 
+namespace {
+
+// Two exports of the same run hold the same frames: every dataset and
+// attribute alike, bit for bit, and the same walls.
+void check_same_export(const std::string& a_path, const std::string& b_path) {
+  const FrameReader a(a_path), b(b_path);
+  CHECK(b.header().boundary == a.header().boundary);
+  REQUIRE(b.frames().size() == a.frames().size());
+  for (size_t k = 0; k < a.frames().size(); ++k) {
+    INFO("frame " << k);
+    CHECK(b.frames()[k].datasets == a.frames()[k].datasets);
+    const Frame fa = a.read(k), fb = b.read(k);
+    CHECK(fb.time == fa.time);
+    CHECK(fb.dt == fa.dt);
+    CHECK(fb.step == fa.step);
+    CHECK(fb.id == fa.id);
+    CHECK(fb.position == fa.position);
+    CHECK(fb.velocity == fa.velocity);
+    CHECK(fb.density == fa.density);
+    CHECK(fb.pressure == fa.pressure);
+    CHECK(std::is_sorted(fb.id.begin(), fb.id.end()));
+    CHECK(std::adjacent_find(fb.id.begin(), fb.id.end()) == fb.id.end());
+  }
+  // The sidecars differ only in the file they name.
+  auto sidecar = [](const std::string& h5) {
+    std::string text = slurp(xdmf_path(h5));
+    const std::string name = h5.substr(h5.rfind('/') + 1);
+    for (size_t at; (at = text.find(name)) != std::string::npos;) text.replace(at, name.size(), "EXPORT");
+    return text;
+  };
+  CHECK(sidecar(b_path) == sidecar(a_path));
+}
+
+}  // namespace
+
+TEST_CASE("an export written by every rank holds what rank 0 writes of the same run", "[dist][mpi]") {
+  const std::string base = source_path("scenes/dam_break.json") +
+                           " --backend cpu --quiet --set sph.spacing=0.04 --set run.end_time=0.3 "
+                           "--set run.output_interval=0.1 --export-fields velocity,density,pressure ";
+  if (!parallel_hdf5_built()) {
+    const CliResult r = run_ranks(2, base + "--set export.writer=parallel --export " + tmp_dir() + "/p.h5");
+    INFO(r.output);
+    CHECK(r.code == 2);
+    CHECK(has(r.output, "export.writer \"parallel\": this sphray was built without parallel HDF5"));
+    return;
+  }
+  for (int ranks : {2, 3}) {
+    const std::string tag = tmp_dir() + "/writers" + std::to_string(ranks);
+    const CliResult root = run_ranks(ranks, base + "--set export.writer=rank0 --export " + tag + "_rank0.h5");
+    const CliResult all = run_ranks(ranks, base + "--set export.writer=parallel --export " + tag + "_ranks.h5");
+    INFO(ranks << " ranks: " << root.output << all.output);
+    REQUIRE(root.code == 0);
+    REQUIRE(all.code == 0);
+    CHECK(has(all.output, "4 frames to " + tag + "_ranks.h5 (XDMF sidecar for ParaView next to it); every rank wrote "
+                          "its rows (parallel HDF5)"));
+    CHECK(has(root.output, "the run waited"));
+    check_same_export(tag + "_rank0.h5", tag + "_ranks.h5");
+  }
+  SECTION("particles gone through an open top leave gaps in the ids: the rows close them alike") {
+    const std::string scene = tmp_dir() + "/gaps.json";
+    std::ofstream(scene) << R"({"tank": {"min": [0,0,0], "max": [0.2,0.1,0.1], "open_top": true},
+      "fluid": [{"min": [0.12,0.04,0.02], "max": [0.16,0.06,0.04], "velocity": [0,0,20]},
+                {"min": [0.02,0.02,0.0], "max": [0.08,0.08,0.04]}],
+      "sph": {"spacing": 0.01}, "run": {"end_time": 0.03, "output_interval": 0.01}})";
+    const std::string args = scene + " --backend cpu --quiet --export-fields velocity,density --export " + tmp_dir();
+    const CliResult root = run_ranks(2, args + "/gaps_rank0.h5 --set export.writer=rank0");
+    const CliResult all = run_ranks(2, args + "/gaps_ranks.h5 --set export.writer=parallel");
+    INFO(root.output << all.output);
+    REQUIRE(root.code == 0);
+    REQUIRE(all.code == 0);
+    check_same_export(tmp_dir() + "/gaps_rank0.h5", tmp_dir() + "/gaps_ranks.h5");
+    const FrameReader r(tmp_dir() + "/gaps_ranks.h5");
+    const Frame last = r.read(r.frames().size() - 1), first = r.read(0);
+    CHECK(last.count() < first.count());  // the jet has left
+    CHECK(last.id.front() > 0);           // its ids were the first
+  }
+  SECTION("what every rank cannot write goes through rank 0, or is refused when asked for by name") {
+    const std::string field = source_path("scenes/dam_break.json") +
+                              " --backend cpu --quiet --set sph.spacing=0.04 --set run.end_time=0.1 "
+                              "--export-fields velocity,field --export " + tmp_dir() + "/f.h5";
+    const CliResult automatic = run_ranks(2, field);
+    INFO(automatic.output);
+    CHECK(automatic.code == 0);
+    CHECK(has(automatic.output, "the run waited"));  // rank 0's writer
+    const CliResult asked = run_ranks(2, field + " --set export.writer=parallel");
+    INFO(asked.output);
+    CHECK(asked.code == 2);
+    CHECK(has(asked.output, "export.writer \"parallel\": --export-fields field is built on rank 0 alone"));
+    const CliResult gzip = run_ranks(2, base + "--set export.gzip=4 --set export.writer=parallel --export " +
+                                            tmp_dir() + "/g.h5");
+    INFO(gzip.output);
+    CHECK(gzip.code == 2);
+    CHECK(has(gzip.output, "export.gzip compresses on rank 0 alone"));
+    const CliResult unknown = run_ranks(2, base + "--set export.writer=all --export " + tmp_dir() + "/u.h5");
+    INFO(unknown.output);
+    CHECK(unknown.code == 2);
+    CHECK(has(unknown.output, "export.writer"));
+  }
+}
+
 TEST_CASE("a rank that dies ends the run with its rank named, and the frames written stay readable", "[dist][mpi]") {
-  const std::string out = tmp_dir() + "/killed.h5", log = tmp_dir() + "/killed.txt", csv = tmp_dir() + "/killed.csv";
-  setenv("OMPI_ALLOW_RUN_AS_ROOT", "1", 1);
-  setenv("OMPI_ALLOW_RUN_AS_ROOT_CONFIRM", "1", 1);
-  setenv("OMP_NUM_THREADS", "1", 1);
-  // A run far longer than the test, one of whose ranks is killed (the newest
-  // process of the command line) once five frames are out (the metrics CSV,
-  // a row per frame, flushed); `timeout` turns a hang into exit code 124.
-  const std::string marker = "--set run.end_time=29.5";
-  const std::string cmd = "timeout 120 " + std::string(SPHRAY_MPIEXEC) + " -n 2 " + SPHRAY_EXE + " run " +
-                          source_path("scenes/dam_break.json") +
-                          " --backend cpu --quiet --set sph.spacing=0.04 --set run.output_interval=0.02 " + marker +
-                          " --metrics-csv " + csv + " --export " + out + " > " + log + " 2>&1 & pid=$!; "
-                          "for i in $(seq 300); do sleep 0.2; [ $(cat " + csv +
-                          " 2>/dev/null | wc -l) -gt 5 ] && break; done; "
-                          "pkill -9 -n -f -- '" + marker + "'; wait $pid";
-  const std::string script = tmp_dir() + "/kill_a_rank.sh";
-  std::ofstream(script) << cmd << "\n";
-  const int status = std::system(("bash " + script).c_str());
-  const int code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
-  const std::string text = slurp(log);
-  INFO("exit " << code << ": " << text);
-  CHECK(code != 0);
-  CHECK(code != 124);  // ended, not timed out
-  CHECK((has(text, "process rank 0") || has(text, "process rank 1")));
-  CHECK(has(text, "signal 9"));
-  const FrameReader reader(out);
-  REQUIRE(reader.frames().size() >= 2);
-  const Frame f = reader.read(reader.frames().size() - 1);
-  CHECK(f.count() == 1120);
+  // Both writers of the export: rank 0's, and every rank's where this build has parallel HDF5.
+  for (const std::string writer : {"rank0", "auto"}) {
+    const std::string out = tmp_dir() + "/killed_" + writer + ".h5", log = tmp_dir() + "/killed.txt",
+                      csv = tmp_dir() + "/killed.csv";
+    std::filesystem::remove(csv);
+    setenv("OMPI_ALLOW_RUN_AS_ROOT", "1", 1);
+    setenv("OMPI_ALLOW_RUN_AS_ROOT_CONFIRM", "1", 1);
+    setenv("OMP_NUM_THREADS", "1", 1);
+    // A run far longer than the test, one of whose ranks is killed (the newest
+    // process of the command line) once five frames are out (the metrics CSV,
+    // a row per frame, flushed); `timeout` turns a hang into exit code 124.
+    const std::string marker = "--set run.end_time=29.5";
+    const std::string cmd = "timeout 120 " + std::string(SPHRAY_MPIEXEC) + " -n 2 " + SPHRAY_EXE + " run " +
+                            source_path("scenes/dam_break.json") +
+                            " --backend cpu --quiet --set sph.spacing=0.04 --set run.output_interval=0.02 " + marker +
+                            " --set export.writer=" + writer + " --metrics-csv " + csv + " --export " + out + " > " +
+                            log + " 2>&1 & pid=$!; "
+                            "for i in $(seq 300); do sleep 0.2; [ $(cat " + csv +
+                            " 2>/dev/null | wc -l) -gt 5 ] && break; done; "
+                            "pkill -9 -n -f -- '" + marker + "'; wait $pid";
+    const std::string script = tmp_dir() + "/kill_a_rank.sh";
+    std::ofstream(script) << cmd << "\n";
+    const int status = std::system(("bash " + script).c_str());
+    const int code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+    const std::string text = slurp(log);
+    INFO(writer << ": exit " << code << ": " << text);
+    CHECK(code != 0);
+    CHECK(code != 124);  // ended, not timed out
+    CHECK((has(text, "process rank 0") || has(text, "process rank 1")));
+    CHECK(has(text, "signal 9"));
+    const FrameReader reader(out);
+    REQUIRE(reader.frames().size() >= 2);
+    const Frame f = reader.read(reader.frames().size() - 1);
+    CHECK(f.count() == 1120);
+  }
 }
 
 TEST_CASE("PNG frames of a run over several ranks are rank 0's renders of all particles", "[dist][mpi]") {

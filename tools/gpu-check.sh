@@ -22,11 +22,19 @@ if ls .devdeps/*.deb > /dev/null 2>&1; then
   export CPATH=/opt/deps/usr/include${CPATH:+:$CPATH} CMAKE_PREFIX_PATH=/opt/deps/usr${CMAKE_PREFIX_PATH:+:$CMAKE_PREFIX_PATH}
   export LIBRARY_PATH=/opt/deps/usr/lib/x86_64-linux-gnu LD_LIBRARY_PATH=/opt/deps/usr/lib/x86_64-linux-gnu${LD_LIBRARY_PATH:+:$LD_LIBRARY_PATH}
 fi
+# Parallel HDF5 carried the same way (apt-get download libhdf5-openmpi-dev libhdf5-openmpi-103-1
+# libhdf5-openmpi-hl-100 libhdf5-openmpi-cpp-103-1 libhdf5-openmpi-hl-cpp-100): its compiler
+# wrapper names its own prefix, which the unpacked copy moves.
+HDF5_ARGS=()
+if [ -f /opt/deps/usr/bin/h5pcc.openmpi ]; then
+  sed -i 's#^prefix="/usr"#prefix="/opt/deps/usr"#' /opt/deps/usr/bin/h5pcc.openmpi
+  HDF5_ARGS=(-DHDF5_C_COMPILER_EXECUTABLE=/opt/deps/usr/bin/h5pcc.openmpi)
+fi
 
 if has build; then
   echo "== build"
   nvidia-smi --query-gpu=name,driver_version,memory.total --format=csv,noheader | tee "$OUT/gpu.txt"
-  cmake -S . -B $B -G Ninja -DCMAKE_BUILD_TYPE=Release -DCMAKE_CUDA_ARCHITECTURES=90 -DSPHRAY_WERROR=ON \
+  cmake -S . -B $B -G Ninja -DCMAKE_BUILD_TYPE=Release -DCMAKE_CUDA_ARCHITECTURES=90 -DSPHRAY_WERROR=ON "${HDF5_ARGS[@]}" \
     > "$B-configure.log" 2>&1 || { tail -30 "$B-configure.log"; exit 1; }
   grep 'sphray:' "$B-configure.log"
   ninja -C $B > "$B-build.log" 2>&1 || { grep -E 'error|Error' -A3 "$B-build.log" | head -60; exit 1; }

@@ -45,8 +45,12 @@ want libglew-dev "test -f /usr/include/GL/glew.h"
 want libimgui-dev "test -f /usr/include/imgui/imgui.h"
 want xvfb "command -v xvfb-run"
 want xauth "command -v xauth"
+# Parallel HDF5 (every rank of a run over several writes its rows of the
+# export, dist/rank_export.h): wanted too; without it rank 0 writes the export.
+parallel_h5=()
+test -f /usr/include/hdf5/openmpi/hdf5.h || parallel_h5+=(libhdf5-openmpi-dev)
 SUDO=""; [ "$(id -u)" -eq 0 ] || SUDO=sudo
-if [ ${#missing[@]} -gt 0 ] || [ ${#wanted[@]} -gt 0 ]; then
+if [ ${#missing[@]} -gt 0 ] || [ ${#wanted[@]} -gt 0 ] || [ ${#parallel_h5[@]} -gt 0 ]; then
   $SUDO apt-get update -qq || true
 fi
 if [ ${#missing[@]} -gt 0 ]; then
@@ -57,6 +61,11 @@ if [ ${#wanted[@]} -gt 0 ]; then
   echo "sphray setup: installing for the viewer: ${wanted[*]}"
   DEBIAN_FRONTEND=noninteractive $SUDO apt-get install -y -qq "${wanted[@]}" >/dev/null ||
     echo "sphray setup: could not install ${wanted[*]}: building without the viewer"
+fi
+if [ ${#parallel_h5[@]} -gt 0 ]; then
+  echo "sphray setup: installing parallel HDF5: ${parallel_h5[*]}"
+  DEBIAN_FRONTEND=noninteractive $SUDO apt-get install -y -qq "${parallel_h5[@]}" >/dev/null ||
+    echo "sphray setup: could not install ${parallel_h5[*]}: exports of runs over several ranks go through rank 0"
 fi
 
 BUILD=${SPHRAY_BUILD_DIR:-build}
