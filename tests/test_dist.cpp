@@ -480,17 +480,20 @@ TEST_CASE("an export written by every rank holds what rank 0 writes of the same 
     CHECK(has(r.output, "export.writer \"parallel\": this sphray was built without parallel HDF5"));
     return;
   }
-  for (int ranks : {2, 3}) {
-    const std::string tag = tmp_dir() + "/writers" + std::to_string(ranks);
-    const CliResult root = run_ranks(ranks, base + "--set export.writer=rank0 --export " + tag + "_rank0.h5");
-    const CliResult all = run_ranks(ranks, base + "--set export.writer=parallel --export " + tag + "_ranks.h5");
-    INFO(ranks << " ranks: " << root.output << all.output);
-    REQUIRE(root.code == 0);
-    REQUIRE(all.code == 0);
-    CHECK(has(all.output, "4 frames to " + tag + "_ranks.h5 (XDMF sidecar for ParaView next to it); every rank wrote "
-                          "its rows (parallel HDF5)"));
-    CHECK(has(root.output, "the run waited"));
-    check_same_export(tag + "_rank0.h5", tag + "_ranks.h5");
+  // Each SECTION runs the test case from the top: the runs of each are inside it.
+  SECTION("the dam break on 2 and 3 ranks") {
+    for (int ranks : {2, 3}) {
+      const std::string tag = tmp_dir() + "/writers" + std::to_string(ranks);
+      const CliResult root = run_ranks(ranks, base + "--set export.writer=rank0 --export " + tag + "_rank0.h5");
+      const CliResult all = run_ranks(ranks, base + "--set export.writer=parallel --export " + tag + "_ranks.h5");
+      INFO(ranks << " ranks: " << root.output << all.output);
+      REQUIRE(root.code == 0);
+      REQUIRE(all.code == 0);
+      CHECK(has(all.output, "4 frames to " + tag + "_ranks.h5 (XDMF sidecar for ParaView next to it); every rank "
+                            "wrote its rows (parallel HDF5)"));
+      CHECK(has(root.output, "the run waited"));
+      check_same_export(tag + "_rank0.h5", tag + "_ranks.h5");
+    }
   }
   SECTION("particles gone through an open top leave gaps in the ids: the rows close them alike") {
     const std::string scene = tmp_dir() + "/gaps.json";
