@@ -113,8 +113,8 @@ void dataset(hid_t loc, const char* name, hid_t mem_type, hid_t file_type, const
     fail(path, std::string("writing dataset ") + name);
 }
 
-
 }  // namespace
+
 // HDF5 truncates an existing file before it takes its lock (H5Fcreate with
 // H5F_ACC_TRUNC opens it with O_TRUNC, then flock fails): a second run
 // exporting to the file of a run still writing it emptied that file and
@@ -130,7 +130,6 @@ void h5::refuse_if_in_use(const std::string& path) {
     throw FrameFileError(path + ": in use by another process (a run still writing it, or a program reading it); "
                          "not overwritten");
 }
-
 
 void h5::write_file_header(hid_t file, const FileHeader& header, const std::string& path) {
   attr_string(file, "format", kFramesFormat, path);
