@@ -174,6 +174,16 @@ std::string run_on_1_and_2(const std::string& args, const std::string& out1, con
   return r2.output;
 }
 
+// `sphray COMMAND ARGS` on 2 ranks is refused as bad input: exit code 2,
+// `message` in its output.
+void check_refused_on_2_ranks(const std::string& args, const std::string& message,
+                              const std::string& command = "run") {
+  const CliResult r = run_ranks(2, args, command);
+  INFO(r.output);
+  CHECK(r.code == 2);
+  CHECK(has(r.output, message));
+}
+
 // The rows of a metrics CSV (after its header), as numbers.
 std::vector<std::vector<double>> metrics_rows(const std::string& path) {
   std::vector<std::vector<double>> rows;
@@ -474,10 +484,8 @@ TEST_CASE("an export written by every rank holds what rank 0 writes of the same 
                            " --backend cpu --quiet --set sph.spacing=0.04 --set run.end_time=0.3 "
                            "--set run.output_interval=0.1 --export-fields velocity,density,pressure ";
   if (!parallel_hdf5_built()) {
-    const CliResult r = run_ranks(2, base + "--set export.writer=parallel --export " + tmp_dir() + "/p.h5");
-    INFO(r.output);
-    CHECK(r.code == 2);
-    CHECK(has(r.output, "export.writer \"parallel\": this sphray was built without parallel HDF5"));
+    check_refused_on_2_ranks(base + "--set export.writer=parallel --export " + tmp_dir() + "/p.h5",
+                             "export.writer \"parallel\": this sphray was built without parallel HDF5");
     return;
   }
   // Each SECTION runs the test case from the top: the runs of each are inside it.
@@ -521,19 +529,11 @@ TEST_CASE("an export written by every rank holds what rank 0 writes of the same 
     INFO(automatic.output);
     CHECK(automatic.code == 0);
     CHECK(has(automatic.output, "the run waited"));  // rank 0's writer
-    const CliResult asked = run_ranks(2, field + " --set export.writer=parallel");
-    INFO(asked.output);
-    CHECK(asked.code == 2);
-    CHECK(has(asked.output, "export.writer \"parallel\": --export-fields field is built on rank 0 alone"));
-    const CliResult gzip = run_ranks(2, base + "--set export.gzip=4 --set export.writer=parallel --export " +
-                                            tmp_dir() + "/g.h5");
-    INFO(gzip.output);
-    CHECK(gzip.code == 2);
-    CHECK(has(gzip.output, "export.gzip compresses on rank 0 alone"));
-    const CliResult unknown = run_ranks(2, base + "--set export.writer=all --export " + tmp_dir() + "/u.h5");
-    INFO(unknown.output);
-    CHECK(unknown.code == 2);
-    CHECK(has(unknown.output, "export.writer"));
+    check_refused_on_2_ranks(field + " --set export.writer=parallel",
+                             "export.writer \"parallel\": --export-fields field is built on rank 0 alone");
+    check_refused_on_2_ranks(base + "--set export.gzip=4 --set export.writer=parallel --export " + tmp_dir() + "/g.h5",
+                             "export.gzip compresses on rank 0 alone");
+    check_refused_on_2_ranks(base + "--set export.writer=all --export " + tmp_dir() + "/u.h5", "export.writer");
   }
 }
 
@@ -651,17 +651,11 @@ TEST_CASE("sphray view over 2 ranks shows what one rank shows", "[dist][mpi]") {
 TEST_CASE("what a run over several ranks cannot do yet is refused by name", "[dist][mpi]") {
   const std::string base =
       source_path("scenes/dam_break.json") + " --backend cpu --quiet --set sph.spacing=0.04 --set run.end_time=0.01 ";
-  const CliResult bench = run_ranks(2, "sim --backend cpu --sizes 8k", "bench");
-  INFO(bench.output);
-  CHECK(bench.code == 2);
-  CHECK(has(bench.output, "only 'sphray run' and 'sphray view' run over several ranks (started as one of 2)"));
-  const CliResult presence = run_ranks(2, base + "--export " + tmp_dir() + "/p.h5 --export-fields presence");
-  INFO(presence.output);
-  CHECK(presence.code == 2);
-  CHECK(has(presence.output, "--export-fields presence is not available in a run over several ranks"));
-  const CliResult pressure = run_ranks(2, base + "--set sph.solver=dfsph --export " + tmp_dir() + "/p.h5 --export-fields pressure");
-  INFO(pressure.output);
-  CHECK(pressure.code == 2);
-  CHECK(has(pressure.output, "--export-fields pressure under dfsph is not available in a run over several ranks"));
+  check_refused_on_2_ranks("sim --backend cpu --sizes 8k",
+                           "only 'sphray run' and 'sphray view' run over several ranks (started as one of 2)", "bench");
+  check_refused_on_2_ranks(base + "--export " + tmp_dir() + "/p.h5 --export-fields presence",
+                           "--export-fields presence is not available in a run over several ranks");
+  check_refused_on_2_ranks(base + "--set sph.solver=dfsph --export " + tmp_dir() + "/p.h5 --export-fields pressure",
+                           "--export-fields pressure under dfsph is not available in a run over several ranks");
 }
 #endif
