@@ -3,7 +3,9 @@
 
   plot_scaling.py docs/bench/scaling_2gpu_64M.json docs/bench/scaling_4gpu.json --png docs/scaling.png
 
-(a later file's run of the same kind, size and GPU count replaces an earlier one's)
+(a later file's run of the same solver, kind, size and GPU count replaces an
+earlier one's; rows without a solver are WCSPH's, and the solver is named in
+the legend where the files hold more than one)
 
 Left: weak-scaling efficiency (ms per step on 1 GPU with the same particles
 per GPU over ms per step on n); right: strong-scaling speed-up (ms per step
@@ -28,18 +30,22 @@ def main():
         if r["efficiency"] is None:
             continue
         per = r["millions"] / r["gpus"] if r["kind"] == "weak" else r["millions"]
-        key = (r["kind"], per)
+        key = ((r.get("solver") or "wcsph").upper(), r["kind"], per)
         series.setdefault(key, {})[r["gpus"]] = r
+    solvers = sorted({s for s, _, _ in series})
+    named = len(solvers) > 1
     gpus_all = sorted({r["gpus"] for r in rows})
-    for (kind, m), pts in sorted(series.items()):
+    for (solver, kind, m), pts in sorted(series.items()):
         g = sorted(pts)
+        who = f"{solver} " if named else ""
+        style = "os^"[solvers.index(solver) % 3] + "-"  # lines that coincide stay apart
         if kind == "weak":
-            weak.plot(g, [100 * pts[k]["efficiency"] for k in g], "o-", label=f"{m:g}M per GPU")
+            weak.plot(g, [100 * pts[k]["efficiency"] for k in g], style, label=f"{who}{m:g}M per GPU")
         else:
-            strong.plot(g, [pts[1]["ms_per_step"] / pts[k]["ms_per_step"] for k in g], "o-", label=f"{m:g}M")
+            strong.plot(g, [pts[1]["ms_per_step"] / pts[k]["ms_per_step"] for k in g], style, label=f"{who}{m:g}M")
     weak.axhline(85, ls=":", c="gray", label="goal 85%")
     weak.set(xlabel="GPUs", ylabel="weak-scaling efficiency [%]", ylim=(0, 105), xticks=gpus_all,
-             title="weak scaling (dam break, WCSPH)")
+             title=f"weak scaling (dam break, {', '.join(solvers)})")
     strong.plot(gpus_all, gpus_all, "--", c="gray", label="ideal")
     strong.set(xlabel="GPUs", ylabel="speed-up over 1 GPU", xticks=gpus_all, title="strong scaling")
     weak.legend()
