@@ -288,6 +288,7 @@ int cmd_run(RunArgs a) {
     so.frame_view = needs.field || out.png;  // rank 0 builds the field and renders from the gathered particles
     // Alike on every rank: whether an output reads all particles on rank 0.
     so.gather_to_root = !ranks_write || !a.metrics_csv.empty() || !a.fa.dir.empty() || scene.field.given;
+    so.keep_owned = ranks_write;
     so.rebalance_every = a.rebalance_every;
     solver = make_slab_solver(in, plan, *comm, b, make, so);
   } else {

@@ -76,31 +76,37 @@ class SlabSolver final : public Solver {
     if (opt_.rebalance_every > 0 && steps() % uint64_t(opt_.rebalance_every) == 0) rebalance();
   }
 
-  // This rank's own particles are kept (download_owned); where an output
-  // needs them all (SlabOptions::gather_to_root), rank 0 receives every
-  // rank's: packed into one buffer sized once, unpacked into arrays sized
-  // once (unpacking with per-particle growth took 13-14 ms of a 1M frame on rank 0).
+  // This rank's own particles are kept where every rank reads them
+  // (SlabOptions::keep_owned, download_owned); where an output needs them
+  // all (SlabOptions::gather_to_root), rank 0 receives every rank's: packed
+  // into one buffer sized once, unpacked into arrays sized once (unpacking
+  // with per-particle growth took 13-14 ms of a 1M frame on rank 0).
   void gather_frame() override {
     const HostParticles h = inner_->download();
     const size_t n = h.id.size();
-    owned_.id.clear();
-    owned_.pos.clear();
-    owned_.vel.clear();
-    owned_.id.reserve(n), owned_.pos.reserve(n), owned_.vel.reserve(n);
+    if (opt_.keep_owned) {
+      owned_.id.clear();
+      owned_.pos.clear();
+      owned_.vel.clear();
+      owned_.id.reserve(n), owned_.pos.reserve(n), owned_.vel.reserve(n);
+      for (size_t i = 0; i < n; ++i) {
+        if (h.status[i] == kStatusGhost) continue;
+        owned_.id.push_back(h.id[i]);
+        owned_.pos.push_back({h.pos[i].x, h.pos[i].y, h.pos[i].z, h.density[i]});
+        owned_.vel.push_back({h.vel[i].x, h.vel[i].y, h.vel[i].z, 0.0f});
+      }
+      owned_step_ = steps();
+    }
+    if (!opt_.gather_to_root) return;
+    size_t owned = 0;
+    for (size_t i = 0; i < n; ++i) owned += h.status[i] != kStatusGhost;
+    std::vector<char> mine(owned * sizeof(Owned));
+    char* at = mine.data();
     for (size_t i = 0; i < n; ++i) {
       if (h.status[i] == kStatusGhost) continue;
-      owned_.id.push_back(h.id[i]);
-      owned_.pos.push_back({h.pos[i].x, h.pos[i].y, h.pos[i].z, h.density[i]});
-      owned_.vel.push_back({h.vel[i].x, h.vel[i].y, h.vel[i].z, 0.0f});
-    }
-    owned_step_ = steps();
-    if (!opt_.gather_to_root) return;
-    const size_t owned = owned_.id.size();
-    std::vector<char> mine(owned * sizeof(Owned));
-    for (size_t i = 0; i < owned; ++i) {
-      const Float4 p = owned_.pos[i], v = owned_.vel[i];
-      const Owned o{owned_.id[i], {p.x, p.y, p.z}, {v.x, v.y, v.z}, p.w};
-      std::memcpy(mine.data() + i * sizeof(Owned), &o, sizeof(Owned));
+      const Owned o{h.id[i], {h.pos[i].x, h.pos[i].y, h.pos[i].z}, {h.vel[i].x, h.vel[i].y, h.vel[i].z}, h.density[i]};
+      std::memcpy(at, &o, sizeof(Owned));
+      at += sizeof(Owned);
     }
     const std::vector<std::vector<char>> all = comm_.gather(mine);
     size_t total = 0;
@@ -150,8 +156,9 @@ class SlabSolver final : public Solver {
   }
 
   void download_owned(RawParticles& out, bool velocity) const override {
-    if (owned_step_ != steps())
-      throw std::logic_error("a decomposed run's particles are read at output frames only (gather_frame)");
+    if (!opt_.keep_owned || owned_step_ != steps())
+      throw std::logic_error("a decomposed run's own particles are read at output frames only, where kept "
+                             "(SlabOptions::keep_owned)");
     out.pos.assign(owned_.pos.begin(), owned_.pos.end());
     out.id.assign(owned_.id.begin(), owned_.id.end());
     if (velocity) out.vel.assign(owned_.vel.begin(), owned_.vel.end());

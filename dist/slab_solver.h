@@ -56,6 +56,9 @@ struct SlabOptions {
   // reads them on rank 0 (an export written by every rank, which reads
   // download_owned() on each).
   bool gather_to_root = true;
+  // Every rank keeps its own particles at an output frame, for
+  // download_owned() (the export written by every rank, rank_export.h).
+  bool keep_owned = false;
 };
 
 using SolverMaker = std::function<std::unique_ptr<Solver>(const SolverInput&)>;
