@@ -22,9 +22,11 @@ class Comm {
   // Rank 0 receives every rank's bytes (its own included), by rank; the
   // others receive nothing.
   virtual std::vector<std::vector<char>> gather(const std::vector<char>& mine) = 0;
-  // Every rank sends out[r] to rank r and receives, by rank, what each sent
-  // it (its own included).
-  virtual std::vector<std::vector<char>> all_to_all(const std::vector<std::vector<char>>& out) = 0;
+  // Every rank sends rank r the next send[r] bytes of `out` (rank 0's
+  // first), and receives what each sent it, concatenated by rank (its own
+  // included); recv[r]: the bytes from rank r.
+  virtual std::vector<char> all_to_all(const std::vector<char>& out, const std::vector<int>& send,
+                                       std::vector<int>& recv) = 0;
   // Every rank receives `root`'s string.
   virtual void broadcast(std::string& s, int root) = 0;
 };

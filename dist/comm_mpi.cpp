@@ -3,7 +3,6 @@
 // others (docs/design.md, "Scale-out").
 #include <mpi.h>
 
-#include <algorithm>
 #include <cstdlib>
 #include <utility>
 #include <stdexcept>
@@ -78,25 +77,16 @@ class MpiComm final : public Comm {
     for (int r = 0; r < size_; ++r) out[size_t(r)].assign(flat.begin() + disp[r], flat.begin() + disp[r] + counts[r]);
     return out;
   }
-  std::vector<std::vector<char>> all_to_all(const std::vector<std::vector<char>>& out) override {
-    if (int(out.size()) != size_) throw std::logic_error("all_to_all: one buffer per rank");
-    std::vector<int> send(static_cast<size_t>(size_)), recv(static_cast<size_t>(size_), 0);
-    for (int r = 0; r < size_; ++r) {
-      if (out[size_t(r)].size() > size_t(INT32_MAX)) throw std::runtime_error("MPI: a message over 2 GiB");
-      send[size_t(r)] = int(out[size_t(r)].size());
-    }
+  std::vector<char> all_to_all(const std::vector<char>& out, const std::vector<int>& send,
+                               std::vector<int>& recv) override {
+    if (int(send.size()) != size_) throw std::logic_error("all_to_all: one count per rank");
+    recv.assign(send.size(), 0);
     check(MPI_Alltoall(send.data(), 1, MPI_INT, recv.data(), 1, MPI_INT, MPI_COMM_WORLD), "MPI_Alltoall");
-    const std::vector<int> sdisp = displacements(send), rdisp = displacements(recv);
-    std::vector<char> flat_out(size_t(sdisp.back()) + size_t(send.back()));
-    for (int r = 0; r < size_; ++r)
-      std::copy(out[size_t(r)].begin(), out[size_t(r)].end(), flat_out.begin() + sdisp[size_t(r)]);
-    std::vector<char> flat_in(size_t(rdisp.back()) + size_t(recv.back()));
-    check(MPI_Alltoallv(flat_out.data(), send.data(), sdisp.data(), MPI_BYTE, flat_in.data(), recv.data(),
-                        rdisp.data(), MPI_BYTE, MPI_COMM_WORLD),
+    const std::vector<int> send_at = displacements(send), recv_at = displacements(recv);
+    std::vector<char> in(size_t(recv_at.back()) + size_t(recv.back()));
+    check(MPI_Alltoallv(out.data(), send.data(), send_at.data(), MPI_BYTE, in.data(), recv.data(), recv_at.data(),
+                        MPI_BYTE, MPI_COMM_WORLD),
           "MPI_Alltoallv");
-    std::vector<std::vector<char>> in(static_cast<size_t>(size_));
-    for (int r = 0; r < size_; ++r)
-      in[size_t(r)].assign(flat_in.begin() + rdisp[size_t(r)], flat_in.begin() + rdisp[size_t(r)] + recv[size_t(r)]);
     return in;
   }
   void broadcast(std::string& s, int root) override {

@@ -101,7 +101,7 @@ struct RankFrameWriter::Impl {
   int lock = -1;  // rank 0: the lock HDF5 takes on a file it writes, which MPI-IO does not take
   std::unique_ptr<XdmfSidecar> sidecar;  // rank 0's
   RawParticles raw;                      // this rank's own particles
-  std::vector<std::vector<char>> out;    // records by destination rank
+  std::vector<char> out;                 // records by destination rank
   std::vector<int32_t> slot;             // the record of each id of this rank's block (-1: none)
   Frame rows;                            // this rank's rows
 
@@ -216,34 +216,32 @@ void RankFrameWriter::write(const Solver& s, const SphParams& prm, const std::se
   comm.min(&neg, 1);
   const IdBlocks blocks{uint64_t(-int64_t(neg)) + 1, ranks};
 
-  // Each particle to the rank of its id's block.
-  std::vector<size_t> count(size_t(ranks), 0);
-  for (size_t i = 0; i < n; ++i) ++count[size_t(blocks.owner(m.raw.id[i]))];
-  m.out.resize(size_t(ranks));
-  for (int r = 0; r < ranks; ++r) m.out[size_t(r)].resize(count[size_t(r)] * sizeof(Record));
-  std::fill(count.begin(), count.end(), 0);
+  // Each particle to the rank of its id's block: one all-to-all of records
+  // packed by destination.
+  std::vector<int> send(size_t(ranks), 0), recv;
+  for (size_t i = 0; i < n; ++i) send[size_t(blocks.owner(m.raw.id[i]))] += int(sizeof(Record));
+  std::vector<size_t> at(size_t(ranks), 0);
+  for (int r = 1; r < ranks; ++r) at[size_t(r)] = at[size_t(r - 1)] + size_t(send[size_t(r - 1)]);
+  m.out.resize(n * sizeof(Record));
   for (size_t i = 0; i < n; ++i) {
     const int r = blocks.owner(m.raw.id[i]);
     const Float4 p = m.raw.pos[i];
     const Float4 v = velocity ? m.raw.vel[i] : Float4{0, 0, 0, 0};
     const Record rec{m.raw.id[i], {p.x, p.y, p.z}, {v.x, v.y, v.z}, p.w};
-    std::memcpy(m.out[size_t(r)].data() + count[size_t(r)]++ * sizeof(Record), &rec, sizeof(Record));
+    std::memcpy(m.out.data() + at[size_t(r)], &rec, sizeof(Record));
+    at[size_t(r)] += sizeof(Record);
   }
-  const std::vector<std::vector<char>> in = comm.all_to_all(m.out);
+  const std::vector<char> in = comm.all_to_all(m.out, send, recv);
 
   // This rank's block in id order; its rows follow the lower blocks' rows.
   const uint64_t lo = blocks.lo(me), width = blocks.lo(me + 1) - lo;
+  const size_t mine = in.size() / sizeof(Record);
   m.slot.assign(size_t(width), -1);
-  std::vector<const Record*> recs;
-  for (const auto& buf : in)
-    for (size_t b = 0; b + sizeof(Record) <= buf.size(); b += sizeof(Record))
-      recs.push_back(reinterpret_cast<const Record*>(buf.data() + b));
-  for (size_t k = 0; k < recs.size(); ++k) {
+  for (size_t k = 0; k < mine; ++k) {
     uint32_t id;
-    std::memcpy(&id, recs[k], sizeof id);
+    std::memcpy(&id, in.data() + k * sizeof(Record), sizeof id);
     m.slot[size_t(id - lo)] = int32_t(k);
   }
-  const size_t mine = recs.size();
   std::vector<double> rows_of(size_t(ranks), 0.0);
   rows_of[size_t(me)] = double(mine);
   comm.sum(rows_of.data(), ranks);
@@ -262,7 +260,7 @@ void RankFrameWriter::write(const Solver& s, const SphParams& prm, const std::se
   for (size_t k = 0; k < size_t(width); ++k) {
     if (m.slot[k] < 0) continue;
     Record rec;
-    std::memcpy(&rec, recs[size_t(m.slot[k])], sizeof rec);
+    std::memcpy(&rec, in.data() + size_t(m.slot[k]) * sizeof(Record), sizeof rec);
     f.id[row] = rec.id;
     std::copy(rec.pos, rec.pos + 3, &f.position[3 * row]);
     if (velocity) std::copy(rec.vel, rec.vel + 3, &f.velocity[3 * row]);
