@@ -502,6 +502,19 @@ TEST_CASE("an export written by every rank holds what rank 0 writes of the same 
       CHECK(has(root.output, "the run waited"));
       check_same_export(tag + "_rank0.h5", tag + "_ranks.h5");
     }
+    // A run resumes from the export every rank wrote (contiguous datasets).
+    const std::string from = tmp_dir() + "/writers2_ranks.h5", resumed = tmp_dir() + "/writers_resumed.h5";
+    const CliResult r = run_ranks(1, source_path("scenes/dam_break.json") +
+                                         " --backend cpu --quiet --set sph.spacing=0.04 --set run.end_time=0.4 "
+                                         "--set run.output_interval=0.1 --export-fields velocity,density --resume " +
+                                         from + " --export " + resumed);
+    INFO(r.output);
+    REQUIRE(r.code == 0);
+    CHECK(has(r.output, "resumed from " + from + " at t = 0.3 s"));
+    const Frame last = FrameReader(from).read(3), first = FrameReader(resumed).read(0);
+    CHECK(first.id == last.id);
+    CHECK(first.position == last.position);
+    CHECK(first.velocity == last.velocity);
   }
   SECTION("particles gone through an open top leave gaps in the ids: the rows close them alike") {
     const std::string scene = tmp_dir() + "/gaps.json";
