@@ -127,14 +127,9 @@ RankFrameWriter::RankFrameWriter(const std::string& path, const FileHeader& head
   std::string refused;
   if (comm.rank() == 0) {
     try {
-      if (xdmf_path(path) == path)
-        throw FrameFileError(path + ": that is the name of the XDMF sidecar written next to the export (NAME.xmf "
-                             "beside NAME.h5); give the export another extension, e.g. .h5");
-      h5::refuse_if_in_use(path);
+      h5::refuse_export_path(path);
       // MPI-IO reports a missing or read-only directory without errno's reason.
-      const size_t slash = path.rfind('/');
-      const std::string dir = slash == std::string::npos ? "." : (slash == 0 ? "/" : path.substr(0, slash));
-      if (::access(dir.c_str(), W_OK) != 0)
+      if (::access(directory_of(path).c_str(), W_OK) != 0)
         throw FrameFileError(path + ": cannot create the export file: " + std::strerror(errno));
     } catch (const FrameFileError& e) {
       refused = e.what();
@@ -158,7 +153,7 @@ RankFrameWriter::RankFrameWriter(const std::string& path, const FileHeader& head
     fail(path, "cannot create the export file");
   }
   // As FrameWriter's file is locked by HDF5: another run refuses to
-  // overwrite it (h5::refuse_if_in_use), and readers that lock wait.
+  // overwrite it (h5::refuse_export_path), and readers that lock wait.
   if (comm.rank() == 0) {
     m.lock = ::open(path.c_str(), O_RDONLY | O_CLOEXEC);
     if (m.lock >= 0) ::flock(m.lock, LOCK_EX | LOCK_NB);
@@ -167,13 +162,14 @@ RankFrameWriter::RankFrameWriter(const std::string& path, const FileHeader& head
     m.dxpl = check(H5Pcreate(H5P_DATASET_XFER), path, "property list");
     H5Pset_dxpl_mpio(m.dxpl, H5FD_MPIO_COLLECTIVE);
     h5::write_file_header(m.file, header, path);
-    Handle g{check(H5Gcreate2(m.file, "boundary", H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT), path, "creating /boundary"),
-             H5Gclose};
     const hsize_t boundary = header.boundary.size() / 3;
-    write_rows(g.id, "position", H5T_NATIVE_FLOAT, H5T_IEEE_F32LE, header.boundary.data(), boundary, 3, 0,
-               comm.rank() == 0 ? boundary : 0, m.dxpl, path);
-    H5Gclose(g.id);
-    g.id = -1;
+    {  // closed before the file is
+      Handle g{check(H5Gcreate2(m.file, "boundary", H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT), path,
+                     "creating /boundary"),
+               H5Gclose};
+      write_rows(g.id, "position", H5T_NATIVE_FLOAT, H5T_IEEE_F32LE, header.boundary.data(), boundary, 3, 0,
+                 comm.rank() == 0 ? boundary : 0, m.dxpl, path);
+    }
     m.reopen("the header");
     if (comm.rank() == 0) m.sidecar = std::make_unique<XdmfSidecar>(path, size_t(boundary));
   } catch (...) {

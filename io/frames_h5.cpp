@@ -25,6 +25,11 @@ std::string xdmf_path(const std::string& h5) {
   return (has_ext ? h5.substr(0, dot) : h5) + ".xmf";
 }
 
+std::string directory_of(const std::string& path) {
+  const size_t slash = path.rfind('/');
+  return slash == std::string::npos ? "." : (slash == 0 ? "/" : path.substr(0, slash));
+}
+
 const std::vector<std::string>& exportable_fields() {
   static const std::vector<std::string> f = {"velocity", "density", "pressure", "presence", "field"};
   return f;
@@ -121,7 +126,10 @@ void dataset(hid_t loc, const char* name, hid_t mem_type, hid_t file_type, const
 // failed, and the first run went on to finish a corrupt one. So the lock that
 // HDF5 would take (flock, exclusive) is tried first on a descriptor of our
 // own, and given back at once.
-void h5::refuse_if_in_use(const std::string& path) {
+void h5::refuse_export_path(const std::string& path) {
+  if (xdmf_path(path) == path)  // the sidecar would be renamed over the export, its frames lost
+    throw FrameFileError(path + ": that is the name of the XDMF sidecar written next to the export (NAME.xmf "
+                         "beside NAME.h5); give the export another extension, e.g. .h5");
   const int fd = ::open(path.c_str(), O_RDONLY | O_CLOEXEC);
   if (fd < 0) return;  // no such file yet (or unreadable: H5Fcreate says so)
   const bool busy = ::flock(fd, LOCK_EX | LOCK_NB) != 0 && errno == EWOULDBLOCK;
@@ -179,9 +187,7 @@ void check_frame_space(const std::string& path, const std::string& name, const s
   // chunk indexes, group, attributes; and the sidecar's rewrite (its .tmp beside the old one)
   const double need = 1.1 * payload + padding + 64.0 * 1024.0 + sidecar_bytes + 16.0 * 1024.0;
   struct statvfs fs {};
-  const size_t slash = path.rfind('/');
-  const std::string dir = slash == std::string::npos ? "." : (slash == 0 ? "/" : path.substr(0, slash));
-  if (statvfs(dir.c_str(), &fs) == 0 && double(fs.f_bavail) * double(fs.f_frsize) < need) {
+  if (statvfs(directory_of(path).c_str(), &fs) == 0 && double(fs.f_bavail) * double(fs.f_frsize) < need) {
     std::ostringstream os;
     os.precision(3);
     os << path << ": not enough free space for frame " << name << " (needs about " << need / 1048576.0 << " MiB, "
@@ -223,10 +229,7 @@ void XdmfSidecar::write() {
 // ---------------- writer ----------------
 
 FrameWriter::FrameWriter(const std::string& path, const FileHeader& header, int gzip) : path_(path), gzip_(gzip) {
-  if (xdmf_path(path) == path)  // the sidecar would be renamed over the export, its frames lost
-    throw FrameFileError(path + ": that is the name of the XDMF sidecar written next to the export (NAME.xmf "
-                         "beside NAME.h5); give the export another extension, e.g. .h5");
-  h5::refuse_if_in_use(path);
+  h5::refuse_export_path(path);
   errno = 0;
   Handle fapl{check(H5Pcreate(H5P_FILE_ACCESS), path, "property list"), H5Pclose};
   // The 1.8 file format: readable by every HDF5 >= 1.8 (h5py, ParaView).

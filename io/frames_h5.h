@@ -39,6 +39,8 @@ const std::vector<std::string>& exportable_fields();
 // The XDMF sidecar of an export: its path with the extension replaced by
 // .xmf (out.h5 -> out.xmf).
 std::string xdmf_path(const std::string& h5);
+// The directory a file of `path` lies in ("." for a bare name).
+std::string directory_of(const std::string& path);
 
 struct Frame {
   double time = 0, dt = 0;

@@ -30,10 +30,11 @@ struct Handle {
   }
 };
 
-// Throws FrameFileError when another process holds `path` open for writing
-// or reading (HDF5's lock): HDF5 would empty the file before it finds the
-// lock taken.
-void refuse_if_in_use(const std::string& path);
+// Throws FrameFileError when `path` cannot take an export: it is the name of
+// its own XDMF sidecar, or another process holds it open for writing or
+// reading (HDF5's lock; HDF5 would empty the file before it finds the lock
+// taken).
+void refuse_export_path(const std::string& path);
 
 // The root attributes of an export (format, format_version, scene,
 // sphray_version, backend) and its empty /frames group.
