@@ -2,6 +2,7 @@
 // faces, empty cells, everything in one cell, and points outside the grid; the
 // pair masks (nsearch/pair_masks.h) against the direct loop on the same inputs.
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <random>
 #include <set>
@@ -148,19 +149,19 @@ TEST_CASE("a halved grid covers the same box in cells half as wide, and finds th
   CHECK(fine.nx * fine.cell_size == Approx(wide.nx * wide.cell_size));
   CHECK(fine.nz * fine.cell_size == Approx(wide.nz * wide.cell_size));
   const std::vector<Vec3f> pts = random_points(3000, -0.1f, 1.1f, 29);
+  // A cell key's x, y, z (keys run x-fastest).
+  auto cell = [](const GridGeom& g, uint32_t key) {
+    const uint32_t nx = uint32_t(g.nx), ny = uint32_t(g.ny);
+    return std::array<uint32_t, 3>{key % nx, key / nx % ny, key / (nx * ny)};
+  };
   size_t inside = 0;
   for (const Vec3f& p : pts) {
     const uint32_t c = wide.key_of(p), f = fine.key_of(p);
     REQUIRE((c == wide.num_cells()) == (f == fine.num_cells()));
     if (c == wide.num_cells()) continue;
     ++inside;
-    const uint32_t cx = c % uint32_t(wide.nx), cy = c / uint32_t(wide.nx) % uint32_t(wide.ny),
-                   cz = c / (uint32_t(wide.nx) * uint32_t(wide.ny));
-    const uint32_t fx = f % uint32_t(fine.nx), fy = f / uint32_t(fine.nx) % uint32_t(fine.ny),
-                   fz = f / (uint32_t(fine.nx) * uint32_t(fine.ny));
-    CHECK(fx / 2 == cx);
-    CHECK(fy / 2 == cy);
-    CHECK(fz / 2 == cz);
+    const std::array<uint32_t, 3> cw = cell(wide, c), cf = cell(fine, f);
+    for (int a = 0; a < 3; ++a) CHECK(cf[size_t(a)] / 2 == cw[size_t(a)]);
   }
   CHECK(inside > 300);                 // about a fifth of the cube lies in the grid
   CHECK(pts.size() - inside > 1000);  // and the rest outside
