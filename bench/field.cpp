@@ -88,12 +88,19 @@ std::vector<BenchFieldRow> bench_field(Backend b, const BenchFieldOptions& opt, 
       int group;            // threads per particle (0: the builder's default)
       bool gpu_layout = false;  // the other GPU thread layout: on the CPU it only repeats a row
     };
-    // Two naive variants, so the baseline is the better of the two on this
-    // device (one thread per particle, or a warp per particle like presence).
-    const Variant variants[] = {{"naive", FieldKind::Naive, true, 1},
+    // The builders' default thread layouts, and on the GPU the others (1, 8
+    // or 32 threads per particle; presence also 4), so that the baseline is
+    // the fastest naive on this device and each default is seen against the
+    // layouts it did not choose.
+    const Variant variants[] = {{"naive", FieldKind::Naive, true, 0},
+                                {"naive-thread", FieldKind::Naive, true, 1, true},
+                                {"naive-8", FieldKind::Naive, true, 8, true},
                                 {"naive-warp", FieldKind::Naive, true, 32, true},
                                 {"presence", FieldKind::Presence, true, 0},
                                 {"presence-thread", FieldKind::Presence, true, 1, true},
+                                {"presence-4", FieldKind::Presence, true, 4, true},
+                                {"presence-8", FieldKind::Presence, true, 8, true},
+                                {"presence-warp", FieldKind::Presence, true, 32, true},
                                 {"presence-full", FieldKind::Presence, false, 0},
                                 {"gather", FieldKind::Gather, true, 0}};
     for (const Variant& v : variants) {

@@ -32,7 +32,8 @@ struct BenchFieldOptions {
 struct BenchFieldRow {
   size_t particles = 0;
   int nx = 0, ny = 0, nz = 0;
-  std::string builder;  // naive, naive-warp (32 threads per particle), presence, presence-full (unshrunk extents), gather
+  std::string builder;  // naive, presence (default layouts), naive-thread/-8/-warp, presence-thread/-4/-8/-warp (1, 4, 8, 32
+                        // threads per particle), presence-full (unshrunk extents), gather
   double median_ms = 0, min_ms = 0, max_ms = 0;
   FieldCounts counts;
   FieldError error;  // against naive

@@ -151,7 +151,8 @@ struct ComputeAnisotropy {
   AnisotropyParams ap;
   Float4* out;  // [3][n]
 
-  SPHRAY_HD void operator()(uint32_t i) const {
+  SPHRAY_HD void operator()(uint32_t i) const { compute(i).store(out, n, i); }
+  SPHRAY_HD Ellipsoid compute(uint32_t i) const {
     const Vec3f xi = xyz(pos[i]);
     const float inv_r = 1.0f / ap.radius;
     CovarianceSums s;
@@ -167,7 +168,7 @@ struct ComputeAnisotropy {
         s.add(dx, dy, dz, q2);
       }
     }
-    ellipsoid_of(ap, vol, xi, s).store(out, n, i);
+    return ellipsoid_of(ap, vol, xi, s);
   }
 };
 
@@ -179,8 +180,9 @@ struct AnisotropyFromSums {
   VolumeGeom vol;
   AnisotropyParams ap;
   Float4* out;  // [3][n]
-  SPHRAY_HD void operator()(uint32_t i) const {
-    ellipsoid_of(ap, vol, xyz(pos[i]), CovarianceSums::load(sums, n, i)).store(out, n, i);
+  SPHRAY_HD void operator()(uint32_t i) const { compute(i).store(out, n, i); }
+  SPHRAY_HD Ellipsoid compute(uint32_t i) const {
+    return ellipsoid_of(ap, vol, xyz(pos[i]), CovarianceSums::load(sums, n, i));
   }
 };
 

@@ -65,6 +65,7 @@ template <bool Aniso>
 struct SplatKernel {
   Vec3f u;     // centre [voxels]
   Ellipsoid e; // Aniso only
+  SplatKernel() = default;
   SPHRAY_HD SPHRAY_FORCEINLINE SplatKernel(const VolumeGeom& vol, const Float4* pos, const Float4* ell, uint32_t n,
                                            uint32_t p) {
     if (Aniso) {
@@ -158,29 +159,54 @@ struct CoarseFill {
 };
 
 // presence, pass 2 (FieldSetup::mark_occupied): the voxel that holds a
-// particle's (kernel) centre becomes `coarse` too. A sphere's iso radius is at
-// least half the voxel diagonal, so that voxel is inside; an ellipsoid may be
-// thinner than a voxel, so it is marked only where the particle's own kernel
-// reaches the iso value at the voxel centre (the field, a sum of such terms,
-// does too). Every writer writes the same value: a plain (relaxed) store will do.
+// particle's (kernel) centre u becomes `coarse` too. A sphere's iso radius is
+// at least half the voxel diagonal, so that voxel is inside; an ellipsoid may
+// be thinner than a voxel, so it is marked only where the particle's own
+// kernel reaches the iso value at the voxel centre (the field, a sum of such
+// terms, does too). Every writer writes the same value: a plain (relaxed)
+// store will do.
 template <bool Aniso>
+SPHRAY_HD SPHRAY_FORCEINLINE void mark_occupied(const VolumeGeom& vol, const FieldShape& shape, const SplatKernel<Aniso>& kn,
+                                                float* field) {
+  const Vec3f u = kn.u;
+  const int i = int(std::floor(u.x)), j = int(std::floor(u.y)), k = int(std::floor(u.z));
+  if (i < 0 || j < 0 || k < 0 || i >= vol.nx || j >= vol.ny || k >= vol.nz) return;
+  if (Aniso && !(shape.falloff(kn.r2_at(i, j, k)) >= shape.iso)) return;
+  const float coarse = shape.coarse;
+  float* cell = field + vol.index(i, j, k);
+  if (load_relaxed(cell) < coarse) store_relaxed(cell, coarse);  // a full cell's voxel already holds more
+}
+
+// Pass 2 for spheres: one thread per particle.
 struct MarkOccupied {
   VolumeGeom vol;
   FieldShape shape;
   const Float4* pos;
-  const Float4* ell;
   uint32_t n;
   float* field;
 
   SPHRAY_HD void operator()(uint32_t p) const {
-    const SplatKernel<Aniso> kn(vol, pos, ell, n, p);
-    const Vec3f u = kn.u;
-    const int i = int(std::floor(u.x)), j = int(std::floor(u.y)), k = int(std::floor(u.z));
-    if (i < 0 || j < 0 || k < 0 || i >= vol.nx || j >= vol.ny || k >= vol.nz) return;
-    if (Aniso && !(shape.falloff(kn.r2_at(i, j, k)) >= shape.iso)) return;
-    const float coarse = shape.coarse;
-    float* cell = field + vol.index(i, j, k);
-    if (load_relaxed(cell) < coarse) store_relaxed(cell, coarse);  // a full cell's voxel already holds more
+    mark_occupied(vol, shape, SplatKernel<false>(vol, pos, nullptr, n, p), field);
+  }
+};
+
+// The ellipsoids' pass (anisotropy.h: ComputeAnisotropy or
+// AnisotropyFromSums), and for the presence builder pass 2 on the ellipsoid
+// it has just computed (mark: after the coarse fill), so that the marks do
+// not read the ellipsoids back in a pass of their own.
+template <class Ellipsoids>
+struct EllipsoidPass {
+  Ellipsoids make;
+  float* mark;  // the volume, or null: no marks (naive)
+  FieldShape shape;
+
+  SPHRAY_HD void operator()(uint32_t p) const {
+    SplatKernel<true> kn;
+    kn.e = make.compute(p);
+    kn.e.store(make.out, make.n, p);
+    if (!mark) return;
+    kn.u = kn.e.centre;
+    mark_occupied(make.vol, shape, kn, mark);
   }
 };
 

@@ -36,6 +36,9 @@ struct FieldCounts {
   uint64_t skipped = 0;      // splat visits that found the voxel saturated
 };
 
+// Threads per particle a splat may run with (FieldBuilder::build).
+inline bool valid_group(int group) { return group == 1 || group == 4 || group == 8 || group == 32; }
+
 class FieldBuilder {
  public:
   virtual ~FieldBuilder() = default;
@@ -44,10 +47,10 @@ class FieldBuilder {
   virtual FieldKind kind() const = 0;  // fixed when the builder is made
   // Builds the volume from a solver's particles (same backend). `count` adds
   // the counters of FieldCounts (slower; not for timing). `group`: threads per
-  // particle for the splats, 1 or 32 (0: the backend's choice, docs/field.md).
+  // particle for the splats, 1, 4, 8 or 32 (0: the backend's choice, docs/field.md).
   virtual void build(const ParticleView& particles, bool count = false, int group = 0) = 0;
   virtual double last_ms() const = 0;  // device time of the last build (CUDA events / wall clock on CPU)
-  virtual double last_anisotropy_ms() const = 0;  // ... of which the kernels' covariance pass (0: spheres)
+  virtual double last_anisotropy_ms() const = 0;  // ... of which the ellipsoids' pass (presence: with its marks; 0: spheres)
   virtual const FieldCounts& last_counts() const = 0;
   virtual const float* data() const = 0;  // the volume, x fastest, in the backend's memory
   virtual std::vector<float> download() const = 0;

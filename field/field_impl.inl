@@ -8,23 +8,24 @@ struct CounterToU64 {
 };
 
 // Launches over n items the functor that make(count_tag, group_tag,
-// aniso_tag) returns, for the eight instantiations (counted or not; 1 or 32
-// threads per particle; spheres or ellipsoids).
+// aniso_tag) returns, for its sixteen instantiations (counted or not; 1, 4,
+// 8 or 32 threads per particle; spheres or ellipsoids).
 template <class Make>
 void launch_variant(const char* name, uint32_t n, bool count, int group, bool aniso, Make&& make) {
-  using G1 = std::integral_constant<int, 1>;
-  using G32 = std::integral_constant<int, 32>;
   auto with_aniso = [&](auto c, auto g) {
     if (aniso) parallel_for(name, n, make(c, g, std::true_type{}));
     else parallel_for(name, n, make(c, g, std::false_type{}));
   };
-  if (count) {
-    if (group == 32) with_aniso(std::true_type{}, G32{});
-    else with_aniso(std::true_type{}, G1{});
-  } else {
-    if (group == 32) with_aniso(std::false_type{}, G32{});
-    else with_aniso(std::false_type{}, G1{});
-  }
+  auto with_group = [&](auto c) {
+    switch (group) {
+      case 4: with_aniso(c, std::integral_constant<int, 4>{}); break;
+      case 8: with_aniso(c, std::integral_constant<int, 8>{}); break;
+      case 32: with_aniso(c, std::integral_constant<int, 32>{}); break;
+      default: with_aniso(c, std::integral_constant<int, 1>{}); break;
+    }
+  };
+  if (count) with_group(std::true_type{});
+  else with_group(std::false_type{});
 }
 
 class FieldBuilderImpl final : public FieldBuilder {
@@ -48,18 +49,14 @@ class FieldBuilderImpl final : public FieldBuilder {
     if (pv.backend != kBackend)
       throw std::invalid_argument(std::string("field builder on the ") + backend_name(kBackend) +
                                   " backend was given particles of the " + backend_name(pv.backend) + " backend");
-    // Threads per particle: one on the CPU and for naive. The presence splat
-    // reads each voxel before it adds, a chain of round trips per thread: when
-    // the particles alone would not fill the GPU twice over, a warp shares each
-    // particle's voxels (bench field measures both; docs/field.md).
-    if (group == 0)
-      group = kind == FieldKind::Presence && kBackend == Backend::Cuda && pv.n < 2 * resident_threads() ? 32 : 1;
-    if (group != 1 && group != 32) throw std::invalid_argument("field builder: threads per particle must be 1 or 32");
+    if (group == 0) group = default_group(kind, pv.n);
+    if (!valid_group(group))
+      throw std::invalid_argument("field builder: threads per particle must be 1, 4, 8 or 32 (got " + std::to_string(group) + ")");
     const VolumeGeom& vol = setup_.geom;
     const FieldShape& shape = setup_.shape;
     const uint32_t voxels = uint32_t(vol.num_voxels());
     const uint64_t items64 = kind == FieldKind::Gather ? uint64_t(voxels) : uint64_t(pv.n) * uint64_t(group);
-    if (items64 > 0xffffffffull) throw std::invalid_argument("field builder: too many particles for 32 threads each");
+    if (items64 > 0xffffffffull) throw std::invalid_argument("field builder: too many particles for " + std::to_string(group) + " threads each");
     const uint32_t items = uint32_t(items64);
     CounterSink sink{nullptr, items};
     if (count) {
@@ -75,15 +72,26 @@ class FieldBuilderImpl final : public FieldBuilder {
     const Float4* ell = nullptr;
     if (aniso && ellipsoids_.size() < 3 * size_t(pv.n)) ellipsoids_.resize(3 * size_t(pv.n));
     clock_.start();
+    // Presence: the coarse fill first, so that the ellipsoids' pass can mark
+    // the occupied voxels (pass 2) as it computes each ellipsoid.
+    if (kind == FieldKind::Presence) {
+      const CoarseFill fill{vol, pv.grid, pv.offsets, shape.coarse, setup_.full_fill, setup_.full_count,
+                            setup_.mark_occupied, f};
+      parallel_for("field_fill", fill.num_items(), fill);
+    }
+    clock_.end_of("fill");
     if (aniso) {
+      float* mark = kind == FieldKind::Presence && setup_.mark_occupied ? f : nullptr;
       // The solver's neighbour loop may have summed the covariance already
       // (ParticleView::covariance): only the ellipsoids are left to compute.
       if (pv.covariance && pv.covariance_radius == setup_.aniso.radius)
         parallel_for("field_anisotropy_from_sums", pv.n,
-                     AnisotropyFromSums{pv.pos, pv.covariance, pv.n, vol, setup_.aniso, raw(ellipsoids_)});
+                     EllipsoidPass<AnisotropyFromSums>{
+                         {pv.pos, pv.covariance, pv.n, vol, setup_.aniso, raw(ellipsoids_)}, mark, shape});
       else
         parallel_for("field_anisotropy", pv.n,
-                     ComputeAnisotropy{pv.grid, pv.fine_offsets, pv.pos, pv.n, vol, setup_.aniso, raw(ellipsoids_)});
+                     EllipsoidPass<ComputeAnisotropy>{
+                         {pv.grid, pv.fine_offsets, pv.pos, pv.n, vol, setup_.aniso, raw(ellipsoids_)}, mark, shape});
       ell = raw(ellipsoids_);
     }
     clock_.end_of("anisotropy");
@@ -94,20 +102,14 @@ class FieldBuilderImpl final : public FieldBuilder {
           return NaiveSplat<decltype(c)::value, decltype(g)::value, decltype(a)::value>{vol, shape, pv.pos, ell, pv.n, f, sink};
         });
         break;
-      case FieldKind::Presence: {
-        const CoarseFill fill{vol, pv.grid, pv.offsets, shape.coarse, setup_.full_fill, setup_.full_count,
-                              setup_.mark_occupied, f};
-        parallel_for("field_fill", fill.num_items(), fill);
-        if (setup_.mark_occupied) {
-          if (aniso) parallel_for("field_mark_occupied", pv.n, MarkOccupied<true>{vol, shape, pv.pos, ell, pv.n, f});
-          else parallel_for("field_mark_occupied", pv.n, MarkOccupied<false>{vol, shape, pv.pos, ell, pv.n, f});
-        }
+      case FieldKind::Presence:
+        if (setup_.mark_occupied && !aniso)
+          parallel_for("field_mark_occupied", pv.n, MarkOccupied{vol, shape, pv.pos, pv.n, f});
         launch_variant("presence_splat", items, count, group, aniso, [&](auto c, auto g, auto a) {
           return PresenceSplat<decltype(c)::value, decltype(g)::value, decltype(a)::value>{
               vol, shape, pv.pos, ell, pv.presence, pv.n, f, sink, pv.grid, pv.offsets, full};
         });
         break;
-      }
       case FieldKind::Gather:
         launch_variant("gather_field", items, count, 1, false, [&](auto c, auto, auto) {
           return GatherField<decltype(c)::value>{vol, pv.grid, shape, pv.offsets, pv.pos, f, sink};
@@ -117,7 +119,7 @@ class FieldBuilderImpl final : public FieldBuilder {
     clock_.end_of("field");
     clock_.finish();
     aniso_ms_ = clock_.ms("anisotropy");
-    ms_ = aniso_ms_ + clock_.ms("field");
+    ms_ = clock_.ms("fill") + aniso_ms_ + clock_.ms("field");
     counts_ = FieldCounts{};
     counts_.init_writes = kind == FieldKind::Gather ? 0 : voxels;
     if (count) {
@@ -136,6 +138,23 @@ class FieldBuilderImpl final : public FieldBuilder {
   }
 
  private:
+  // Threads per particle when the caller leaves it open (docs/field.md,
+  // "Threads per particle", has the measurements): one on the CPU. On the
+  // GPU the naive splat, whose adds are fire-and-forget, runs 8 per particle
+  // (fewest stalls on its box loop at 125k-4M). The presence splat reads each
+  // voxel before it adds, a chain of round trips per thread that more
+  // threads shorten until they queue for the GPU: 8 or 4 per particle while
+  // that keeps the threads within 16 times what the GPU holds resident
+  // (H100: 4.3M), else 1 (H100: 8 at 125k, 4 at 1M, 1 at 4M).
+  static int default_group(FieldKind kind, uint32_t n) {
+    if (kBackend != Backend::Cuda || kind == FieldKind::Gather) return 1;
+    if (kind == FieldKind::Naive) return 8;
+    const uint64_t budget = 16ull * resident_threads();
+    for (int g : {8, 4})
+      if (uint64_t(n) * uint64_t(g) <= budget) return g;
+    return 1;
+  }
+
   // Full cells are saturated when the coarse fill writes the clip value into them (mark_occupied).
   uint32_t saturated_full_count() const {
     return setup_.mark_occupied && setup_.full_fill >= setup_.shape.clip ? setup_.full_count : 0u;

@@ -8,6 +8,8 @@
 #include <cmath>
 #include <random>
 #include <sstream>
+#include <stdexcept>
+#include <string>
 #include <vector>
 
 #include "catch.h"
@@ -132,6 +134,39 @@ TEST_CASE("presence builder without presence classifies exactly as naive, and ne
     CHECK(differ == 0);
     CHECK(*std::max_element(pres.begin(), pres.end()) <= fs.shape.clip * (1.0f + 1e-6f));  // to float rounding
     CHECK(*std::max_element(naive.begin(), naive.end()) > fs.shape.clip);  // so the clip did something
+  }
+}
+
+TEST_CASE("every thread layout of the splats builds the same field; others are refused", "[field]") {
+  const Scene s = small_scene();
+  const FieldSetup fs = make_field_setup(resolve_scene(s));
+  const HostParticleSet ps(measure_scene(s).grid, random_points(s, 3000, 11));
+  for (FieldKind kind : {FieldKind::Naive, FieldKind::Presence}) {
+    auto b = make_cpu_field_builder(fs, kind);
+    b->build(ps.view(), false, 1);
+    const std::vector<float> one = b->download();
+    for (int group : {4, 8, 32}) {
+      b->build(ps.view(), false, group);
+      const std::vector<float> f = b->download();
+      double worst = 0;
+      size_t differ = 0;
+      for (size_t v = 0; v < f.size(); ++v) {
+        worst = std::max(worst, std::abs(double(f[v]) - one[v]) / (1.0 + one[v]));
+        differ += (f[v] >= fs.shape.iso) != (one[v] >= fs.shape.iso);
+      }
+      INFO(field_kind_name(kind) << ", " << group << " threads per particle: worst relative difference " << worst);
+      CHECK(differ == 0);
+      CHECK(worst < 1e-5);  // the order of the adds only
+    }
+    for (int group : {2, 16, 64}) {
+      std::string message;
+      try {
+        b->build(ps.view(), false, group);
+      } catch (const std::invalid_argument& e) {
+        message = e.what();
+      }
+      CHECK(message.find("1, 4, 8 or 32") != std::string::npos);
+    }
   }
 }
 

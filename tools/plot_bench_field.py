@@ -29,8 +29,9 @@ def plot(rows, png, title):
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
     sizes = sorted({r["particles"] for r in rows})
-    builders = ["naive", "naive-warp", "presence", "presence-thread", "presence-full", "gather"]
-    markers = dict(zip(builders, "osD^vx"))
+    builders = ["naive", "naive-thread", "naive-8", "naive-warp", "presence", "presence-thread", "presence-4",
+                "presence-8", "presence-warp", "presence-full", "gather"]
+    markers = dict(zip(builders, "o<>sD^1234vx"))
     fig, axes = plt.subplots(1, 2, figsize=(12, 4.8))
     cmap = plt.get_cmap("viridis")
     for k, n in enumerate(sizes):
