@@ -14,6 +14,16 @@
 #define SPHRAY_FORCEINLINE inline
 #endif
 
+// Unrolls the loop that follows: in nvcc's device pass and in GCC (not in
+// nvcc's host pass, whose front end does not know GCC's pragma).
+#if defined(__CUDA_ARCH__)
+#define SPHRAY_UNROLL _Pragma("unroll")
+#elif defined(__GNUC__) && !defined(__clang__) && !defined(__CUDACC__)
+#define SPHRAY_UNROLL _Pragma("GCC unroll 8")
+#else
+#define SPHRAY_UNROLL
+#endif
+
 namespace sphray {
 // Threads per block of the CUDA backend's parallel_for (core/launch_cuda.cuh);
 // per-warp shared-memory tiles (the pair-mask build) are sized by it.

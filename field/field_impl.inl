@@ -141,18 +141,14 @@ class FieldBuilderImpl final : public FieldBuilder {
   // Threads per particle when the caller leaves it open (docs/field.md,
   // "Threads per particle", has the measurements): one on the CPU. On the
   // GPU the naive splat, whose adds are fire-and-forget, runs 8 per particle
-  // (fewest stalls on its box loop at 125k-4M). The presence splat reads each
-  // voxel before it adds, a chain of round trips per thread that more
-  // threads shorten until they queue for the GPU: 8 or 4 per particle while
-  // that keeps the threads within 16 times what the GPU holds resident
-  // (H100: 4.3M), else 1 (H100: 8 at 125k, 4 at 1M, 1 at 4M).
+  // (fewest stalls on its box loop at 125k-4M). The presence splat, which
+  // reads its voxels before it adds (in batches, PresenceSplat), runs 4 per
+  // particle while that fills the GPU at most twice over (H100: up to 135k
+  // particles), else 1.
   static int default_group(FieldKind kind, uint32_t n) {
     if (kBackend != Backend::Cuda || kind == FieldKind::Gather) return 1;
     if (kind == FieldKind::Naive) return 8;
-    const uint64_t budget = 16ull * resident_threads();
-    for (int g : {8, 4})
-      if (uint64_t(n) * uint64_t(g) <= budget) return g;
-    return 1;
+    return uint64_t(n) * 4u <= 2ull * resident_threads() ? 4 : 1;
   }
 
   // Full cells are saturated when the coarse fill writes the clip value into them (mark_occupied).
