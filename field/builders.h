@@ -256,8 +256,8 @@ struct PresenceSplat {
   // for each kind of round trip once per batch instead of once per voxel.
   // (A read that is stale by the time of the add only makes the add larger;
   // the take-back, from the add's own return value, keeps the exact result.)
-  // 4 rather than 8: 8 held more registers and fewer threads resident, and
-  // was slower at 125k-4M particles on the H100 (docs/field.md).
+  // 4 rather than 8: 8 held 72 registers against 54 (ellipsoids), fewer
+  // threads resident, and was slower at 1M and 4M on the H100 (docs/field.md).
   static constexpr int kBatch = 4;
 
   SPHRAY_HD void operator()(uint32_t t) const {
