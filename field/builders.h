@@ -276,7 +276,7 @@ struct PresenceSplat {
       for (uint32_t base = lane; base < count; base += uint32_t(G * kBatch)) {
         float* cell[kBatch];
         float f[kBatch] = {}, seen[kBatch], add[kBatch], before[kBatch] = {};
-SPHRAY_UNROLL
+        SPHRAY_UNROLL
         for (int b = 0; b < kBatch; ++b) {  // the reads
           const uint32_t v = base + uint32_t(b * G);
           cell[b] = nullptr;
@@ -292,7 +292,7 @@ SPHRAY_UNROLL
           seen[b] = load_relaxed(cell[b]);
           if (Count) ++touched;
         }
-SPHRAY_UNROLL
+        SPHRAY_UNROLL
         for (int b = 0; b < kBatch; ++b) {  // the adds
           add[b] = 0.0f;
           if (!cell[b]) continue;
@@ -308,7 +308,7 @@ SPHRAY_UNROLL
           before[b] = atomic_fetch_add(cell[b], add[b]);
           if (Count) ++atomics;
         }
-SPHRAY_UNROLL
+        SPHRAY_UNROLL
         for (int b = 0; b < kBatch; ++b) {  // the take-backs
           if (!(add[b] > 0.0f)) continue;
           const float over = before[b] + add[b] - clip;
