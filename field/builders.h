@@ -238,6 +238,26 @@ struct PresenceSplat {
   SPHRAY_HD SPHRAY_FORCEINLINE bool all_full(int x0, int x1, int y0, int y1, int z0, int z1) const {
     if (full_count == 0 || x0 > x1 || y0 > y1 || z0 > z1) return false;
     const int s = vol.refine;
+    const int cx0 = x0 >> s, cy0 = y0 >> s, cz0 = z0 >> s, cx1 = x1 >> s, cy1 = y1 >> s, cz1 = z1 >> s;
+    if (cx1 - cx0 <= 1 && cy1 - cy0 <= 1 && cz1 - cz0 <= 1) {
+      // At most 2 x 2 x 2 cells (a deep particle's box): their counts read
+      // together, not one round trip after another (a cell repeats where
+      // the box spans one along an axis).
+      uint32_t first[8], end[8];
+      SPHRAY_UNROLL
+      for (int q = 0; q < 8; ++q) {
+        const int cx = cx0 + (q & 1) < cx1 ? cx0 + (q & 1) : cx1;
+        const int cy = cy0 + ((q >> 1) & 1) < cy1 ? cy0 + ((q >> 1) & 1) : cy1;
+        const int cz = cz0 + (q >> 2) < cz1 ? cz0 + (q >> 2) : cz1;
+        const uint32_t c = vol.cell_key(grid, cx << s, cy << s, cz << s);
+        first[q] = offsets[c];
+        end[q] = offsets[c + 1];
+      }
+      bool full = true;
+      SPHRAY_UNROLL
+      for (int q = 0; q < 8; ++q) full = full && end[q] - first[q] >= full_count;
+      return full;
+    }
     for (int cz = z0 >> s; cz <= z1 >> s; ++cz)
       for (int cy = y0 >> s; cy <= y1 >> s; ++cy)
         for (int cx = x0 >> s; cx <= x1 >> s; ++cx) {
