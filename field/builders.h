@@ -35,25 +35,44 @@ SPHRAY_HD SPHRAY_FORCEINLINE void voxel_coords(const VolumeGeom& v, uint32_t idx
   k = int(t / uint32_t(v.ny));
 }
 
+// The voxels of the box [x0, x1] x [y0, y1] x [z0, z1] numbered 0 ..
+// count - 1, x fastest (count 0 where a span is empty): the G threads of one
+// particle take every G-th number (lane 0..G-1 from its own).
+struct VoxelBox {
+  int x0, y0, z0;
+  uint32_t wx, wy, count;
+  SPHRAY_HD SPHRAY_FORCEINLINE VoxelBox(int x0_, int x1, int y0_, int y1, int z0_, int z1)
+      : x0(x0_), y0(y0_), z0(z0_), wx(0), wy(0), count(0) {
+    if (x0_ > x1 || y0_ > y1 || z0_ > z1) return;
+    wx = uint32_t(x1 - x0_ + 1);
+    wy = uint32_t(y1 - y0_ + 1);
+    count = wx * wy * uint32_t(z1 - z0_ + 1);
+  }
+  SPHRAY_HD SPHRAY_FORCEINLINE void voxel(uint32_t v, int& i, int& j, int& k) const {
+    const uint32_t t = v / wx;
+    i = x0 + int(v - t * wx);
+    j = y0 + int(t % wy);
+    k = z0 + int(t / wy);
+  }
+};
+
 // Visits the voxels (i, j, k) of a box (the naive splat's), shared by the G
-// threads of one particle (lane 0..G-1 takes every G-th voxel, as the
-// presence splat's batches do): G = 1 is one thread per particle, G = 32 a
-// warp per particle; more lanes shorten a particle's loop and even out the
+// threads of one particle: G = 1 is one thread per particle, G = 32 a warp
+// per particle; more lanes shorten a particle's loop and even out the
 // loops' lengths. Plain index math: the CPU runs the same code.
 template <int G, class F>
 SPHRAY_HD SPHRAY_FORCEINLINE void for_each_box_voxel(uint32_t lane, int x0, int x1, int y0, int y1, int z0, int z1,
                                                      F&& f) {
-  if (x0 > x1 || y0 > y1 || z0 > z1) return;
   if (G == 1) {
     for (int k = z0; k <= z1; ++k)
       for (int j = y0; j <= y1; ++j)
         for (int i = x0; i <= x1; ++i) f(i, j, k);
   } else {
-    const uint32_t wx = uint32_t(x1 - x0 + 1), wy = uint32_t(y1 - y0 + 1);
-    const uint32_t count = wx * wy * uint32_t(z1 - z0 + 1);
-    for (uint32_t v = lane; v < count; v += uint32_t(G)) {
-      const uint32_t t = v / wx;
-      f(x0 + int(v - t * wx), y0 + int(t % wy), z0 + int(t / wy));
+    const VoxelBox box(x0, x1, y0, y1, z0, z1);
+    for (uint32_t v = lane; v < box.count; v += uint32_t(G)) {
+      int i, j, k;
+      box.voxel(v, i, j, k);
+      f(i, j, k);
     }
   }
 }
@@ -290,10 +309,9 @@ struct PresenceSplat {
     voxel_span(u.y, kn.reach(1, extent(p, 3)), kn.reach(1, extent(p, 2)), vol.ny, y0, y1);
     voxel_span(u.z, kn.reach(2, extent(p, 5)), kn.reach(2, extent(p, 4)), vol.nz, z0, z1);
     uint32_t pairs = 0, touched = 0, atomics = 0, skipped = 0;
-    if (x0 <= x1 && y0 <= y1 && z0 <= z1 && !all_full(x0, x1, y0, y1, z0, z1)) {
-      const uint32_t wx = uint32_t(x1 - x0 + 1), wy = uint32_t(y1 - y0 + 1);
-      const uint32_t count = wx * wy * uint32_t(z1 - z0 + 1);
-      for (uint32_t base = lane; base < count; base += uint32_t(G * kBatch)) {
+    if (!all_full(x0, x1, y0, y1, z0, z1)) {
+      const VoxelBox box(x0, x1, y0, y1, z0, z1);
+      for (uint32_t base = lane; base < box.count; base += uint32_t(G * kBatch)) {
         float* cell[kBatch];
         float f[kBatch] = {}, seen[kBatch], add[kBatch], before[kBatch] = {};
         SPHRAY_UNROLL
@@ -301,9 +319,9 @@ struct PresenceSplat {
           const uint32_t v = base + uint32_t(b * G);
           cell[b] = nullptr;
           seen[b] = clip;
-          if (v >= count) continue;
-          const uint32_t q = v / wx;
-          const int i = x0 + int(v - q * wx), j = y0 + int(q % wy), k = z0 + int(q / wy);
+          if (v >= box.count) continue;
+          int i, j, k;
+          box.voxel(v, i, j, k);
           const float r2 = kn.r2_at(i, j, k);
           if (Count) ++pairs;
           if (!(r2 < R2)) continue;
