@@ -33,6 +33,7 @@ struct RunArgs {
   std::vector<std::string> sets;
   bool quiet = false;
   int rebalance_every = SlabOptions{}.rebalance_every;
+  std::string overlap = "auto";
   ExportArgs ex;
   FrameArgs fa;
 };
@@ -244,6 +245,10 @@ int cmd_run(RunArgs a) {
   if (export_fields.count("pressure") && scene.sph.solver == SolverKind::Pbf)
     throw std::runtime_error("--export-fields: the pbf solver has no pressure (its density constraint moves positions); "
                              "export density instead");
+  if (a.overlap != "auto" && scene.sph.solver != SolverKind::Pbf)
+    throw std::runtime_error(std::string("--overlap ") + a.overlap +
+                             ": only PBF's ghost refresh runs beside its passes; this scene runs " +
+                             solver_name(scene.sph.solver));
   check_outputs(a);
   const std::set<std::string> fields_asked = export_fields;
   // Rank 0 writes every output (a run over several ranks gathers its
@@ -290,6 +295,7 @@ int cmd_run(RunArgs a) {
     so.gather_to_root = !ranks_write || !a.metrics_csv.empty() || !a.fa.dir.empty() || scene.field.given;
     so.keep_owned = ranks_write;
     so.rebalance_every = a.rebalance_every;
+    so.overlap_above = a.overlap == "on" ? 0.0f : a.overlap == "off" ? SlabBounds::kOverlapNever : SlabBounds::kOverlapAuto;
     solver = make_slab_solver(in, plan, *comm, b, make, so);
   } else {
     solver = make_solver(rs, b, needs, resume ? &*resume : nullptr);
@@ -359,6 +365,11 @@ CLI::App* add_run_command(CLI::App& app, int& exit_code) {
                   "a run over several ranks: steps between balance checks of the ranks' particle counts (the cuts "
                   "move past 10% imbalance; 0: never)")
       ->check(CLI::Range(0, 1000000));
+  run->add_option("--overlap", a->overlap,
+                  "a PBF run over several ranks: compute first what the peers read and send it while the rest of "
+                  "each pass runs, skipping the ghosts (auto: on ranks whose ghosts are 6% or more of their "
+                  "particles; on; off)")
+      ->check(CLI::IsMember({"auto", "on", "off"}));
   run->add_option("--resume", a->resume,
                   "start from the last frame of this export (written with --export-fields velocity,density), on any "
                   "number of ranks");

@@ -74,6 +74,19 @@ void parallel_for(const char* name, uint32_t n, const F& f) {
     add_kernel_time(name, std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count());
 }
 
+// The CUDA backend's stream beside the default one; here the work runs in
+// order, where it is queued.
+class SideStream {
+ public:
+  void fork() {}
+  void join() {}
+  template <class F>
+  void parallel_for(const char* name, uint32_t n, const F& f) {
+    cpu_backend::parallel_for(name, n, f);
+  }
+  void* stream() const { return nullptr; }
+};
+
 // *out = op-reduction of f(0), ..., f(n - 1) and init (the CUDA backend's
 // leaves it on the device).
 template <class T, class F, class Op>

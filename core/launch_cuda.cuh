@@ -162,11 +162,11 @@ inline void resolve_timed_launches() {
   timed_launches().clear();
 }
 
-// f(i) for i in [0, n) as one kernel, named for the profiler (an NVTX range)
-// and for the per-kernel times (kernel_times.h). `name` must outlive the
-// process's last take_kernel_times() (a string literal).
+// f(i) for i in [0, n) as one kernel on `stream`, named for the profiler (an
+// NVTX range) and for the per-kernel times (kernel_times.h). `name` must
+// outlive the process's last take_kernel_times() (a string literal).
 template <class F>
-void parallel_for(const char* name, uint32_t n, const F& f) {
+void parallel_for_on(cudaStream_t stream, const char* name, uint32_t n, const F& f) {
   if (n == 0) return;
   nvtxRangePushA(name);
   const bool timed = kernel_timing();
@@ -174,16 +174,16 @@ void parallel_for(const char* name, uint32_t n, const F& f) {
   if (timed) {
     SPHRAY_CUDA_CHECK(cudaEventCreate(&t.start));
     SPHRAY_CUDA_CHECK(cudaEventCreate(&t.stop));
-    SPHRAY_CUDA_CHECK(cudaEventRecord(t.start));
+    SPHRAY_CUDA_CHECK(cudaEventRecord(t.start, stream));
   }
   const uint32_t blocks = (n + kThreadsPerBlock - 1) / kThreadsPerBlock;
   if constexpr (KernelRegisterCap<F>::value > 0)
-    for_each_index_kernel_capped<F, KernelRegisterCap<F>::value><<<blocks, kThreadsPerBlock>>>(n, f);
+    for_each_index_kernel_capped<F, KernelRegisterCap<F>::value><<<blocks, kThreadsPerBlock, 0, stream>>>(n, f);
   else
-    for_each_index_kernel<<<blocks, kThreadsPerBlock>>>(n, f);
+    for_each_index_kernel<<<blocks, kThreadsPerBlock, 0, stream>>>(n, f);
   SPHRAY_CUDA_CHECK(cudaGetLastError());
   if (timed) {
-    SPHRAY_CUDA_CHECK(cudaEventRecord(t.stop));
+    SPHRAY_CUDA_CHECK(cudaEventRecord(t.stop, stream));
     timed_launches().push_back(t);
     set_pending_kernel_times(&resolve_timed_launches);
   }
@@ -192,6 +192,57 @@ void parallel_for(const char* name, uint32_t n, const F& f) {
   SPHRAY_CUDA_CHECK(cudaDeviceSynchronize());
 #endif
 }
+
+// The same on the default stream, where the solvers' work runs.
+template <class F>
+void parallel_for(const char* name, uint32_t n, const F& f) {
+  parallel_for_on(0, name, n, f);
+}
+
+// A stream beside the default one, for work that runs alongside the
+// solvers' (a decomposed run's ghost refresh and the small launches of a
+// pass's other particle groups, flow_solver.inl): fork() orders what is
+// queued on it next after everything queued on the default stream so far;
+// join() orders what the default stream gets next after everything queued on
+// it so far. Non-blocking, so that the legacy default stream does not
+// serialise with it, and of the highest priority: its blocks are scheduled
+// ahead of the default stream's, so that the short work that others wait for
+// (the values sent to the peers) is not queued behind a full-size launch.
+class SideStream {
+ public:
+  SideStream() {
+    int least = 0, greatest = 0;
+    SPHRAY_CUDA_CHECK(cudaDeviceGetStreamPriorityRange(&least, &greatest));
+    SPHRAY_CUDA_CHECK(cudaStreamCreateWithPriority(&stream_, cudaStreamNonBlocking, greatest));
+    SPHRAY_CUDA_CHECK(cudaEventCreateWithFlags(&forked_, cudaEventDisableTiming));
+    SPHRAY_CUDA_CHECK(cudaEventCreateWithFlags(&done_, cudaEventDisableTiming));
+  }
+  ~SideStream() {
+    cudaStreamSynchronize(stream_);
+    cudaEventDestroy(done_);
+    cudaEventDestroy(forked_);
+    cudaStreamDestroy(stream_);
+  }
+  SideStream(const SideStream&) = delete;
+  SideStream& operator=(const SideStream&) = delete;
+  void fork() {
+    SPHRAY_CUDA_CHECK(cudaEventRecord(forked_, cudaStreamLegacy));
+    SPHRAY_CUDA_CHECK(cudaStreamWaitEvent(stream_, forked_, 0));
+  }
+  void join() {
+    SPHRAY_CUDA_CHECK(cudaEventRecord(done_, stream_));
+    SPHRAY_CUDA_CHECK(cudaStreamWaitEvent(cudaStreamLegacy, done_, 0));
+  }
+  template <class F>
+  void parallel_for(const char* name, uint32_t n, const F& f) {
+    parallel_for_on(stream_, name, n, f);
+  }
+  void* stream() const { return stream_; }
+
+ private:
+  cudaStream_t stream_{};
+  cudaEvent_t forked_{}, done_{};
+};
 
 template <class T>
 struct StoreValue {

@@ -141,7 +141,7 @@ class MpiTransport final : public ParticleTransport {
   }
   void exchange_records(const SlabBounds& b, size_t record_bytes, const void* const send[kPeers],
                         const uint32_t send_count[kPeers], void* const recv[kPeers],
-                        const uint32_t recv_count[kPeers]) override {
+                        const uint32_t recv_count[kPeers], void* /*stream: the CPU backend's memory*/) override {
     const MPI_Datatype record = record_type(record_bytes);
     std::vector<MPI_Request> req;
     for (int k = 0; k < kPeers; ++k) {

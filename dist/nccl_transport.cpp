@@ -19,8 +19,9 @@ void check(cudaError_t rc, const char* what) {
   if (rc != cudaSuccess) throw std::runtime_error(std::string("CUDA: ") + what + " failed: " + cudaGetErrorString(rc));
 }
 
-// The records go over NCCL, GPU to GPU, on the stream the solver's kernels
-// run on (the legacy default stream). The step's two extremes and the
+// The records go over NCCL, GPU to GPU, on the stream the caller names: the
+// legacy default stream, where the solver's kernels run, or a stream beside
+// it (PBF's ghost refresh, overlapped with a pass's interior work). The step's two extremes and the
 // per-peer counts go through the host over MPI: the host waits for both
 // anyway (it sizes the receive buffers, and reads the step's outcome), and
 // on the device machine (2 H200, NVLink) an NCCL all-reduce of two floats
@@ -48,16 +49,17 @@ class NcclTransport final : public ParticleTransport {
   }
   void exchange_records(const SlabBounds& b, size_t record_bytes, const void* const send[kPeers],
                         const uint32_t send_count[kPeers], void* const recv[kPeers],
-                        const uint32_t recv_count[kPeers]) override {
+                        const uint32_t recv_count[kPeers], void* stream) override {
+    const cudaStream_t on = stream ? static_cast<cudaStream_t>(stream) : cudaStreamLegacy;
     check(ncclGroupStart(), "ncclGroupStart");
     for (int k = 0; k < kPeers; ++k) {
       if (k == kSelf || !b.exists[k]) continue;
       const int peer = rank_ + k - kSelf;
       if (send_count[k] > 0)
-        check(ncclSend(send[k], send_count[k] * record_bytes, ncclChar, peer, comm_, cudaStreamLegacy),
+        check(ncclSend(send[k], send_count[k] * record_bytes, ncclChar, peer, comm_, on),
               "ncclSend");
       if (recv_count[k] > 0)
-        check(ncclRecv(recv[k], recv_count[k] * record_bytes, ncclChar, peer, comm_, cudaStreamLegacy),
+        check(ncclRecv(recv[k], recv_count[k] * record_bytes, ncclChar, peer, comm_, on),
               "ncclRecv");
     }
     check(ncclGroupEnd(), "ncclGroupEnd");

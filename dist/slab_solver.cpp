@@ -30,7 +30,7 @@ class SlabSolver final : public Solver {
   // The inner solver holds this rank's particles; the first exchange gives it its ghosts.
   void start(std::unique_ptr<Solver> inner) {
     inner_ = std::move(inner);
-    inner_->set_slab(slab_bounds(plan_, comm_.rank()));
+    inner_->set_slab(bounds());
     sum_totals();
   }
 
@@ -220,8 +220,14 @@ class SlabSolver final : public Solver {
       plan_.cuts[k] = c;
     }
     if (!moved) return;  // held at the least slab width
-    inner_->set_slab(slab_bounds(plan_, comm_.rank()));
+    inner_->set_slab(bounds());
     sum_totals();
+  }
+
+  SlabBounds bounds() const {
+    SlabBounds b = slab_bounds(plan_, comm_.rank());
+    b.overlap_above = opt_.overlap_above;
+    return b;
   }
 
   // Declared first: the inner solver uses it until it is destroyed.

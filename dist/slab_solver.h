@@ -59,6 +59,8 @@ struct SlabOptions {
   // Every rank keeps its own particles at an output frame, for
   // download_owned() (the export written by every rank, rank_export.h).
   bool keep_owned = false;
+  // SlabBounds::overlap_above (PBF's ghost refresh beside its passes).
+  float overlap_above = SlabBounds::kOverlapAuto;
 };
 
 using SolverMaker = std::function<std::unique_ptr<Solver>(const SolverInput&)>;

@@ -35,6 +35,12 @@ struct SlabBounds {
   float lo[kPeers] = {}, hi[kPeers] = {};
   bool exists[kPeers] = {};
   float halo = 0, halo_free = 0;
+  // PBF's passes on a rank whose ghosts are at least this share of its
+  // particles skip the ghosts and send the values the peers read while the
+  // rest of the pass runs (PbfSolverImpl::iteration_pass); below it, the
+  // whole pass and then the refresh. 0: always; above 1: never.
+  float overlap_above = kOverlapAuto;
+  static constexpr float kOverlapAuto = 0.06f, kOverlapNever = 2.0f;
 };
 
 // A point's coordinate along axis 0 (x), 1 (y) or 2 (z).
@@ -88,21 +94,23 @@ class ParticleTransport {
   // `recv` (host) what each sent here.
   virtual void exchange_counts(const SlabBounds& b, const PeerCounts& send, PeerCounts& recv) = 0;
   // send[k]: send_count[k] records of record_bytes each for peer k; recv[k]:
-  // room for recv_count[k] of them.
+  // room for recv_count[k] of them. On CUDA, `stream` (a cudaStream_t) orders
+  // the transfers among the device's work; null: the legacy default stream,
+  // where the solvers' kernels run. The CPU backend's transport ignores it.
   virtual void exchange_records(const SlabBounds& b, size_t record_bytes, const void* const send[kPeers],
                                 const uint32_t send_count[kPeers], void* const recv[kPeers],
-                                const uint32_t recv_count[kPeers]) = 0;
+                                const uint32_t recv_count[kPeers], void* stream) = 0;
   // The same for records of type T.
   template <class T>
   void exchange(const SlabBounds& b, T* const send[kPeers], const uint32_t send_count[kPeers], T* const recv[kPeers],
-                const uint32_t recv_count[kPeers]) {
+                const uint32_t recv_count[kPeers], void* stream = nullptr) {
     const void* s[kPeers];
     void* r[kPeers];
     for (int k = 0; k < kPeers; ++k) {
       s[k] = send[k];
       r[k] = recv[k];
     }
-    exchange_records(b, sizeof(T), s, send_count, r, recv_count);
+    exchange_records(b, sizeof(T), s, send_count, r, recv_count, stream);
   }
 };
 

@@ -286,22 +286,31 @@ class GhostRefresh {
   }
 
   // Every ghost's entry of `values` set to its owner's (T: at most a Float4,
-  // packed into the Float4 buffers).
+  // packed into the Float4 buffers), in order on the default stream.
   template <class T>
   void refresh(Vector<T>& values, ParticleTransport& transport) {
-    static_assert(sizeof(T) <= sizeof(Float4) && alignof(T) <= alignof(Float4), "a value per particle, Float4 at most");
-    T* send[kPeers];
-    T* recv[kPeers];
-    for (int k = 0; k < kPeers; ++k) {
-      send[k] = reinterpret_cast<T*>(raw(send_buf_[k]));
-      recv[k] = reinterpret_cast<T*>(raw(recv_buf_[k]));
-      if (send_n_[k] > 0)
-        parallel_for("ghost_pack", send_n_[k], PackByIndex<T>{raw(values), raw(send_idx_[k]), send[k]});
-    }
-    transport.exchange(bounds_, send, send_n_, recv, recv_n_);
-    for (int k = 0; k < kPeers; ++k)
-      if (recv_n_[k] > 0)
-        parallel_for("ghost_unpack", recv_n_[k], UnpackByIndex<T>{recv[k], raw(recv_idx_[k]), raw(values)});
+    transfer(values, transport, nullptr);
+  }
+
+  // The same queued on `side` (SideStream), after what it holds: the caller
+  // forks it so that the values this rank sends are written by then, and
+  // nothing it queues on the default stream before side.join() may write
+  // them or read or write the ghosts' entries (PBF's pass over the particles
+  // that no peer holds a ghost of runs meanwhile, iteration_pass).
+  template <class T>
+  void refresh_beside(Vector<T>& values, ParticleTransport& transport, SideStream& side) {
+    transfer(values, transport, &side);
+  }
+
+  // Per particle as sorted now, the peers it is listed for (PeerBits): an
+  // owned particle with a bit other than kSelf's is one whose values some
+  // peer reads.
+  const uint8_t* peer_bits() const { return raw(bits_); }
+  // At least the owned particles listed for a peer (the lists' lengths summed).
+  uint32_t listed_bound() const {
+    uint32_t m = 0;
+    for (int k = 0; k < kPeers; ++k) m += send_n_[k];
+    return m;
   }
 
   size_t bytes() const {
@@ -313,6 +322,26 @@ class GhostRefresh {
   }
 
  private:
+  // Pack, send and receive, unpack: on side's stream where given, else on the default one.
+  template <class T>
+  void transfer(Vector<T>& values, ParticleTransport& transport, SideStream* side) {
+    static_assert(sizeof(T) <= sizeof(Float4) && alignof(T) <= alignof(Float4), "a value per particle, Float4 at most");
+    auto launch = [&](const char* name, uint32_t n, auto f) {
+      if (side) side->parallel_for(name, n, f);
+      else parallel_for(name, n, f);
+    };
+    T* send[kPeers];
+    T* recv[kPeers];
+    for (int k = 0; k < kPeers; ++k) {
+      send[k] = reinterpret_cast<T*>(raw(send_buf_[k]));
+      recv[k] = reinterpret_cast<T*>(raw(recv_buf_[k]));
+      if (send_n_[k] > 0) launch("ghost_pack", send_n_[k], PackByIndex<T>{raw(values), raw(send_idx_[k]), send[k]});
+    }
+    transport.exchange(bounds_, send, send_n_, recv, recv_n_, side ? side->stream() : nullptr);
+    for (int k = 0; k < kPeers; ++k)
+      if (recv_n_[k] > 0) launch("ghost_unpack", recv_n_[k], UnpackByIndex<T>{recv[k], raw(recv_idx_[k]), raw(values)});
+  }
+
   // The particles `pick` selects, into `out` sorted by id; returns how many.
   template <class Pick>
   uint32_t list(Vector<uint32_t>& out, Pick pick, const Vector<uint32_t>& id, uint32_t n) {

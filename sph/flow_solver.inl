@@ -118,67 +118,108 @@ inline void check_flow_state(const char* solver, const char* remedy, const FlowS
   throw SimulationError(os.str());
 }
 
-// The class of each particle (mirror_walls.h, launch_class) at its position.
+// A decomposed run's particles fall in three groups for the passes whose
+// values the ghosts take from their owners after the pass (PBF's iterations,
+// LaunchLists::classify with the refresh's lists): the run's own particles
+// that no peer holds a ghost of, those that some peer does (their values are
+// sent as soon as their launch is done, while the others' runs), and the
+// ghosts (no need to compute what the refresh overwrites). A run on one rank
+// has the first group only.
+enum LaunchGroup : int { kGroupRest = 0, kGroupListed = 1, kGroupGhosts = 2 };
+constexpr int kLaunchGroups = 3;
+
+// The class of each particle (mirror_walls.h, launch_class) at its position,
+// plus 4 times its group where the run is decomposed (status and the
+// refresh's peer bits given).
 struct ClassifyLaunch {
   SphParams prm;
   float support, margin;
   WallsView walls;
   PairMask pairs;
   const Float4* pos;
+  const uint8_t* status;     // null: one group
+  const uint8_t* peer_bits;  // GhostRefresh::peer_bits
   uint8_t* cls;
   SPHRAY_HD void operator()(uint32_t i) const {
-    cls[i] = launch_class(prm, support, margin, walls, pairs, i, xyz(pos[i]));
+    uint8_t c = launch_class(prm, support, margin, walls, pairs, i, xyz(pos[i]));
+    if (status) {
+      const int g = status[i] == kStatusGhost ? kGroupGhosts : (peer_bits[i] & kToPeers) ? kGroupListed : kGroupRest;
+      c = uint8_t(c + 4 * g);
+    }
+    cls[i] = c;
   }
 };
 
-// Counts of the particles of each class before a position (a scan keeps
-// the lists in grid order: appended by atomics, the warps' runs came in the
-// device's order and the 1M passes lost 4-8% to the scattered reads).
+// Counts of the particles of each class (and group, G of them) before a
+// position: c[2 g] interior, c[2 g + 1] near walls, c[2 G] the direct loop's
+// of every group. (A scan keeps the lists in grid order: appended by
+// atomics, the warps' runs came in the device's order and the 1M passes lost
+// 4-8% to the scattered reads.)
+template <int G>
 struct LaunchCounts {
-  uint32_t interior, near, direct;
+  uint32_t c[2 * G + 1];
 };
+template <int G>
 struct CountLaunch {
-  SPHRAY_HD LaunchCounts operator()(uint8_t c) const {
-    return {c == kClassInterior ? 1u : 0u, c == kClassNearWalls ? 1u : 0u, c == kClassDirect ? 1u : 0u};
+  SPHRAY_HD LaunchCounts<G> operator()(uint8_t code) const {
+    LaunchCounts<G> r{};
+    const int cls = code & 3, g = code >> 2;
+    if (cls == kClassDirect) r.c[2 * G] = 1u;
+    else r.c[2 * g + cls] = 1u;
+    return r;
   }
 };
+template <int G>
 struct AddLaunchCounts {
-  SPHRAY_HD LaunchCounts operator()(const LaunchCounts& a, const LaunchCounts& b) const {
-    return {a.interior + b.interior, a.near + b.near, a.direct + b.direct};
+  SPHRAY_HD LaunchCounts<G> operator()(const LaunchCounts<G>& a, const LaunchCounts<G>& b) const {
+    LaunchCounts<G> r;
+    for (int k = 0; k < 2 * G + 1; ++k) r.c[k] = a.c[k] + b.c[k];
+    return r;
   }
 };
 
-// Each particle into its class's list, in grid order; the last particle
-// writes the lists' lengths.
+// The lists of the classes and groups: interior[g], near[g], direct; counts
+// [2 g] and [2 g + 1] their lengths, [kDirectCount] the direct loop's.
+constexpr int kDirectCount = 2 * kLaunchGroups;
+struct LaunchListPtrs {
+  uint32_t* interior[kLaunchGroups];
+  uint32_t* near[kLaunchGroups];
+  uint32_t* direct;
+  uint32_t* counts;
+};
+
+// Each particle into its list, in grid order; the last particle writes the
+// lists' lengths.
+template <int G>
 struct ScatterLaunchLists {
   const uint8_t* cls;
-  const LaunchCounts* before;
+  const LaunchCounts<G>* before;
   uint32_t n;
-  uint32_t* interior;
-  uint32_t* near;
-  uint32_t* direct;
-  uint32_t* counts;  // [3]: interior, near, direct
+  LaunchListPtrs out;
   SPHRAY_HD void operator()(uint32_t i) const {
-    const uint8_t c = cls[i];
-    const LaunchCounts b = before[i];
-    if (c == kClassInterior) interior[b.interior] = i;
-    else if (c == kClassNearWalls) near[b.near] = i;
-    else direct[b.direct] = i;
+    const uint8_t code = cls[i];
+    const int c = code & 3, g = code >> 2;
+    const LaunchCounts<G>& b = before[i];
+    if (c == kClassInterior) out.interior[g][b.c[2 * g]] = i;
+    else if (c == kClassNearWalls) out.near[g][b.c[2 * g + 1]] = i;
+    else out.direct[b.c[2 * G]] = i;
     if (i + 1 == n) {
-      counts[0] = b.interior + (c == kClassInterior ? 1u : 0u);
-      counts[1] = b.near + (c == kClassNearWalls ? 1u : 0u);
-      counts[2] = b.direct + (c == kClassDirect ? 1u : 0u);
+      for (int k = 0; k < G; ++k) {
+        out.counts[2 * k] = b.c[2 * k] + (c == kClassInterior && g == k ? 1u : 0u);
+        out.counts[2 * k + 1] = b.c[2 * k + 1] + (c == kClassNearWalls && g == k ? 1u : 0u);
+      }
+      out.counts[kDirectCount] = b.c[2 * G] + (c == kClassDirect ? 1u : 0u);
     }
   }
 };
 
-// The near-wall and the interior particles of a pass in one launch: the
-// first threads serve the near-wall list, the next the interior list (the
-// lengths on the device, so the host need not wait for them). One launch,
-// so that the near-wall particles' slower work runs beside the interior
-// work instead of after it with too few warps to fill the GPU (at 125k
-// particles a quarter of them are near a wall), and first, so that it does
-// not trail at the end.
+// The near-wall and the interior particles of a pass (of one group) in one
+// launch: the first threads serve the near-wall list, the next the interior
+// list (the lengths on the device, so the host need not wait for them). One
+// launch, so that the near-wall particles' slower work runs beside the
+// interior work instead of after it with too few warps to fill the GPU (at
+// 125k particles a quarter of them are near a wall), and first, so that it
+// does not trail at the end.
 template <class Interior, class Near>
 struct ListedLaunch {
   static constexpr int kMaxRegisters =
@@ -216,26 +257,38 @@ struct StridedLaunch {
 class LaunchLists {
  public:
   // Classifies the n particles at pos, which move at most `margin` over
-  // those passes, into the interior, near-wall and direct lists (in grid order).
+  // those passes, into the interior, near-wall and direct lists (in grid
+  // order). A decomposed run whose passes are followed by a ghost refresh
+  // also gives the particles' status and the refresh's peer bits
+  // (GhostRefresh), and bounds on the listed particles and the ghosts (the
+  // host's sizes of their launches): the lists are then kept per group.
   void classify(uint32_t n, const SphParams& prm, float support, float margin, const WallsView& walls,
-                const PairMask& pairs, const Float4* pos) {
+                const PairMask& pairs, const Float4* pos, const uint8_t* status = nullptr,
+                const uint8_t* peer_bits = nullptr, uint32_t listed_bound = 0, uint32_t ghosts = 0) {
     n_ = n;
+    grouped_ = status != nullptr;
+    if (grouped_ && !side_) side_ = std::make_unique<SideStream>();
+    listed_bound_ = std::min(listed_bound, n);
+    ghosts_bound_ = std::min(ghosts, n);
     if (cls_.size() < n) {
       cls_.resize(n);
-      before_.resize(n);
-      interior_.resize(n);
-      near_.resize(n);
+      interior_[0].resize(n);
+      near_[0].resize(n);
       direct_.resize(n);
     }
+    if (grouped_)
+      for (int g = 1; g < kLaunchGroups; ++g) {
+        if (interior_[g].size() < n) interior_[g].resize(n);
+        if (near_[g].size() < n) near_[g].resize(n);
+      }
     direct_known_ = n == 0;
     direct_count_ = 0;
     if (n == 0) return;
-    parallel_for("launch_classes", n, ClassifyLaunch{prm, support, margin, walls, pairs, pos, raw(cls_)});
-    thrust::transform_exclusive_scan(policy(), cls_.begin(), cls_.begin() + n, before_.begin(), CountLaunch{},
-                                     LaunchCounts{0u, 0u, 0u}, AddLaunchCounts{});
-    parallel_for("launch_lists", n,
-                 ScatterLaunchLists{raw(cls_), raw(before_), n, raw(interior_), raw(near_), raw(direct_), raw(counts_)});
-    direct_read_.start(raw(counts_) + 2);
+    parallel_for("launch_classes", n,
+                 ClassifyLaunch{prm, support, margin, walls, pairs, pos, status, peer_bits, raw(cls_)});
+    if (grouped_) scatter<kLaunchGroups>(before_grouped_);
+    else scatter<1>(before_);
+    direct_read_.start(raw(counts_) + kDirectCount);
   }
   // The direct loop's particles (usually none): read once per grid, when
   // the first pass asks, so that a pass launches no empty direct loop (seven
@@ -249,39 +302,102 @@ class LaunchLists {
     return direct_count_;
   }
   uint32_t size() const { return n_; }
+  bool grouped() const { return grouped_; }
+  // The stream of the groups' small launches beside the large one (made with the first grouped lists).
+  SideStream& side() const { return *side_; }
+  // Threads enough for group g's launch (the host's bound on its length).
+  uint32_t bound(LaunchGroup g) const {
+    return g == kGroupRest ? n_ : !grouped_ ? 0u : g == kGroupListed ? listed_bound_ : ghosts_bound_;
+  }
   template <class Interior, class Near>
-  ListedLaunch<Interior, Near> listed(const Interior& a, const Near& b) const {
-    return {a, b, raw(interior_), raw(near_), raw(counts_)};
+  ListedLaunch<Interior, Near> listed(const Interior& a, const Near& b, LaunchGroup g = kGroupRest) const {
+    return {a, b, raw(interior_[g]), raw(near_[g]), raw(counts_) + 2 * g};
   }
   template <class Pass>
-  StridedLaunch<Pass> direct(const Pass& p) const { return {p, raw(direct_), raw(counts_) + 2, direct_threads()}; }
+  StridedLaunch<Pass> direct(const Pass& p) const {
+    return {p, raw(direct_), raw(counts_) + kDirectCount, direct_threads()};
+  }
   uint32_t direct_threads() const { return n_ < kDirectThreads ? n_ : kDirectThreads; }
   size_t bytes() const {
-    return cls_.size() * (sizeof(uint8_t) + sizeof(LaunchCounts) + 3 * sizeof(uint32_t)) + 3 * sizeof(uint32_t);
+    size_t b = cls_.size() + before_.size() * sizeof(LaunchCounts<1>) +
+               before_grouped_.size() * sizeof(LaunchCounts<kLaunchGroups>) + direct_.size() * sizeof(uint32_t) +
+               counts_.size() * sizeof(uint32_t);
+    for (int g = 0; g < kLaunchGroups; ++g) b += (interior_[g].size() + near_[g].size()) * sizeof(uint32_t);
+    return b;
   }
 
  private:
+  template <int G>
+  void scatter(Vector<LaunchCounts<G>>& before) {
+    if (before.size() < n_) before.resize(n_);
+    thrust::transform_exclusive_scan(policy(), cls_.begin(), cls_.begin() + n_, before.begin(), CountLaunch<G>{},
+                                     LaunchCounts<G>{}, AddLaunchCounts<G>{});
+    LaunchListPtrs out{{}, {}, raw(direct_), raw(counts_)};
+    for (int g = 0; g < kLaunchGroups; ++g) {
+      out.interior[g] = g < G ? raw(interior_[g]) : nullptr;
+      out.near[g] = g < G ? raw(near_[g]) : nullptr;
+    }
+    parallel_for("launch_lists", n_, ScatterLaunchLists<G>{raw(cls_), raw(before), n_, out});
+  }
+
   uint32_t n_ = 0;
+  bool grouped_ = false;
+  std::unique_ptr<SideStream> side_;
+  uint32_t listed_bound_ = 0, ghosts_bound_ = 0;
   Vector<uint8_t> cls_;
-  Vector<LaunchCounts> before_;
-  Vector<uint32_t> interior_, near_, direct_;
-  Vector<uint32_t> counts_ = Vector<uint32_t>(3);
+  Vector<LaunchCounts<1>> before_;
+  Vector<LaunchCounts<kLaunchGroups>> before_grouped_;
+  Vector<uint32_t> interior_[kLaunchGroups], near_[kLaunchGroups], direct_;
+  Vector<uint32_t> counts_ = Vector<uint32_t>(kDirectCount + 1);
   ReadBack<uint32_t> direct_read_;
   mutable bool direct_known_ = true;
   mutable uint32_t direct_count_ = 0;
 };
 
-// A neighbour pass (mirror_walls.h, MirrorPass) over the particles `lists`
-// gives each variant: the near-wall and the interior variant in one launch,
-// the near-wall one with the obstacles' wall terms where the scene has
-// obstacles' wall particles (`mesh`), then the direct loop's. names: that
-// launch without and with the obstacles' wall terms, and the direct loop's.
+// A neighbour pass (mirror_walls.h, MirrorPass) over group g's particles:
+// the near-wall and the interior variant in one launch, the near-wall one
+// with the obstacles' wall terms where the scene has obstacles' wall
+// particles (`mesh`), on `side` where given (else the default stream).
+// names: that launch without and with the obstacles' wall terms, and the
+// direct loop's.
+template <class F>
+void launch_on(SideStream* side, const char* name, uint32_t n, const F& f) {
+  if (side) side->parallel_for(name, n, f);
+  else parallel_for(name, n, f);
+}
+template <template <int> class Pass, class... Args>
+void mirror_group_launch(const char* const (&names)[3], const LaunchLists& lists, bool mesh, LaunchGroup g,
+                         SideStream* side, Args... args) {
+  const uint32_t n = lists.bound(g);
+  if (mesh) launch_on(side, names[1], n, lists.listed(Pass<kInterior>{args...}, Pass<kNearMesh>{args...}, g));
+  else launch_on(side, names[0], n, lists.listed(Pass<kInterior>{args...}, Pass<kNearWalls>{args...}, g));
+}
+
+// The direct loop's launch of a pass (every group's particles whose masks overflowed).
+template <template <int> class Pass, class... Args>
+void mirror_direct_launch(const char* const (&names)[3], const LaunchLists& lists, SideStream* side, Args... args) {
+  if (lists.direct_count() > 0)
+    launch_on(side, names[2], lists.direct_threads(), lists.direct(Pass<kDirect>{args...}));
+}
+
+// A neighbour pass over every particle. A decomposed run's groups: the
+// small launches (the particles peers read, the ghosts, the direct loop) on
+// the lists' side stream beside the large one, so that they do not add
+// their latency to it.
 template <template <int> class Pass, class... Args>
 void mirror_pass_launches(const char* const (&names)[3], const LaunchLists& lists, bool mesh, Args... args) {
-  const uint32_t n = lists.size();
-  if (mesh) parallel_for(names[1], n, lists.listed(Pass<kInterior>{args...}, Pass<kNearMesh>{args...}));
-  else parallel_for(names[0], n, lists.listed(Pass<kInterior>{args...}, Pass<kNearWalls>{args...}));
-  if (lists.direct_count() > 0) parallel_for(names[2], lists.direct_threads(), lists.direct(Pass<kDirect>{args...}));
+  if (!lists.grouped()) {
+    mirror_group_launch<Pass>(names, lists, mesh, kGroupRest, nullptr, args...);
+    mirror_direct_launch<Pass>(names, lists, nullptr, args...);
+    return;
+  }
+  SideStream& side = lists.side();
+  side.fork();
+  mirror_group_launch<Pass>(names, lists, mesh, kGroupListed, &side, args...);
+  mirror_group_launch<Pass>(names, lists, mesh, kGroupRest, nullptr, args...);
+  mirror_group_launch<Pass>(names, lists, mesh, kGroupGhosts, &side, args...);
+  mirror_direct_launch<Pass>(names, lists, &side, args...);
+  side.join();
 }
 
 // The message of a step below run.min_dt.

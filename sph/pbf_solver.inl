@@ -23,8 +23,9 @@
 // the pair masks are found at x* and kept through the step, so these are
 // all the neighbours its own particles read); after every pass of the
 // iterations the ghosts take their owners' values (GhostRefresh,
-// exchange_impl.inl), and the step's statistics are reduced over the ranks
-// before the next step's size is chosen.
+// exchange_impl.inl; on a rank with many ghosts sent while the rest of the
+// pass runs: iteration_pass), and the step's statistics are reduced over the
+// ranks before the next step's size is chosen.
 
 class PbfSolverImpl final : public Solver {
  public:
@@ -237,7 +238,14 @@ class PbfSolverImpl final : public Solver {
     const float margin = pbf_.max_correction > 0.0f
                              ? float(pbf_.iterations) * (pbf_.max_correction + 2.0f * obstacles_.view.offset)
                              : pbf_.kernel.s;
-    lists_.classify(n_, prm_, pbf_.kernel.s, margin, walls_.view(), pairs(), raw(pred_));
+    // A decomposed run's passes skip the ghosts and start with what the
+    // peers read where the ghosts are a large enough share of the particles
+    // (SlabBounds::overlap_above; iteration_pass).
+    if (transport_ && double(ghosts_) >= double(bounds_.overlap_above) * double(n_))
+      lists_.classify(n_, prm_, pbf_.kernel.s, margin, walls_.view(), pairs(), raw(pred_), raw(status_),
+                      refresh_.peer_bits(), refresh_.listed_bound(), ghosts_);
+    else
+      lists_.classify(n_, prm_, pbf_.kernel.s, margin, walls_.view(), pairs(), raw(pred_));
   }
 
   static constexpr const char* kLambdaNames[3] = {"pbf_lambda", "pbf_lambda_walls",
@@ -247,23 +255,58 @@ class PbfSolverImpl final : public Solver {
 
   // The constraint iterations; returns how many corrections were applied.
   int solve() {
+    const bool stop = obstacles_.view.count > 0;
     for (int k = 0; k < pbf_.iterations; ++k) {
-      mirror_pass_launches<Lambda>(kLambdaNames, lists_, walls_.size() > 0, prm_, pbf_, step_grid_, raw(fine_offsets_), pairs(),
-                                   raw(pred_), raw(pred_tmp_), raw(error_), walls_.view(), raw(wall_grad_));
+      iteration_pass<Lambda>(kLambdaNames, pred_tmp_, false, prm_, pbf_, step_grid_, raw(fine_offsets_), pairs(),
+                             raw(pred_), raw(pred_tmp_), raw(error_), walls_.view(), raw(wall_grad_));
       pred_.swap(pred_tmp_);
-      refresh(pred_);
       if (pbf_.tolerance > 0) {
         // Ending early needs the error on the host: one read per iteration.
         if (mean_over_run(error_, n_, ghosts_, status_, transport_) <= pbf_.tolerance) return k;
       }
-      mirror_pass_launches<Correct>(kCorrectNames, lists_, walls_.size() > 0, prm_, pbf_, step_grid_, raw(fine_offsets_), pairs(),
-                                    raw(pred_), raw(pred_tmp_), walls_.view(), raw(wall_grad_));
-      if (obstacles_.view.count > 0)
-        parallel_for("pbf_stop", n_, StopCorrection{prm_, obstacles_.view, raw(control_), raw(pred_), raw(pred_tmp_)});
+      iteration_pass<Correct>(kCorrectNames, pred_tmp_, stop, prm_, pbf_, step_grid_, raw(fine_offsets_), pairs(),
+                              raw(pred_), raw(pred_tmp_), walls_.view(), raw(wall_grad_));
       pred_.swap(pred_tmp_);
-      refresh(pred_);
     }
     return pbf_.iterations;
+  }
+
+  // One pass of the iterations into `out` (from pred_), the corrections
+  // stopped at the obstacles where `stop`; a decomposed run's ghosts then take
+  // their owners' values. Where the lists are grouped (build_masks: ghosts
+  // are SlabBounds::overlap_above of the particles or more) the particles
+  // that peers hold ghosts of are computed on the lists' side stream and
+  // their values sent from there, while the rest of the rank's own particles
+  // are computed on the default stream; the ghosts are skipped (the refresh
+  // brings their values). With a stop (a pass over every particle after the
+  // corrections) the refresh follows it instead.
+  template <template <int> class Pass, class... Args>
+  void iteration_pass(const char* const (&names)[3], Vector<Float4>& out, bool stop, Args... args) {
+    const bool mesh = walls_.size() > 0;
+    if (!lists_.grouped()) {
+      mirror_pass_launches<Pass>(names, lists_, mesh, args...);
+      if (stop) stop_corrections(out);
+      if (transport_) refresh_.refresh(out, *transport_);
+      return;
+    }
+    // The default stream's large launch is queued first, so that the host's
+    // transport calls do not hold it back.
+    SideStream& side = lists_.side();
+    side.fork();
+    mirror_group_launch<Pass>(names, lists_, mesh, kGroupListed, &side, args...);
+    mirror_group_launch<Pass>(names, lists_, mesh, kGroupRest, nullptr, args...);
+    mirror_direct_launch<Pass>(names, lists_, &side, args...);
+    if (!stop) refresh_.refresh_beside(out, *transport_, side);
+    side.join();
+    if (stop) {
+      stop_corrections(out);
+      refresh_.refresh(out, *transport_);
+    }
+  }
+
+  // The corrections from pred_ to `out` stopped at the obstacles (pbf.h).
+  void stop_corrections(Vector<Float4>& out) {
+    parallel_for("pbf_stop", n_, StopCorrection{prm_, obstacles_.view, raw(control_), raw(pred_), raw(out)});
   }
 
   void finish(bool presence) {
