@@ -13,7 +13,8 @@ set -euo pipefail
 B=${1:-build}
 OUT=${OUT:-$PWD/scaling-out}
 mkdir -p "$OUT"
-GPUS=${GPUS:-"1 2"} WEAK=${WEAK:-"1 4"} STRONG=${STRONG:-"4 8"} STEPS=${STEPS:-150} SOLVER=${SOLVER:-wcsph}
+# (an empty WEAK or STRONG runs none of that kind)
+GPUS=${GPUS:-"1 2"} WEAK=${WEAK-"1 4"} STRONG=${STRONG-"4 8"} STEPS=${STEPS:-150} SOLVER=${SOLVER:-wcsph}
 # the step at 4.32 mm, which scales with the spacing: WCSPH's acoustic one; PBF's and DFSPH's
 # (the flow CFL; PBF's depth limit, then its error-sized step) about 1 ms over the first steps
 case $SOLVER in wcsph) DT=0.11e-3 ;; pbf | dfsph) DT=1.0e-3 ;; *) echo "SOLVER: wcsph, pbf or dfsph"; exit 2 ;; esac
