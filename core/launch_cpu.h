@@ -87,6 +87,12 @@ class SideStream {
   void* stream() const { return nullptr; }
 };
 
+// parallel_for on `side` where given, else on the default stream (in order either way).
+template <class F>
+void launch_on(SideStream*, const char* name, uint32_t n, const F& f) {
+  parallel_for(name, n, f);
+}
+
 // *out = op-reduction of f(0), ..., f(n - 1) and init (the CUDA backend's
 // leaves it on the device).
 template <class T, class F, class Op>

@@ -244,6 +244,13 @@ class SideStream {
   cudaEvent_t forked_{}, done_{};
 };
 
+// parallel_for on `side` where given, else on the default stream.
+template <class F>
+void launch_on(SideStream* side, const char* name, uint32_t n, const F& f) {
+  if (side) side->parallel_for(name, n, f);
+  else parallel_for(name, n, f);
+}
+
 template <class T>
 struct StoreValue {
   T* out;

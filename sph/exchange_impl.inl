@@ -326,20 +326,18 @@ class GhostRefresh {
   template <class T>
   void transfer(Vector<T>& values, ParticleTransport& transport, SideStream* side) {
     static_assert(sizeof(T) <= sizeof(Float4) && alignof(T) <= alignof(Float4), "a value per particle, Float4 at most");
-    auto launch = [&](const char* name, uint32_t n, auto f) {
-      if (side) side->parallel_for(name, n, f);
-      else parallel_for(name, n, f);
-    };
     T* send[kPeers];
     T* recv[kPeers];
     for (int k = 0; k < kPeers; ++k) {
       send[k] = reinterpret_cast<T*>(raw(send_buf_[k]));
       recv[k] = reinterpret_cast<T*>(raw(recv_buf_[k]));
-      if (send_n_[k] > 0) launch("ghost_pack", send_n_[k], PackByIndex<T>{raw(values), raw(send_idx_[k]), send[k]});
+      if (send_n_[k] > 0)
+        launch_on(side, "ghost_pack", send_n_[k], PackByIndex<T>{raw(values), raw(send_idx_[k]), send[k]});
     }
     transport.exchange(bounds_, send, send_n_, recv, recv_n_, side ? side->stream() : nullptr);
     for (int k = 0; k < kPeers; ++k)
-      if (recv_n_[k] > 0) launch("ghost_unpack", recv_n_[k], UnpackByIndex<T>{recv[k], raw(recv_idx_[k]), raw(values)});
+      if (recv_n_[k] > 0)
+        launch_on(side, "ghost_unpack", recv_n_[k], UnpackByIndex<T>{recv[k], raw(recv_idx_[k]), raw(values)});
   }
 
   // The particles `pick` selects, into `out` sorted by id; returns how many.

@@ -360,11 +360,6 @@ class LaunchLists {
 // particles (`mesh`), on `side` where given (else the default stream).
 // names: that launch without and with the obstacles' wall terms, and the
 // direct loop's.
-template <class F>
-void launch_on(SideStream* side, const char* name, uint32_t n, const F& f) {
-  if (side) side->parallel_for(name, n, f);
-  else parallel_for(name, n, f);
-}
 template <template <int> class Pass, class... Args>
 void mirror_group_launch(const char* const (&names)[3], const LaunchLists& lists, bool mesh, LaunchGroup g,
                          SideStream* side, Args... args) {

@@ -286,7 +286,7 @@ class PbfSolverImpl final : public Solver {
     if (!lists_.grouped()) {
       mirror_pass_launches<Pass>(names, lists_, mesh, args...);
       if (stop) stop_corrections(out);
-      if (transport_) refresh_.refresh(out, *transport_);
+      refresh(out);
       return;
     }
     // The default stream's large launch is queued first, so that the host's
@@ -300,7 +300,7 @@ class PbfSolverImpl final : public Solver {
     side.join();
     if (stop) {
       stop_corrections(out);
-      refresh_.refresh(out, *transport_);
+      refresh(out);
     }
   }
 

@@ -434,7 +434,8 @@ TEST_CASE("PBF's passes beside the ghost refresh give the run of the passes befo
                              c.spacing + " --set run.end_time=0.2 --set run.output_interval=0.1 "
                              "--export-fields velocity,density --export ";
     const std::string on = tmp_dir() + "/overlap_on.h5", off = tmp_dir() + "/overlap_off.h5";
-    const CliResult a = run_ranks(c.ranks, "--overlap on " + args + on), b = run_ranks(c.ranks, "--overlap off " + args + off);
+    const CliResult a = run_ranks(c.ranks, "--overlap on " + args + on);
+    const CliResult b = run_ranks(c.ranks, "--overlap off " + args + off);
     INFO(a.output << b.output);
     REQUIRE(a.code == 0);
     REQUIRE(b.code == 0);
