@@ -1,6 +1,7 @@
 // `sphray run SCENE`: simulates a scene, with the outputs its flags ask for
 // (metrics CSV, summary JSON, HDF5 export, PNG frames).
 #include <cerrno>
+#include <cmath>
 #include <cstring>
 #include <iomanip>
 #include <iostream>
@@ -34,6 +35,7 @@ struct RunArgs {
   bool quiet = false;
   int rebalance_every = SlabOptions{}.rebalance_every;
   std::string overlap = "auto";
+  std::string cut_axis = "auto";
   ExportArgs ex;
   FrameArgs fa;
 };
@@ -282,13 +284,19 @@ int cmd_run(RunArgs a) {
     share.even = true;
     check_fits(rs, b, needs.field, &share);
     const SolverInput in = make_solver_input(rs, PresenceMode::Off, resume ? &*resume : nullptr);
-    const SlabPlan plan = plan_slabs(in, comm->size());
+    const SlabPlan plan = plan_slabs(in, comm->size(), a.cut_axis == "auto" ? -1 : a.cut_axis[0] - 'x');
     share.fluid = held_particles(in, plan, comm->rank());
     share.even = false;
     check_fits(rs, b, needs.field, &share);
     std::cout << "ranks: " << comm->size() << " slabs along " << axis_name(plan.axis) << ", cut at";
     for (double c : plan.cuts) std::cout << " " << c;
-    std::cout << " m, halo " << plan.halo << " m\n";
+    std::cout << " m, halo " << plan.halo << " m; the most particles a rank holds with its ghosts, cut along";
+    for (int ax = 0; ax < 3; ++ax) {
+      std::cout << (ax ? ", " : " ") << axis_name(ax) << ": ";
+      if (plan.held[ax] > 0) std::cout << size_t(std::lround(plan.held[ax]));
+      else std::cout << "-";
+    }
+    std::cout << "\n";
     SlabOptions so;
     so.frame_view = needs.field || out.png;  // rank 0 builds the field and renders from the gathered particles
     // Alike on every rank: whether an output reads all particles on rank 0.
@@ -370,6 +378,10 @@ CLI::App* add_run_command(CLI::App& app, int& exit_code) {
                   "each pass runs, skipping the ghosts (auto: on ranks whose ghosts are 6% or more of their "
                   "particles; on; off)")
       ->check(CLI::IsMember({"auto", "on", "off"}));
+  run->add_option("--cut-axis", a->cut_axis,
+                  "a run over several ranks: the axis its slabs are cut along (auto: the one whose busiest rank "
+                  "holds the fewest particles with its ghosts; x; y; z)")
+      ->check(CLI::IsMember({"auto", "x", "y", "z"}));
   run->add_option("--resume", a->resume,
                   "start from the last frame of this export (written with --export-fields velocity,density), on any "
                   "number of ranks");

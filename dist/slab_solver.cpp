@@ -261,14 +261,10 @@ size_t held_particles(const SolverInput& in, const SlabPlan& plan, int rank) {
   return n;
 }
 
-SlabPlan plan_slabs(const SolverInput& in, int ranks) {
+SlabPlan plan_slabs(const SolverInput& in, int ranks, int axis) {
+  if (axis < -1 || axis > 2) throw std::logic_error("plan_slabs: an axis other than -1 (auto), 0, 1 or 2");
   const Aabb& t = in.params.tank;
-  const Vec3f ext = t.max - t.min;
   SlabPlan p;
-  for (int a = 1; a < 3; ++a)
-    if (along(ext, a) > along(ext, p.axis)) p.axis = a;
-  p.lo = along(t.min, p.axis);
-  p.hi = along(t.max, p.axis);
   p.halo = p.min_width = 2.0 * double(in.params.kernel.support());
   p.halo_free = double(in.params.kernel.support());
   // PBF's neighbours are found once per step at x*, within its own support,
@@ -280,11 +276,35 @@ SlabPlan plan_slabs(const SolverInput& in, int ranks) {
   // A ghost's owner is a neighbouring slab (sph/exchange.h; PBF's and
   // DFSPH's refresh lists rely on it).
   if (p.halo_free > p.min_width) throw std::logic_error("plan_slabs: a halo wider than the least slab");
-  check_rank_count(ranks, p.lo, p.hi, p.min_width, axis_name(p.axis));
   p.bin = 0.5 * double(in.params.spacing);
-  AxisHistogram h = AxisHistogram::over(p.lo, p.hi, p.bin);
-  for (const Float4& q : in.fluid_pos_rho) h.add(along(xyz(q), p.axis));
-  p.cuts = balanced_cuts(h, ranks, p.lo, p.hi, p.min_width);
+  auto length = [&](int a) { return double(along(t.max, a) - along(t.min, a)); };
+  int longest = 0;
+  for (int a = 1; a < 3; ++a)
+    if (length(a) > length(longest)) longest = a;
+  // Every axis that holds the slabs, cut at its quantiles: the one whose
+  // busiest rank holds the fewest particles (slabs.h); the longest first, so
+  // that it wins a tie.
+  std::vector<double> cuts[3];
+  int best = -1;
+  for (int a : {longest, (longest + 1) % 3, (longest + 2) % 3}) {
+    if (axis >= 0 && a != axis) continue;
+    const double lo = along(t.min, a), hi = along(t.max, a);
+    if (ranks > 1 && hi - lo < ranks * p.min_width * (1.0 - 1e-9)) continue;
+    AxisHistogram h = AxisHistogram::over(lo, hi, p.bin);
+    for (const Float4& q : in.fluid_pos_rho) h.add(along(xyz(q), a));
+    cuts[a] = balanced_cuts(h, ranks, lo, hi, p.min_width);
+    p.held[a] = most_held(h, cuts[a], p.halo_free);
+    if (best < 0 || p.held[a] < p.held[best]) best = a;
+  }
+  if (best < 0) {  // no axis holds them: the numbers of the one that holds the most, or of the one asked for
+    const int a = axis >= 0 ? axis : longest;
+    check_rank_count(ranks, along(t.min, a), along(t.max, a), p.min_width,
+                     axis >= 0 ? std::string(axis_name(a)) : "the domain's longest axis (" + std::string(axis_name(a)) + ")");
+  }
+  p.axis = best;
+  p.lo = along(t.min, best);
+  p.hi = along(t.max, best);
+  p.cuts = std::move(cuts[best]);
   return p;
 }
 

@@ -65,12 +65,13 @@ struct SlabOptions {
 
 using SolverMaker = std::function<std::unique_ptr<Solver>(const SolverInput&)>;
 
-// The plan of `in`'s run over comm.size() ranks: the domain's longest axis,
-// least slab width and halo near walls two support radii (one elsewhere),
-// cuts at the quantiles of the
-// initial particles. Throws std::invalid_argument when the domain cannot hold
-// that many slabs (check_rank_count).
-SlabPlan plan_slabs(const SolverInput& in, int ranks);
+// The plan of `in`'s run over `ranks` ranks: least slab width and halo near
+// walls two support radii (one elsewhere), cuts at the quantiles of the
+// initial particles along `axis` (0 x, 1 y, 2 z), or with -1 along the axis
+// whose busiest rank holds the fewest of them with its ghosts (slabs.h).
+// Throws std::invalid_argument when the domain cannot hold that many slabs
+// along that axis, or along any (check_rank_count).
+SlabPlan plan_slabs(const SolverInput& in, int ranks, int axis = -1);
 
 // The fluid particles of `in` that rank `rank` holds at the start: its own and
 // its ghosts, counted within the wider halo (plan.halo) on both sides, an

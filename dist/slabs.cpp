@@ -40,13 +40,13 @@ void AxisHistogram::add(double x) { counts[axis_bin(x, lo, width, uint32_t(count
 
 const char* axis_name(int axis) { return axis == 0 ? "x" : axis == 1 ? "y" : "z"; }
 
-void check_rank_count(int ranks, double lo, double hi, double min_width, const char* axis) {
+void check_rank_count(int ranks, double lo, double hi, double min_width, const std::string& along) {
   if (ranks < 1) throw std::invalid_argument("a decomposed run needs at least one rank");
   const double length = hi - lo;
   if (ranks == 1 || length >= ranks * min_width * (1.0 - 1e-9)) return;
   std::ostringstream os;
   os << ranks << " ranks need slabs at least " << min_width << " m thick (two support radii, the halo), "
-     << ranks * min_width << " m along the domain's longest axis (" << axis << "), which is " << length
+     << ranks * min_width << " m along " << along << ", which is " << length
      << " m long: at most " << std::max(1, int(std::floor(length / min_width + 1e-9))) << " ranks";
   throw std::invalid_argument(os.str());
 }
@@ -76,6 +76,26 @@ std::vector<double> balanced_cuts(const AxisHistogram& h, int ranks, double lo, 
   double next = hi;
   for (auto it = cuts.rbegin(); it != cuts.rend(); ++it) next = *it = std::min(*it, next - min_width);
   return cuts;
+}
+
+double most_held(const AxisHistogram& h, const std::vector<double>& cuts, double halo) {
+  // below(x): the particles below x, by the running sum of the bins.
+  std::vector<double> sum(h.counts.size() + 1, 0.0);
+  for (size_t b = 0; b < h.counts.size(); ++b) sum[b + 1] = sum[b] + h.counts[b];
+  auto below = [&](double x) {
+    const double at = (x - h.lo) / h.width;
+    if (at <= 0) return 0.0;
+    if (at >= double(h.counts.size())) return sum.back();
+    const size_t b = size_t(at);
+    return sum[b] + (at - double(b)) * h.counts[b];
+  };
+  const double inf = std::numeric_limits<double>::infinity();
+  double most = 0;
+  for (size_t r = 0; r <= cuts.size(); ++r) {
+    const double a = r == 0 ? -inf : cuts[r - 1] - halo, e = r == cuts.size() ? inf : cuts[r] + halo;
+    most = std::max(most, below(e) - below(a));
+  }
+  return most;
 }
 
 double imbalance(const std::vector<double>& counts) {

@@ -1,10 +1,15 @@
-// The cut of a decomposed run's domain into slabs, one per rank, along the
-// domain's longest axis: the fewest cut faces for the most slabs, and a cut
-// plane that only ever needs one coordinate to find a particle's owner.
-// Slabs are at least `min_width` thick (the halo, so that a rank's ghosts
-// come from ranks whose slabs touch its own, and a particle crosses at most
-// one cut per step); the cuts sit at the quantiles of the particles along the
-// axis, so the ranks own about equal counts.
+// The cut of a decomposed run's domain into slabs, one per rank, along one
+// axis: a cut plane that only ever needs one coordinate to find a particle's
+// owner. Slabs are at least `min_width` thick (the halo, so that a rank's
+// ghosts come from ranks whose slabs touch its own, and a particle crosses at
+// most one cut per step); the cuts sit at the quantiles of the particles along
+// the axis, so the ranks own about equal counts. The axis is the one whose
+// cuts leave the busiest rank the fewest particles, its own and its ghosts
+// (most_held): every rank waits for the slowest at each step's reductions,
+// and a rank's step costs about its particle count. Cuts across the liquid's
+// smallest section make the fewest ghosts: the dam break's column, 0.4 m
+// along x and 0.67 m along y, is cut along y, and since its flow runs along
+// x, its slabs keep their particles as it collapses.
 #pragma once
 
 #include <cstddef>
@@ -17,6 +22,9 @@ namespace sphray {
 
 struct SlabPlan {
   int axis = 0;             // 0 x, 1 y, 2 z
+  // most_held along each axis at the start (halo_free wide); 0 where the axis
+  // cannot hold the ranks' slabs.
+  double held[3] = {0, 0, 0};
   double lo = 0, hi = 0;    // the domain along the axis [m]
   double halo = 0;          // ghost width [m] near wall particles: particles within it of a slab are copied to its rank
   double halo_free = 0;     // ghost width [m] elsewhere
@@ -45,13 +53,18 @@ struct AxisHistogram {
   void add(double x);
 };
 
-// A domain too short for `ranks` slabs of `min_width` (std::invalid_argument
-// with the numbers: the most ranks it holds).
-void check_rank_count(int ranks, double lo, double hi, double min_width, const char* axis_name);
+// A domain too short for `ranks` slabs of `min_width` along the axis named
+// `along` (std::invalid_argument with the numbers: the most ranks it holds).
+void check_rank_count(int ranks, double lo, double hi, double min_width, const std::string& along);
 
 // The cuts at the quantiles k / ranks of the histogram's counts, pushed apart
 // to min_width (and inside [lo, hi]).
 std::vector<double> balanced_cuts(const AxisHistogram& h, int ranks, double lo, double hi, double min_width);
+
+// The most particles one rank holds with slabs cut at `cuts`: those of the
+// histogram in its slab widened by `halo` on each side (its own and its
+// ghosts), a bin's particles taken as spread evenly across it.
+double most_held(const AxisHistogram& h, const std::vector<double>& cuts, double halo);
 
 // Largest count over the mean count, minus one (0: balanced).
 double imbalance(const std::vector<double>& counts);

@@ -10,6 +10,7 @@
 
 #include "catch.h"
 #include "dist/rank_export.h"
+#include "dist/slab_solver.h"
 #include "dist/slabs.h"
 #include "helpers.h"
 #include "io/frames_h5.h"
@@ -60,6 +61,81 @@ TEST_CASE("slab cuts split the particles into equal counts, at least a halo apar
     CHECK(cuts.front() >= lo + width - 1e-12);
     CHECK(cuts.back() <= hi - width + 1e-12);
     for (size_t k = 1; k < cuts.size(); ++k) CHECK(cuts[k] - cuts[k - 1] >= width - 1e-12);
+  }
+}
+
+TEST_CASE("the most particles a rank holds with its ghosts, from the histogram, is the brute-force count", "[dist]") {
+  std::mt19937 rng(11);
+  std::vector<double> xs(30000);
+  std::uniform_real_distribution<double> u(0.0, 1.0);
+  for (double& x : xs) x = 0.2 + 0.5 * u(rng) * u(rng);  // skewed toward 0.2
+  const double lo = 0, hi = 1.0, bin = 0.002, halo = 0.03;
+  AxisHistogram h = AxisHistogram::over(lo, hi, bin);
+  for (double x : xs) h.add(x);
+  for (int ranks : {1, 2, 4, 7}) {
+    const std::vector<double> cuts = balanced_cuts(h, ranks, lo, hi, 2 * halo);
+    double most = 0, densest = 0;
+    for (int r = 0; r < ranks; ++r) {
+      const double a = r == 0 ? -1e9 : cuts[size_t(r) - 1] - halo, e = r == ranks - 1 ? 1e9 : cuts[size_t(r)] + halo;
+      most = std::max(most, double(count_in(xs, a, e)));
+    }
+    for (double c : h.counts) densest = std::max(densest, c);
+    INFO(ranks << " ranks");
+    // Each end of a slab interpolates within one bin: off by a bin's worth at each.
+    CHECK(std::abs(most_held(h, cuts, halo) - most) <= 2 * densest);
+    if (ranks == 1) CHECK(most_held(h, cuts, halo) == double(xs.size()));
+  }
+}
+
+TEST_CASE("the slabs are cut along the axis whose busiest rank holds the fewest particles", "[dist]") {
+  // The dam break's column (0.4 x 0.67 x 0.3 m in a 1.6 x 0.67 x 0.6 m tank)
+  // at 4 cm: slabs at least 0.32 m thick (two WCSPH supports). Along x 5 fit,
+  // along y 2, along z 1.
+  const Scene s = load_scene(source_path("scenes/dam_break.json"), {"sph.spacing=0.04"});
+  const SolverInput in = make_solver_input(resolve_scene(s), PresenceMode::Off);
+  // Brute force: the particles each rank holds (its slab widened by halo_free
+  // on each side), the most of any rank.
+  auto busiest = [&](const SlabPlan& p) {
+    size_t most = 0;
+    for (int r = 0; r < p.ranks(); ++r) {
+      const double a = r == 0 ? -1e9 : p.slab_lo(r) - p.halo_free, e = r == p.ranks() - 1 ? 1e9 : p.slab_hi(r) + p.halo_free;
+      size_t n = 0;
+      for (const Float4& q : in.fluid_pos_rho) {
+        const double x = along(xyz(q), p.axis);
+        n += x >= a && x < e;
+      }
+      most = std::max(most, n);
+    }
+    return double(most);
+  };
+  const SlabPlan x2 = plan_slabs(in, 2, 0), y2 = plan_slabs(in, 2, 1), auto2 = plan_slabs(in, 2);
+  CHECK(x2.axis == 0);
+  CHECK(y2.axis == 1);
+  // Cut across x (the column's 0.67 x 0.3 m section) a rank holds more than
+  // across y (0.4 x 0.3 m).
+  INFO("busiest rank: x " << busiest(x2) << ", y " << busiest(y2));
+  CHECK(busiest(y2) < busiest(x2));
+  CHECK(auto2.axis == 1);
+  CHECK(auto2.cuts == y2.cuts);
+  CHECK(std::abs(auto2.held[0] - busiest(x2)) <= 0.02 * busiest(x2));
+  CHECK(std::abs(auto2.held[1] - busiest(y2)) <= 0.02 * busiest(y2));
+  CHECK(auto2.held[2] == 0);  // 0.6 m hold one slab of 0.32 m
+  // Three slabs fit along x alone.
+  CHECK(plan_slabs(in, 3).axis == 0);
+  CHECK(plan_slabs(in, 1).axis == 0);  // one rank: the longest axis
+  // An axis asked for that cannot hold them, and a rank count no axis holds.
+  try {
+    plan_slabs(in, 2, 2);
+    FAIL("2 slabs of 0.32 m fit in 0.6 m");
+  } catch (const std::invalid_argument& e) {
+    CHECK(has(e.what(), "2 ranks need slabs at least 0.32 m thick"));
+    CHECK(has(e.what(), "along z, which is 0.6 m long: at most 1 ranks"));
+  }
+  try {
+    plan_slabs(in, 6);
+    FAIL("6 slabs of 0.32 m fit in 1.6 m");
+  } catch (const std::invalid_argument& e) {
+    CHECK(has(e.what(), "along the domain's longest axis (x), which is 1.6 m long: at most 5 ranks"));
   }
 }
 
@@ -243,7 +319,9 @@ void check_ranks_follow_one_rank(const std::string& solver_args, const std::stri
       CHECK(std::abs(mr[k][3] - m1[k][3]) <= bound.front * spacing);                    // front
       CHECK(std::abs(mr[k][4] - m1[k][4]) <= bound.energy * std::max(m1[k][4], 1e-9));  // kinetic energy
     }
-    CHECK(has(r.output, "ranks: " + std::to_string(ranks) + " slabs along x"));
+    // Two slabs fit along y, the column's longer side and the fewer ghosts;
+    // three along x alone (slabs.h).
+    CHECK(has(r.output, "ranks: " + std::to_string(ranks) + " slabs along " + (ranks == 2 ? "y" : "x")));
     CHECK(has(slurp(summary), "\"status\": \"completed\""));
     const FrameReader got(path("ranks", ranks) + ".h5");
     REQUIRE(got.frames().size() == ref.frames().size());
@@ -270,8 +348,8 @@ void check_ranks_follow_one_rank(const std::string& solver_args, const std::stri
 TEST_CASE("the dam break on 2 and 3 ranks keeps every particle and follows the one-rank run", "[dist][mpi]") {
   // Round-off: the ranks add a particle's neighbours in another order
   // (ghosts enter the sort after the owned), float sums differ in the last
-  // bits and the flow's chaos grows that. Measured at 0.6 s: 6e-7 m at most
-  // (1.5e-5 spacings). A lost or doubled neighbour moves a particle by a
+  // bits and the flow's chaos grows that. Measured at 0.6 s: 2.1e-6 m at
+  // most (5e-5 spacings; 2 ranks cut along y, 3 along x: slabs.h). A lost or doubled neighbour moves a particle by a
   // good part of a spacing within a few steps; 1e-3 spacings lies between
   // the two.
   check_ranks_follow_one_rank("", "wcsph", {1e-3, 1e-3, 1e-3, 1e-5});
@@ -282,10 +360,10 @@ TEST_CASE("PBF on 2 and 3 ranks keeps every particle and follows the one-rank ru
   // compute what one rank does but for the order of the sums, as WCSPH.
   // PBF amplifies that round-off far more than WCSPH (its projections are
   // one-sided and capped: an ulp decides whether a splash particle is
-  // corrected). Measured on 2 ranks, largest position difference: none up to
-  // 0.08 s, 1.8e-7 m at 0.1 s (4.5e-6 spacings), then about x3 every four
-  // steps, 9e-4 m at 0.3 s and 1.1e-2 m (0.28 spacings) at 0.5-0.6 s; front
-  // within 2e-5 m, kinetic energy within 4e-4. So: round-off bounds for the
+  // corrected). Measured, largest position difference: on 3 ranks 1.8e-7 m
+  // at 0.1 s (4.5e-6 spacings), 5e-4 m at 0.2 s and 1.2e-2 m (0.3 spacings)
+  // from 0.4 s; on 2, none until 0.3 s, 3.5e-3 m at 0.5 s; front within
+  // 2.2e-5 m, kinetic energy within 7.2e-4. So: round-off bounds for the
   // first 20 steps, where a lost or doubled neighbour at the cuts (present
   // from the first step) would show as 1e-4 spacings or more, and the
   // chaos's own size after.
@@ -295,11 +373,16 @@ TEST_CASE("PBF on 2 and 3 ranks keeps every particle and follows the one-rank ru
 TEST_CASE("DFSPH on 2 and 3 ranks keeps every particle and follows the one-rank run", "[dist][mpi]") {
   // As PBF: the ghosts take their owners' velocities, pressures and
   // accelerations before every pass that reads them, and the residuals are
-  // summed over the ranks, so the ranks iterate alike. Measured on 2 and 3
-  // ranks: 6e-8 m at 0.1 s (1.5e-6 spacings), 7e-6 m at 0.4 s, 1.1e-4 m at
-  // 0.6 s (2.8e-3 spacings: the solves' tolerances let the round-off grow
-  // faster than WCSPH's); front within 2e-6 m, kinetic energy within 7e-7.
-  check_ranks_follow_one_rank("--set sph.solver=dfsph", "dfsph", {1e-4, 1e-2, 1e-3, 1e-5});
+  // summed over the ranks, so the ranks iterate alike, but for round-off.
+  // At the default tolerances (0.1%) a residual that differs in its last
+  // bits ends a solve one iteration sooner or later, which moves the
+  // particles by the tolerance's worth (2 ranks: 6e-8 m until the 9th step,
+  // then 1e-5 m); at 1e-5 the solves iterate alike, so the comparison sees
+  // the round-off itself. Measured at 1e-5 on 2 and 3 ranks: 1.2e-7 m at
+  // 0.1 s (3e-6 spacings), then growing to 9e-5 and 1.5e-3 m at 0.6 s
+  // (0.04 spacings); front within 2.1e-6 m, kinetic energy within 9e-6.
+  check_ranks_follow_one_rank("--set sph.solver=dfsph --set dfsph.tolerance=1e-5 --set dfsph.divergence_tolerance=1e-5",
+                              "dfsph", {1e-4, 0.1, 1e-3, 1e-4});
 }
 
 // The largest distance between a particle's positions in frames a and b (same ids).
@@ -389,16 +472,19 @@ TEST_CASE("a run resumes from its export's last frame, on one rank or several", 
 TEST_CASE("mesh obstacles over 2 ranks: every solver follows its one-rank run", "[dist][mpi]") {
   // Every rank holds all the obstacles' wall particles; WCSPH's ghosts near
   // them are two supports wide (their pressure sums), PBF's and DFSPH's one.
-  // Measured (3 cm, 2,860 particles): identical at 0.05 s; at 0.1 s WCSPH
-  // and DFSPH 6e-8 m, PBF 3.6e-7 m (its round-off grows to 6e-5 m by 0.2 s).
+  // Measured (3 cm, 2,860 particles, slabs along y; DFSPH at tolerances of
+  // 1e-5, as above) at 0.05 and 0.1 s: WCSPH 6e-8 and 1.5e-7 m, PBF 1.5e-6
+  // and 1.7e-5 m (its round-off grows fastest), DFSPH 1e-6 and 4e-6 m. A
+  // lost or doubled neighbour moves a particle by a good part of a spacing.
   const double spacing = 0.03;
-  for (const std::string solver : {"wcsph", "pbf", "dfsph"}) {
+  for (const auto& [solver, bound] : std::vector<std::pair<std::string, double>>{
+           {"wcsph", 1e-4}, {"pbf", 2e-3}, {"dfsph --set dfsph.tolerance=1e-5 --set dfsph.divergence_tolerance=1e-5", 1e-3}}) {
     INFO(solver);
     const std::string args = source_path("scenes/dam_break_obstacles.json") +
                              " --backend cpu --quiet --set sph.spacing=0.03 --set run.end_time=0.1 "
                              "--set run.output_interval=0.05 --export-fields velocity,density --set sph.solver=" +
                              solver + " --export ";
-    check_2_ranks_follow(args, "obstacles", 3, 1e-4 * spacing);
+    check_2_ranks_follow(args, "obstacles", 3, bound * spacing);
   }
 }
 
@@ -656,6 +742,10 @@ TEST_CASE("more ranks than the domain holds are refused before the run", "[dist]
   CHECK(r.code == 2);
   CHECK(has(r.output, "6 ranks need slabs at least 0.32 m thick"));
   CHECK(has(r.output, "at most 5 ranks"));
+  // An axis asked for that cannot hold them.
+  check_refused_on_2_ranks(source_path("scenes/dam_break.json") +
+                               " --backend cpu --quiet --set sph.spacing=0.04 --set run.end_time=0.01 --cut-axis z",
+                           "along z, which is 0.6 m long: at most 1 ranks");
 }
 
 TEST_CASE("a scene too large for a rank's memory is refused before the particles are made, naming the rank",
