@@ -212,9 +212,10 @@ ExchangeResult exchange_particles(ExchangeBuffers& buf, const SlabBounds& bounds
 // no wall flags: the halo `halo` everywhere) include that peer; the peer,
 // its ghosts whose owner it is. The exchange gave every such peer
 // its copy (it placed them by the same function at the same place), so the
-// two lists hold the same ids; each is sorted by id, so that the k-th
-// record sent is the k-th ghost received. The counts are compared once per
-// step: a mismatch is a logic error, not a hang.
+// two lists hold the same ids; each is sorted by id (GhostRefresh::build:
+// the four lists of a rank in one sort), so that the k-th record sent is
+// the k-th ghost received. The counts are compared once per step: a
+// mismatch is a logic error, not a hang.
 struct PeerBits {
   SlabBounds bounds;
   const Float4* place;
@@ -223,18 +224,6 @@ struct PeerBits {
   SPHRAY_HD void operator()(uint32_t i) const {
     const Destinations d = destinations_of(bounds, place[i], true);  // as exchange_particles without wall flags
     bits[i] = status[i] == kStatusGhost ? uint8_t(1u << d.owner) : uint8_t(d.to & kToPeers);
-  }
-};
-
-// Particle i is to be listed for peer k: an owned one it holds a ghost of
-// (ghost == false), or a ghost it owns (ghost == true).
-struct ListedForPeer {
-  const uint8_t* bits;
-  const uint8_t* status;
-  int k;
-  bool ghost;
-  SPHRAY_HD bool operator()(uint32_t i) const {
-    return ((bits[i] >> k) & 1u) && (status[i] == kStatusGhost) == ghost;
   }
 };
 
@@ -254,6 +243,68 @@ struct UnpackByIndex {
   SPHRAY_HD void operator()(uint32_t j) const { values[index[j]] = in[j]; }
 };
 
+// GhostRefresh's four lists: the owned particles a peer holds ghosts of (the
+// slab below, the slab above) and the ghosts that peer owns here.
+enum RefreshList : int { kSendBelow = 0, kSendAbove = 1, kRecvBelow = 2, kRecvAbove = 3, kRefreshLists = 4 };
+
+struct RefreshCounts {
+  uint32_t n[kRefreshLists];
+};
+
+struct AddRefreshCounts {
+  SPHRAY_HD RefreshCounts operator()(const RefreshCounts& a, const RefreshCounts& b) const {
+    RefreshCounts c;
+    for (int l = 0; l < kRefreshLists; ++l) c.n[l] = a.n[l] + b.n[l];
+    return c;
+  }
+};
+
+// The lists particle i belongs to (PeerBits: a ghost's bit is its owner's).
+SPHRAY_HD inline uint32_t refresh_lists_of(uint8_t bits, uint8_t status) {
+  const bool below = (bits >> (kSelf - 1)) & 1u, above = (bits >> (kSelf + 1)) & 1u;
+  return status == kStatusGhost ? (below ? 1u << kRecvBelow : 0u) | (above ? 1u << kRecvAbove : 0u)
+                                : (below ? 1u << kSendBelow : 0u) | (above ? 1u << kSendAbove : 0u);
+}
+
+struct CountRefreshLists {
+  const uint8_t* bits;
+  const uint8_t* status;
+  SPHRAY_HD RefreshCounts operator()(uint32_t i) const {
+    const uint32_t m = refresh_lists_of(bits[i], status[i]);
+    RefreshCounts c;
+    for (int l = 0; l < kRefreshLists; ++l) c.n[l] = (m >> l) & 1u;
+    return c;
+  }
+};
+
+// Particle i into each of its lists, at its place there (upto: the
+// inclusive scan of CountRefreshLists; the last element holds the lists'
+// lengths), keyed by list and id: one sort then orders every list by id.
+struct ScatterRefreshLists {
+  const uint8_t* bits;
+  const uint8_t* status;
+  const uint32_t* id;
+  const RefreshCounts* upto;
+  uint32_t last;  // n - 1
+  uint32_t* keys;
+  uint32_t* index;
+  SPHRAY_HD void operator()(uint32_t i) const {
+    const uint32_t m = refresh_lists_of(bits[i], status[i]);
+    if (m == 0) return;
+    const RefreshCounts total = upto[last], at = upto[i];
+    uint32_t base = 0;
+    for (int l = 0; l < kRefreshLists; ++l) {
+      if ((m >> l) & 1u) {
+        const uint32_t j = base + at.n[l] - 1u;
+        keys[j] = (uint32_t(l) << kRefreshIdBits) | id[i];
+        index[j] = i;
+      }
+      base += total.n[l];
+    }
+  }
+  static constexpr int kRefreshIdBits = 30;
+};
+
 class GhostRefresh {
  public:
   // The lists of the particles as sorted now (after the step's exchange and
@@ -262,17 +313,39 @@ class GhostRefresh {
              uint32_t n, ParticleTransport& transport) {
     bounds_ = bounds;
     grow_to(bits_, n);
-    grow_to(keys_, n);
-    if (n > 0) parallel_for("ghost_peers", n, PeerBits{bounds, place, raw(status), raw(bits_)});
-    PeerCounts mine{}, theirs{};
-    for (int k = 0; k < kPeers; ++k) {
-      send_n_[k] = recv_n_[k] = 0;
+    RefreshCounts lengths{};
+    if (n > 0) {
+      parallel_for("ghost_peers", n, PeerBits{bounds, place, raw(status), raw(bits_)});
       // Only the slabs beside this one: the halo is narrower than a slab
       // (plan_slabs), so ghosts' owners and owned particles' ghost holders
-      // are neighbours.
-      if ((k != kSelf - 1 && k != kSelf + 1) || !bounds.exists[k]) continue;
-      send_n_[k] = list(send_idx_[k], ListedForPeer{raw(bits_), raw(status), k, false}, id, n);
-      recv_n_[k] = list(recv_idx_[k], ListedForPeer{raw(bits_), raw(status), k, true}, id, n);
+      // are neighbours. The four lists as segments of one array, in the
+      // particles' order, then sorted by (list, id): one scan, one read of
+      // the lengths, one sort.
+      grow_to(upto_, n);
+      thrust::transform_inclusive_scan(policy(), thrust::counting_iterator<uint32_t>(0),
+                                       thrust::counting_iterator<uint32_t>(n), upto_.begin(),
+                                       CountRefreshLists{raw(bits_), raw(status)}, AddRefreshCounts());
+      lengths = read_one(upto_, n - 1);
+    }
+    uint32_t m = 0;
+    for (int l = 0; l < kRefreshLists; ++l) m += lengths.n[l];
+    grow_to(keys_, m);
+    grow_to(index_, m);
+    if (m > 0) {
+      parallel_for("ghost_lists", n, ScatterRefreshLists{raw(bits_), raw(status), raw(id), raw(upto_), n - 1,
+                                                         raw(keys_), raw(index_)});
+      sort_pairs(keys_, index_, m, ScatterRefreshLists::kRefreshIdBits + 2);
+    }
+    PeerCounts mine{}, theirs{};
+    uint32_t at = 0;
+    for (int l = 0; l < kRefreshLists; ++l) {
+      const int k = l == kSendBelow || l == kRecvBelow ? kSelf - 1 : kSelf + 1;
+      const bool send = l == kSendBelow || l == kSendAbove;
+      (send ? send_at_ : recv_at_)[k] = at;
+      (send ? send_n_ : recv_n_)[k] = bounds.exists[k] ? lengths.n[l] : 0u;
+      at += lengths.n[l];
+    }
+    for (int k = 0; k < kPeers; ++k) {
       grow_to(send_buf_[k], send_n_[k]);
       grow_to(recv_buf_[k], recv_n_[k]);
       mine.total[k] = send_n_[k];
@@ -314,10 +387,8 @@ class GhostRefresh {
   }
 
   size_t bytes() const {
-    size_t b = bits_.size() + keys_.size() * sizeof(uint32_t);
-    for (int k = 0; k < kPeers; ++k)
-      b += (send_idx_[k].size() + recv_idx_[k].size()) * sizeof(uint32_t) +
-           (send_buf_[k].size() + recv_buf_[k].size()) * sizeof(Float4);
+    size_t b = bits_.size() + (keys_.size() + index_.size()) * sizeof(uint32_t) + upto_.size() * sizeof(RefreshCounts);
+    for (int k = 0; k < kPeers; ++k) b += (send_buf_[k].size() + recv_buf_[k].size()) * sizeof(Float4);
     return b;
   }
 
@@ -332,30 +403,21 @@ class GhostRefresh {
       send[k] = reinterpret_cast<T*>(raw(send_buf_[k]));
       recv[k] = reinterpret_cast<T*>(raw(recv_buf_[k]));
       if (send_n_[k] > 0)
-        launch_on(side, "ghost_pack", send_n_[k], PackByIndex<T>{raw(values), raw(send_idx_[k]), send[k]});
+        launch_on(side, "ghost_pack", send_n_[k], PackByIndex<T>{raw(values), raw(index_) + send_at_[k], send[k]});
     }
     transport.exchange(bounds_, send, send_n_, recv, recv_n_, side ? side->stream() : nullptr);
     for (int k = 0; k < kPeers; ++k)
       if (recv_n_[k] > 0)
-        launch_on(side, "ghost_unpack", recv_n_[k], UnpackByIndex<T>{recv[k], raw(recv_idx_[k]), raw(values)});
-  }
-
-  // The particles `pick` selects, into `out` sorted by id; returns how many.
-  template <class Pick>
-  uint32_t list(Vector<uint32_t>& out, Pick pick, const Vector<uint32_t>& id, uint32_t n) {
-    grow_to(out, n);
-    const uint32_t m = uint32_t(thrust::copy_if(policy(), thrust::counting_iterator<uint32_t>(0),
-                                                thrust::counting_iterator<uint32_t>(n), out.begin(), pick) -
-                                out.begin());
-    thrust::gather(policy(), out.begin(), out.begin() + m, id.begin(), keys_.begin());
-    thrust::sort_by_key(policy(), keys_.begin(), keys_.begin() + m, out.begin());
-    return m;
+        launch_on(side, "ghost_unpack", recv_n_[k], UnpackByIndex<T>{recv[k], raw(index_) + recv_at_[k], raw(values)});
   }
 
   SlabBounds bounds_;
   Vector<uint8_t> bits_;
-  Vector<uint32_t> keys_;
-  Vector<uint32_t> send_idx_[kPeers], recv_idx_[kPeers];
+  Vector<RefreshCounts> upto_;
+  // The lists, one after another (send below, send above, receive from
+  // below, from above): keys (list, id) and the particles' indices.
+  Vector<uint32_t> keys_, index_;
+  uint32_t send_at_[kPeers] = {}, recv_at_[kPeers] = {};  // where each peer's lists start in index_
   Vector<Float4> send_buf_[kPeers], recv_buf_[kPeers];
   uint32_t send_n_[kPeers] = {}, recv_n_[kPeers] = {};
 };

@@ -139,6 +139,21 @@ TEST_CASE("the slabs are cut along the axis whose busiest rank holds the fewest 
   }
 }
 
+TEST_CASE("a run over several ranks refuses particle ids of more than 30 bits", "[dist]") {
+  // The refresh lists of PBF and DFSPH sort (list, id) keys of 32 bits.
+  const Scene s = load_scene(source_path("scenes/dam_break.json"), {"sph.spacing=0.04", "sph.solver=pbf"});
+  SolverInput in = make_solver_input(resolve_scene(s), PresenceMode::Off);
+  in.fluid_id.resize(in.fluid_pos_rho.size());
+  std::iota(in.fluid_id.begin(), in.fluid_id.end(), (1u << 30) - 5u);
+  const auto comm = make_single_comm();
+  try {
+    make_slab_solver(in, plan_slabs(in, 1), *comm, Backend::Cpu, SolverMaker(make_cpu_solver));
+    FAIL("ids from 2^30 - 5 were taken");
+  } catch (const std::invalid_argument& e) {
+    CHECK(has(e.what(), "particle ids below 2^30 (1,073,741,824); id 1073741824 is not"));
+  }
+}
+
 TEST_CASE("each particle's owner and ghost copies agree with brute force", "[dist]") {
   SlabPlan p;
   p.lo = 0;
