@@ -284,22 +284,24 @@ SlabPlan plan_slabs(const SolverInput& in, int ranks, int axis) {
   // Every axis that holds the slabs, cut at its quantiles: the one whose
   // busiest rank holds the fewest particles (slabs.h); the longest first, so
   // that it wins a tie.
+  // (An axis asked for is taken where it holds them; the others' counts are
+  // still given, for the run's report.)
   std::vector<double> cuts[3];
   int best = -1;
   for (int a : {longest, (longest + 1) % 3, (longest + 2) % 3}) {
-    if (axis >= 0 && a != axis) continue;
     const double lo = along(t.min, a), hi = along(t.max, a);
     if (ranks > 1 && hi - lo < ranks * p.min_width * (1.0 - 1e-9)) continue;
     AxisHistogram h = AxisHistogram::over(lo, hi, p.bin);
     for (const Float4& q : in.fluid_pos_rho) h.add(along(xyz(q), a));
     cuts[a] = balanced_cuts(h, ranks, lo, hi, p.min_width);
     p.held[a] = most_held(h, cuts[a], p.halo_free);
-    if (best < 0 || p.held[a] < p.held[best]) best = a;
+    if (axis >= 0 ? a == axis : best < 0 || p.held[a] < p.held[best]) best = a;
   }
   if (best < 0) {  // no axis holds them: the numbers of the one that holds the most, or of the one asked for
     const int a = axis >= 0 ? axis : longest;
     check_rank_count(ranks, along(t.min, a), along(t.max, a), p.min_width,
                      axis >= 0 ? std::string(axis_name(a)) : "the domain's longest axis (" + std::string(axis_name(a)) + ")");
+    throw std::logic_error("plan_slabs: no axis holds the slabs, yet the count check passed");
   }
   p.axis = best;
   p.lo = along(t.min, best);

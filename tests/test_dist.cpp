@@ -120,6 +120,7 @@ TEST_CASE("the slabs are cut along the axis whose busiest rank holds the fewest 
   CHECK(std::abs(auto2.held[0] - busiest(x2)) <= 0.02 * busiest(x2));
   CHECK(std::abs(auto2.held[1] - busiest(y2)) <= 0.02 * busiest(y2));
   CHECK(auto2.held[2] == 0);  // 0.6 m hold one slab of 0.32 m
+  CHECK(x2.held[1] == auto2.held[1]);  // an axis asked for: the others' counts given too
   // Three slabs fit along x alone.
   CHECK(plan_slabs(in, 3).axis == 0);
   CHECK(plan_slabs(in, 1).axis == 0);  // one rank: the longest axis
