@@ -14,12 +14,6 @@
 // Fewer than `min_neighbours` neighbours: a sphere. The kernel is
 // f(|S^-1 R^T (v - c)|) with c = x_i + smoothing * m: the splat evaluates
 // the quadratic form r2 = d^T A d, A = R diag(1 / s^2) R^T, in voxel units.
-// A disc laid along a curved surface stands out of it by its sagitta (w^2 /
-// 2R for half-width w on a ball of radius R), which puts a ball's surface
-// outside its liquid where a flat pool's is not: with curvature_shift > 0 a
-// surface particle's centre moves inward by curvature_shift * kappa, kappa
-// the mean curvature from its neighbours' normals (surface_curvature;
-// CurvaturePass in field/builders.h; docs/field.md).
 #pragma once
 
 #include <cmath>
@@ -42,17 +36,8 @@ struct AnisotropyParams {
   bool on = false;
   float radius = 0;              // neighbourhood [m]
   float stretch = 4;             // largest / smallest axis, at most
-  float smoothing = 0.6f;        // centre = x + smoothing * mean offset
+  float smoothing = 0.9f;        // centre = x + smoothing * mean offset
   uint32_t min_neighbours = 8;   // fewer: a sphere
-  // The curvature correction (CurvaturePass, field/builders.h): a surface
-  // particle's centre moves inward along its normal by curvature_shift *
-  // kappa, kappa the mean curvature its neighbours' normals give [1/m];
-  // curvature_shift = field.anisotropy.curvature * dx^2 [m^2]; 0: off. A
-  // particle has a normal where its neighbours' weighted mean lies farther
-  // than surface_offset [m] from it.
-  float curvature_shift = 0;
-  float surface_offset = 0;
-  float max_shift = 0;  // [m] the largest move of a centre (a spray droplet's curvature is no surface's)
 };
 
 // One particle's kernel in voxel units, stored as three Float4 per particle in
@@ -139,10 +124,9 @@ SPHRAY_HD SPHRAY_FORCEINLINE void ellipsoid_axes(const AnisotropyParams& ap, con
   e.half = {std::sqrt(M(0, 0)), std::sqrt(M(1, 1)), std::sqrt(M(2, 2))};
 }
 
-// The ellipsoid of particle i at xi from its neighbour sums (sph/covariance.h);
-// with `mean`, also the neighbours' weighted mean offset [m].
+// The ellipsoid of particle i at xi from its neighbour sums (sph/covariance.h).
 SPHRAY_HD SPHRAY_FORCEINLINE Ellipsoid ellipsoid_of(const AnisotropyParams& ap, const VolumeGeom& vol, Vec3f xi,
-                                                    const CovarianceSums& s, Vec3f* mean = nullptr) {
+                                                    const CovarianceSums& s) {
   const float iw = 1.0f / s.w;  // W >= 1: the particle itself
   const float mx = s.mx * iw, my = s.my * iw, mz = s.mz * iw;
   Eigen::Matrix3f cov;
@@ -153,48 +137,7 @@ SPHRAY_HD SPHRAY_FORCEINLINE Ellipsoid ellipsoid_of(const AnisotropyParams& ap, 
   ellipsoid_axes(ap, cov, uint32_t(s.count), e);
   const float shift = ap.smoothing * ap.radius;
   e.centre = vol.to_voxels(Vec3f{xi.x + shift * mx, xi.y + shift * my, xi.z + shift * mz});
-  if (mean) *mean = Vec3f{ap.radius * mx, ap.radius * my, ap.radius * mz};
   return e;
-}
-
-// A particle's outward surface normal from its neighbours' weighted mean
-// offset m [m] (at a surface the neighbours lie inward): {-m / |m|, 1}, or
-// {0, 0, 0, 0} inside the liquid (|m| at most ap.surface_offset).
-SPHRAY_HD SPHRAY_FORCEINLINE Float4 surface_normal(const AnisotropyParams& ap, Vec3f m) {
-  const float l2 = length2(m);
-  if (!(l2 > ap.surface_offset * ap.surface_offset)) return {0.0f, 0.0f, 0.0f, 0.0f};
-  const float s = -1.0f / std::sqrt(l2);
-  return {s * m.x, s * m.y, s * m.z, 1.0f};
-}
-
-// The mean curvature at surface particle i (normal ni) from its neighbours'
-// normals within ap.radius, weighted as the covariance: on a sphere of
-// radius R the normals are (x - c) / R, so (n_j - n_i) . (x_j - x_i) =
-// |x_j - x_i|^2 / R, and the weighted ratio of the two sums is 1 / R; a
-// plane gives 0; a concave surface a negative value [1/m]. Only neighbours
-// whose normals lie within 60 degrees of ni count: the other side of a thin
-// sheet or a drop faces away, and is another surface.
-SPHRAY_HD SPHRAY_FORCEINLINE float surface_curvature(const AnisotropyParams& ap, const GridGeom& grid,
-                                                     const uint32_t* fine_offsets, const Float4* pos,
-                                                     const Float4* normals, uint32_t i, Vec3f xi, Vec3f ni) {
-  const float r2max = ap.radius * ap.radius, inv_r = 1.0f / ap.radius;
-  float num = 0.0f, den = 0.0f;
-  for (int row = 0; row < kCandidateRows; ++row) {
-    uint32_t begin = 0, end = 0;
-    if (!candidate_row(grid, fine_offsets, xi, row, begin, end, ap.radius)) continue;
-    for (uint32_t j = begin; j < end; ++j) {
-      if (j == i) continue;
-      const Float4 nj = normals[j];
-      if (nj.w == 0.0f || dot(xyz(nj), ni) < 0.5f) continue;
-      const Vec3f d = xyz(pos[j]) - xi;
-      const float r2 = length2(d);
-      if (!(r2 < r2max)) continue;
-      const float q = std::sqrt(r2) * inv_r, w = 1.0f - q * q * q;
-      num += w * dot(xyz(nj) - ni, d);
-      den += w * r2;
-    }
-  }
-  return den > 0.0f ? num / den : 0.0f;
 }
 
 // One thread per particle: the weighted covariance of its neighbours (the
@@ -209,7 +152,7 @@ struct ComputeAnisotropy {
   Float4* out;  // [3][n]
 
   SPHRAY_HD void operator()(uint32_t i) const { compute(i).store(out, n, i); }
-  SPHRAY_HD Ellipsoid compute(uint32_t i, Vec3f* mean = nullptr) const {
+  SPHRAY_HD Ellipsoid compute(uint32_t i) const {
     const Vec3f xi = xyz(pos[i]);
     const float inv_r = 1.0f / ap.radius;
     CovarianceSums s;
@@ -225,7 +168,7 @@ struct ComputeAnisotropy {
         s.add(dx, dy, dz, q2);
       }
     }
-    return ellipsoid_of(ap, vol, xi, s, mean);
+    return ellipsoid_of(ap, vol, xi, s);
   }
 };
 
@@ -238,8 +181,8 @@ struct AnisotropyFromSums {
   AnisotropyParams ap;
   Float4* out;  // [3][n]
   SPHRAY_HD void operator()(uint32_t i) const { compute(i).store(out, n, i); }
-  SPHRAY_HD Ellipsoid compute(uint32_t i, Vec3f* mean = nullptr) const {
-    return ellipsoid_of(ap, vol, xyz(pos[i]), CovarianceSums::load(sums, n, i), mean);
+  SPHRAY_HD Ellipsoid compute(uint32_t i) const {
+    return ellipsoid_of(ap, vol, xyz(pos[i]), CovarianceSums::load(sums, n, i));
   }
 };
 

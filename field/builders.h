@@ -218,56 +218,14 @@ struct EllipsoidPass {
   Ellipsoids make;
   float* mark;  // the volume, or null: no marks (naive)
   FieldShape shape;
-  // Where the curvature correction follows (CurvaturePass): each particle's
-  // surface normal, and no marks here (they follow the moved centres there).
-  Float4* normals = nullptr;
 
   SPHRAY_HD void operator()(uint32_t p) const {
     SplatKernel<true> kn;
-    Vec3f m;
-    kn.e = make.compute(p, &m);
+    kn.e = make.compute(p);
     kn.e.store(make.out, make.n, p);
-    if (normals) {
-      normals[p] = surface_normal(make.ap, m);
-      return;
-    }
     if (!mark) return;
     kn.u = kn.e.centre;
     mark_occupied(make.vol, shape, kn, mark);
-  }
-};
-
-// The curvature correction (anisotropy.h): each surface particle's centre
-// moved inward along its normal by curvature_shift * kappa (at most
-// max_shift either way); then, for the presence builder, pass 2 at the
-// centres as they now are.
-struct CurvaturePass {
-  GridGeom grid;
-  const uint32_t* fine_offsets;
-  const Float4* pos;
-  const Float4* normals;  // EllipsoidPass's
-  uint32_t n;
-  VolumeGeom vol;
-  AnisotropyParams ap;
-  Float4* ell;  // [3][n]: the centres move (the first Float4's xyz, voxels)
-  float* mark;  // the volume, or null: no marks (naive)
-  FieldShape shape;
-
-  SPHRAY_HD void operator()(uint32_t i) const {
-    const Float4 ni = normals[i];
-    if (ni.w != 0.0f) {
-      const Vec3f xi = xyz(pos[i]), nv = xyz(ni);
-      const float kappa = surface_curvature(ap, grid, fine_offsets, pos, normals, i, xi, nv);
-      const float shift = fminf(fmaxf(ap.curvature_shift * kappa, -ap.max_shift), ap.max_shift);
-      const float s = shift / vol.voxel;  // voxels
-      const Float4 c = ell[i];
-      ell[i] = {c.x - s * nv.x, c.y - s * nv.y, c.z - s * nv.z, c.w};
-    }
-    if (!mark) return;
-    SplatKernel<true> kn;
-    kn.e = Ellipsoid::load(ell, n, i);
-    kn.u = kn.e.centre;
-    mark_occupied(vol, shape, kn, mark);
   }
 };
 

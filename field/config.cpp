@@ -43,13 +43,12 @@ FieldConfig read_field_config(const ConfigReader& r) {
   if (r.has("anisotropy") && c.kernel != FieldKernel::Anisotropic)
     r.fail("anisotropy", r.at("anisotropy"), "is read only with \"kernel\": \"anisotropic\"");
   const ConfigReader a = r.child("anisotropy");
-  a.only({"radius", "stretch", "smoothing", "min_neighbours", "curvature"});
+  a.only({"radius", "stretch", "smoothing", "min_neighbours"});
   AnisotropyConfig& an = c.anisotropy;
   an.radius = a.number("radius", an.radius, 0.5, 4.0);
   an.stretch = a.number("stretch", an.stretch, 1.0, 16.0);
   an.smoothing = a.number("smoothing", an.smoothing, 0.0, 1.0);
   an.min_neighbours = a.integer("min_neighbours", an.min_neighbours, 0, 1000);
-  an.curvature = a.number("curvature", an.curvature, 0.0, 10.0);
   return c;
 }
 

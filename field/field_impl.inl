@@ -40,8 +40,7 @@ class FieldBuilderImpl final : public FieldBuilder {
   const FieldCounts& last_counts() const override { return counts_; }
   const float* data() const override { return raw(field_); }
   size_t device_bytes() const override {
-    return field_.size() * sizeof(float) + counters_.size() * sizeof(uint32_t) +
-           (ellipsoids_.size() + normals_.size()) * sizeof(Float4);
+    return field_.size() * sizeof(float) + counters_.size() * sizeof(uint32_t) + ellipsoids_.size() * sizeof(Float4);
   }
   std::vector<float> download() const override { return sphray::SPHRAY_BK::download(field_, field_.size()); }
 
@@ -83,28 +82,16 @@ class FieldBuilderImpl final : public FieldBuilder {
     clock_.end_of("fill");
     if (aniso) {
       float* mark = kind == FieldKind::Presence && setup_.mark_occupied ? f : nullptr;
-      // With the curvature correction the ellipsoids' pass leaves each
-      // particle's surface normal and the marks to the pass that moves the
-      // centres (CurvaturePass).
-      const bool curvature = setup_.aniso.curvature_shift > 0.0f;
-      if (curvature && normals_.size() < pv.n) normals_.resize(pv.n);
-      Float4* normals = curvature ? raw(normals_) : nullptr;
-      float* ellipsoid_mark = curvature ? nullptr : mark;
       // The solver's neighbour loop may have summed the covariance already
       // (ParticleView::covariance): only the ellipsoids are left to compute.
       if (pv.covariance && pv.covariance_radius == setup_.aniso.radius)
         parallel_for("field_anisotropy_from_sums", pv.n,
                      EllipsoidPass<AnisotropyFromSums>{
-                         {pv.pos, pv.covariance, pv.n, vol, setup_.aniso, raw(ellipsoids_)}, ellipsoid_mark, shape, normals});
+                         {pv.pos, pv.covariance, pv.n, vol, setup_.aniso, raw(ellipsoids_)}, mark, shape});
       else
         parallel_for("field_anisotropy", pv.n,
                      EllipsoidPass<ComputeAnisotropy>{
-                         {pv.grid, pv.fine_offsets, pv.pos, pv.n, vol, setup_.aniso, raw(ellipsoids_)}, ellipsoid_mark,
-                         shape, normals});
-      if (curvature)
-        parallel_for("field_curvature", pv.n,
-                     CurvaturePass{pv.grid, pv.fine_offsets, pv.pos, normals, pv.n, vol, setup_.aniso, raw(ellipsoids_),
-                                   mark, shape});
+                         {pv.grid, pv.fine_offsets, pv.pos, pv.n, vol, setup_.aniso, raw(ellipsoids_)}, mark, shape});
       ell = raw(ellipsoids_);
     }
     clock_.end_of("anisotropy");
@@ -174,7 +161,6 @@ class FieldBuilderImpl final : public FieldBuilder {
   Vector<float> field_;
   Vector<uint32_t> counters_;
   Vector<Float4> ellipsoids_;  // [3][n] (anisotropic kernels)
-  Vector<Float4> normals_;     // [n] surface normals (the curvature correction)
   StageClock clock_;
   double ms_ = 0, aniso_ms_ = 0;
   FieldCounts counts_;

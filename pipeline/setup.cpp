@@ -645,9 +645,6 @@ FieldSetup make_field_setup(const ResolvedScene& r) {
   an.stretch = float(f.anisotropy.stretch);
   an.smoothing = float(f.anisotropy.smoothing);
   an.min_neighbours = uint32_t(f.anisotropy.min_neighbours);
-  an.curvature_shift = float(f.anisotropy.curvature * s.sph.spacing * s.sph.spacing);
-  an.surface_offset = float(s.sph.spacing / 3.0);  // docs/field.md, "The curvature correction"
-  an.max_shift = float(0.5 * s.sph.spacing);
   if (an.on && an.radius > g.cell_size) {
     std::ostringstream os;
     os << s.file << ": field.anisotropy.radius = " << f.anisotropy.radius << " spacings is wider than the SPH grid cell ("
