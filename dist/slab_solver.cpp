@@ -315,9 +315,10 @@ std::unique_ptr<Solver> make_slab_solver(SolverInput in, const SlabPlan& plan, C
   if (plan.ranks() != comm.size()) throw std::logic_error("make_slab_solver: a plan for another rank count");
   if (!in.skins.empty()) throw std::invalid_argument("a run over several ranks cannot carry obstacles' skin waves");
   const uint32_t total = uint32_t(in.fluid_pos_rho.size());
-  // PBF's and DFSPH's refresh lists sort ids of 30 bits (sph/exchange_impl.inl).
+  // PBF's and DFSPH's refresh lists sort ids of kRankIdBits (sph/exchange.h).
+  static_assert(kRankIdBits == 30, "the message below names 2^30");
   for (uint32_t i = 0; i < total; ++i)
-    if ((in.fluid_id.empty() ? i : in.fluid_id[i]) >= (1u << 30))
+    if ((in.fluid_id.empty() ? i : in.fluid_id[i]) >= (1u << kRankIdBits))
       throw std::invalid_argument("a run over several ranks takes particle ids below 2^30 (1,073,741,824); id " +
                                   std::to_string(in.fluid_id.empty() ? i : in.fluid_id[i]) + " is not");
   std::vector<Float4> pos, vel;

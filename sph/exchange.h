@@ -43,6 +43,12 @@ struct SlabBounds {
   static constexpr float kOverlapAuto = 0.06f, kOverlapNever = 2.0f;
 };
 
+// The bits of a particle id in a decomposed run: PBF's and DFSPH's ghost
+// refresh lists sort keys of two bits of list and these (exchange_impl.inl,
+// GhostRefresh::build); a run with larger ids is refused at its start
+// (make_slab_solver).
+constexpr int kRankIdBits = 30;
+
 // A point's coordinate along axis 0 (x), 1 (y) or 2 (z).
 SPHRAY_HD inline float along(const Vec3f& p, int axis) { return axis == 0 ? p.x : axis == 1 ? p.y : p.z; }
 

@@ -296,13 +296,12 @@ struct ScatterRefreshLists {
     for (int l = 0; l < kRefreshLists; ++l) {
       if ((m >> l) & 1u) {
         const uint32_t j = base + at.n[l] - 1u;
-        keys[j] = (uint32_t(l) << kRefreshIdBits) | id[i];
+        keys[j] = (uint32_t(l) << kRankIdBits) | id[i];
         index[j] = i;
       }
       base += total.n[l];
     }
   }
-  static constexpr int kRefreshIdBits = 30;
 };
 
 class GhostRefresh {
@@ -334,7 +333,7 @@ class GhostRefresh {
     if (m > 0) {
       parallel_for("ghost_lists", n, ScatterRefreshLists{raw(bits_), raw(status), raw(id), raw(upto_), n - 1,
                                                          raw(keys_), raw(index_)});
-      sort_pairs(keys_, index_, m, ScatterRefreshLists::kRefreshIdBits + 2);
+      sort_pairs(keys_, index_, m, kRankIdBits + 2);
     }
     PeerCounts mine{}, theirs{};
     uint32_t at = 0;
