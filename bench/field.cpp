@@ -165,6 +165,8 @@ nlohmann::json to_json(const std::vector<BenchFieldRow>& rows, Backend b, const 
                          {"voxels_touched", r.counts.touched},
                          {"atomics", r.counts.atomics},
                          {"skipped", r.counts.skipped},
+                         {"threads_working", r.counts.working},
+                         {"longest_thread", r.counts.longest},
                          {"band_voxels", r.error.band},
                          {"misclassified_band", r.error.misclassified_band},
                          {"misclassified_share", r.error.misclassified_share()},
@@ -181,7 +183,7 @@ nlohmann::json to_json(const std::vector<BenchFieldRow>& rows, Backend b, const 
 void print_table(const std::vector<BenchFieldRow>& rows, std::ostream& out) {
   out << std::setw(9) << "particles" << std::setw(8) << "volume" << std::setw(15) << "builder" << std::setw(10)
       << "ms" << std::setw(9) << "speedup" << std::setw(12) << "touched" << std::setw(12) << "atomics"
-      << std::setw(12) << "skipped" << std::setw(10) << "miscl.%" << std::setw(9) << "holes" << std::setw(9)
+      << std::setw(12) << "skipped" << std::setw(10) << "working" << std::setw(8) << "longest" << std::setw(10) << "miscl.%" << std::setw(9) << "holes" << std::setw(9)
       << "d_mean" << std::setw(8) << "d_max" << "\n";
   for (const auto& r : rows) {
     double naive_ms = 1e300;  // the faster naive variant of this size
@@ -190,7 +192,8 @@ void print_table(const std::vector<BenchFieldRow>& rows, std::ostream& out) {
     out << std::setw(9) << r.particles << std::setw(8) << (std::to_string(r.nx) + "^3").substr(0, 7) << std::setw(15)
         << r.builder << std::fixed << std::setprecision(3) << std::setw(10) << r.median_ms << std::setprecision(2)
         << std::setw(9) << (r.median_ms > 0 ? naive_ms / r.median_ms : 0.0) << std::setw(12) << r.counts.touched
-        << std::setw(12) << r.counts.atomics << std::setw(12) << r.counts.skipped << std::setprecision(3)
+        << std::setw(12) << r.counts.atomics << std::setw(12) << r.counts.skipped << std::setw(10) << r.counts.working
+        << std::setw(8) << r.counts.longest << std::setprecision(3)
         << std::setw(10) << 100.0 * r.error.misclassified_share() << std::setw(9) << r.error.misclassified_other
         << std::setw(9) << r.error.mean_distance << std::setw(8) << r.error.max_distance << std::defaultfloat << "\n";
   }
@@ -201,6 +204,7 @@ void print_table(const std::vector<BenchFieldRow>& rows, std::ostream& out) {
     out << std::defaultfloat << "\n";
   }
   out << "  (median ms per build; speedup against the faster naive variant; touched/atomics/skipped from one counted build;\n"
+         "   working = threads that evaluated a voxel, longest = most voxels one thread evaluated;\n"
          "   miscl.% = voxels within 2 voxels of the naive surface classified differently; holes = differing\n"
          "   voxels farther away; d_mean/d_max = distance between the iso-surfaces in voxels)\n";
 }

@@ -21,6 +21,18 @@ SPHRAY_HD SPHRAY_FORCEINLINE float load_relaxed(const float* p) {
 #endif
 }
 
+// A read that may be stale: on the GPU a plain load, which the L1 cache may
+// serve with a value older than the latest write of another thread; for
+// words that only grow, or grow past a bound only for a moment, such a value
+// errs low (the presence splat, field/builders.h).
+SPHRAY_HD SPHRAY_FORCEINLINE float load_cached(const float* p) {
+#if defined(__CUDA_ARCH__)
+  return *p;
+#else
+  return load_relaxed(p);
+#endif
+}
+
 SPHRAY_HD SPHRAY_FORCEINLINE void store_relaxed(float* p, float v) {
 #if defined(__CUDA_ARCH__)
   *reinterpret_cast<volatile float*>(p) = v;

@@ -34,6 +34,8 @@ struct FieldCounts {
   uint64_t touched = 0;      // voxel reads or writes by the splat / gather
   uint64_t atomics = 0;      // atomic read-modify-writes issued (CAS retries included)
   uint64_t skipped = 0;      // splat visits that found the voxel saturated
+  uint64_t working = 0;      // threads (particles x lanes, or voxels) that evaluated a distance
+  uint64_t longest = 0;      // the most distance evaluations of one thread
 };
 
 // Threads per particle a splat may run with (FieldBuilder::build).

@@ -7,6 +7,10 @@ struct CounterToU64 {
   SPHRAY_HD uint64_t operator()(uint32_t i) const { return c[i]; }
 };
 
+struct IsPositive {
+  SPHRAY_HD bool operator()(uint32_t c) const { return c > 0; }
+};
+
 // Launches over n items the functor that make(count_tag, group_tag,
 // aniso_tag) returns, for its sixteen instantiations (counted or not; 1, 4,
 // 8 or 32 threads per particle; spheres or ellipsoids).
@@ -133,6 +137,9 @@ class FieldBuilderImpl final : public FieldBuilder {
       counts_.touched = total[kTouched];
       counts_.atomics = total[kAtomics];
       counts_.skipped = total[kSkipped];
+      const uint32_t* pairs = raw(counters_) + size_t(kPairs) * items;
+      counts_.working = uint64_t(thrust::count_if(policy(), pairs, pairs + items, IsPositive{}));
+      counts_.longest = thrust::reduce(policy(), pairs, pairs + items, 0u, thrust::maximum<uint32_t>());
       counts_.counted = true;
     }
   }
