@@ -2,7 +2,7 @@
 // for each kernel (spheres, anisotropic ellipsoids) and refine level, against
 // its build time (docs/field.md, "Surface error"). Three liquids whose
 // surface is known: a pool settled under gravity (a plane at the height its
-// particles fill), a ball of particles without gravity (a sphere of the
+// particles fill; also half a spacing above its top layer), a ball of particles without gravity (a sphere of the
 // volume they fill), and a sheet two particles thick (no holes).
 #pragma once
 
@@ -13,6 +13,7 @@
 #include <nlohmann/json.hpp>
 
 #include "core/device.h"
+#include "core/vec.h"
 #include "io/surface_error.h"
 
 namespace sphray {
@@ -32,8 +33,17 @@ struct BenchSurfaceRow {
   size_t pool_particles = 0, sphere_particles = 0, sheet_particles = 0;
   double build_ms = 0, anisotropy_ms = 0;  // pool field, presence builder: median, and its covariance pass
   SurfaceError pool, sphere;               // distances in particle spacings
+  // The pool against the plane half a spacing above its top layer of
+  // particles (bench_surface: the settled pool fills less than N dx^3).
+  SurfaceError pool_layer;
+  double top_layer_dx = 0;  // the top layer's mean height below H - dx / 2 [spacings]
   SheetHoles sheet;
 };
+
+// The mean height of a pool's top layer: of the particles within [lo, hi] in
+// x and y, the highest one per column of a pool `layers` particles deep (so
+// their count / layers of them).
+double pool_top_layer(const std::vector<Vec3f>& pos, double lo, double hi, int layers);
 
 // The generated pool scene (JSON text) with `cells` particles across.
 std::string bench_surface_scene(int cells);

@@ -396,6 +396,30 @@ TEST_CASE("anisotropic kernels make a flatter, truer pool surface and a truer ba
   CHECK(an->sphere.rms_distance < 0.5 * iso->sphere.rms_distance);
   CHECK(an->sphere.rms_distance < 0.4);
   CHECK(an->sheet.holes <= iso->sheet.holes);
+  // The settled pool is denser than its lattice: its top layer sits lower
+  // than the lattice's (0.29 spacing at 1 s, docs/field.md), and against
+  // the plane half a spacing above that layer the ellipsoids' surface is
+  // nearer than against N dx^3 / area.
+  CHECK(an->top_layer_dx > 0.1);
+  CHECK(an->top_layer_dx < 0.5);
+  CHECK(std::fabs(an->pool_layer.mean_distance) < std::fabs(an->pool.mean_distance));
+}
+
+TEST_CASE("a pool's top layer: the highest particle of each column, averaged", "[field]") {
+  // Three layers of 4 x 4 columns at z = 0.5, 1.5, 2.5, the top one
+  // uneven; two particles outside [lo, hi] that must not count.
+  std::vector<Vec3f> pos;
+  double top_sum = 0;
+  for (int k = 0; k < 3; ++k)
+    for (int j = 0; j < 4; ++j)
+      for (int i = 0; i < 4; ++i) {
+        const float dz = k == 2 ? 0.01f * float(i - j) : 0.0f;
+        pos.push_back({float(i) + 0.5f, float(j) + 0.5f, float(k) + 0.5f + dz});
+        if (k == 2) top_sum += double(pos.back().z);
+      }
+  pos.push_back({-1.0f, 0.5f, 9.0f});
+  pos.push_back({0.5f, 5.0f, 9.0f});
+  CHECK(pool_top_layer(pos, 0.0, 4.0, 3) == Approx(top_sum / 16.0).epsilon(1e-6));
 }
 
 TEST_CASE("anisotropy settings are validated by key", "[field][scene]") {
