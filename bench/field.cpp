@@ -183,8 +183,8 @@ nlohmann::json to_json(const std::vector<BenchFieldRow>& rows, Backend b, const 
 void print_table(const std::vector<BenchFieldRow>& rows, std::ostream& out) {
   out << std::setw(9) << "particles" << std::setw(8) << "volume" << std::setw(15) << "builder" << std::setw(10)
       << "ms" << std::setw(9) << "speedup" << std::setw(12) << "touched" << std::setw(12) << "atomics"
-      << std::setw(12) << "skipped" << std::setw(10) << "working" << std::setw(8) << "longest" << std::setw(10) << "miscl.%" << std::setw(9) << "holes" << std::setw(9)
-      << "d_mean" << std::setw(8) << "d_max" << "\n";
+      << std::setw(12) << "skipped" << std::setw(10) << "working" << std::setw(8) << "longest" << std::setw(10)
+      << "miscl.%" << std::setw(9) << "holes" << std::setw(9) << "d_mean" << std::setw(8) << "d_max" << "\n";
   for (const auto& r : rows) {
     double naive_ms = 1e300;  // the faster naive variant of this size
     for (const auto& q : rows)

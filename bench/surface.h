@@ -2,8 +2,9 @@
 // for each kernel (spheres, anisotropic ellipsoids) and refine level, against
 // its build time (docs/field.md, "Surface error"). Three liquids whose
 // surface is known: a pool settled under gravity (a plane at the height its
-// particles fill; also half a spacing above its top layer), a ball of particles without gravity (a sphere of the
-// volume they fill), and a sheet two particles thick (no holes).
+// particles fill; also half a spacing above its top layer), a ball of
+// particles without gravity (a sphere of the volume they fill), and a sheet
+// two particles thick (no holes).
 #pragma once
 
 #include <iosfwd>

@@ -271,6 +271,9 @@ PbfParams make_pbf_params(const Scene& s) {
                        ? float(k.support() * std::sqrt(c.iterations * c.depth_error / (g * depth_of(s))))
                        : std::numeric_limits<float>::max();
   p.step_error = float(c.step_error);
+  // A flowing liquid's target: at least the one at rest.
+  p.step_error_flow = c.step_error_flow > 0 ? float(std::max(c.step_error_flow, c.step_error)) : 0.0f;
+  p.flow_speed = float(c.flow_speed * v);
   p.iterations = c.iterations;
   p.tolerance = float(c.tolerance);
   return p;

@@ -22,6 +22,8 @@ struct PbfConfig {
   double max_correction = 0.25;  // largest correction per particle and iteration [spacings]; 0: none
   double depth_error = 0.01;  // compression a column may keep between steps (the depth limit of dt); 0: no limit
   double step_error = 0.005;  // mean compression the steps after the first are sized to (ChooseFlowStep); 0: the depth limit throughout
+  double step_error_flow = 0;     // the same while the largest speed is above flow_speed sqrt(g H) (at least step_error); 0: step_error throughout
+  double flow_speed = 1.0;        // [sqrt(g H)] the speed above which a liquid is flowing (step_error_flow)
   double xsph = 0.3;          // XSPH viscosity c (the share of the neighbours' mean velocity difference per step)
   double vorticity = 0;       // vorticity confinement epsilon [m/s]; 0: off (docs/method.md)
 };

@@ -67,12 +67,17 @@ struct FlowControl {
 // dt asks for dt sqrt(error_target / e) (the compression a step leaves grows
 // as dt^2, pbf.h), changed by at most the factors kShrink and kGrow per step,
 // so that the speeds, position changes over dt, do not jump
-// (docs/method.md, "Step size"). Made on the device, like ChooseStep
-// (integrate.h).
+// (docs/method.md, "Step size"). While the largest speed is above
+// flow_speed (PBF: pbf.flow_speed sqrt(g H)) the target is error_target_flow
+// instead: a flowing liquid takes the larger steps, a liquid at or near rest,
+// whose compression at a larger target came back as jitter, the smaller.
+// Made on the device, like ChooseStep (integrate.h).
 struct ChooseFlowStep {
   double cfl_dx, speed_floor, max_dt, max_dt_solver, min_dt, remaining;
   FlowControl* control;
   double error_target;  // mean compression the step is sized to; 0: max_dt_solver throughout
+  double error_target_flow = 0;  // the target above flow_speed; 0: error_target throughout
+  double flow_speed = HUGE_VAL;  // [m/s]
   SPHRAY_HD void operator()(uint32_t) const {
     FlowControl& c = *control;
     StepLimits& l = c.limits;
@@ -83,8 +88,9 @@ struct ChooseFlowStep {
     const double e_now = c.stats.count > 0 ? c.stats.error_sum / c.stats.count : 0.0;
     c.error_mean = c.dt_chosen > 0 ? kKeep * c.error_mean + (1.0 - kKeep) * e_now : e_now;
     if (error_target > 0 && c.dt_chosen > 0) {
+      const double target = error_target_flow > 0 && l.max_speed > flow_speed ? error_target_flow : error_target;
       const double e = e_now > c.error_mean ? e_now : c.error_mean;
-      const double f = e > 0 ? std::sqrt(error_target / e) : kGrow;
+      const double f = e > 0 ? std::sqrt(target / e) : kGrow;
       const double grown = c.dt_chosen * (f < kShrink ? kShrink : f > kGrow ? kGrow : f);
       l.dt_force = grown > max_dt_solver ? grown : max_dt_solver;
     }

@@ -28,6 +28,8 @@ struct PbfParams {
   float speed_floor;     // [m/s] the CFL's speed is at least this (ChooseFlowStep)
   float max_dt_depth;    // [s] the step at which the liquid's depth compresses by pbf.depth_error (ChooseFlowStep)
   float step_error;      // mean compression the steps after the first are sized to; 0: max_dt_depth throughout
+  float step_error_flow; // ... while the largest speed is above flow_speed; 0: step_error throughout
+  float flow_speed;      // [m/s] pbf.flow_speed x speed_floor
   int iterations;        // constraint iterations per step
   float tolerance;       // mean density error that ends the iterations early; 0: off
 };

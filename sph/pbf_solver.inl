@@ -103,7 +103,8 @@ class PbfSolverImpl final : public Solver {
     FlowControl* control = raw(control_);
     parallel_for("pbf_choose_step", 1,
                  ChooseFlowStep{cfl_ * prm_.spacing, double(pbf_.speed_floor), max_dt_, double(pbf_.max_dt_depth), min_dt_,
-                               std::max(until - t_, 0.0), control, double(pbf_.step_error)});
+                               std::max(until - t_, 0.0), control, double(pbf_.step_error),
+                               double(pbf_.step_error_flow), double(pbf_.flow_speed)});
     walls_.move(obstacles_.view, control);  // to the step's end, where the corrections meet them
     parallel_for("pbf_predict", n_, Predict{prm_, control, raw(pos_), raw(vel_), raw(pred_), obstacles_.view});
     if (transport_) {

@@ -397,7 +397,7 @@ TEST_CASE("anisotropic kernels make a flatter, truer pool surface and a truer ba
   CHECK(an->sphere.rms_distance < 0.4);
   CHECK(an->sheet.holes <= iso->sheet.holes);
   // The settled pool is denser than its lattice: its top layer sits lower
-  // than the lattice's (0.29 spacing at 1 s, docs/field.md), and against
+  // than the lattice's (0.29 spacing after 1 s, docs/field.md), and against
   // the plane half a spacing above that layer the ellipsoids' surface is
   // nearer than against N dx^3 / area.
   CHECK(an->top_layer_dx > 0.1);

@@ -207,6 +207,33 @@ TEST_CASE("pbf step size: after the first step the limit follows the mean compre
   CHECK(off.limits.dt == depth);
 }
 
+TEST_CASE("pbf step size: a flowing liquid's steps are sized to pbf.step_error_flow, a slower one's to pbf.step_error",
+          "[sph][cpu]") {
+  // A compression of 0.75% left: above the target at rest (0.5%: the step
+  // shrinks, by sqrt(0.005 / 0.0075) = 0.82, clamped to kShrink), below the
+  // flowing one (1%: it grows, by 1.15, clamped to kGrow). The switch is the
+  // largest speed against flow_speed (2 m/s here).
+  const double depth = 1e-3, e = 0.0075, n = 1000;
+  auto choose = [&](float speed, double flow_target) {
+    FlowControl c{};
+    c.stats.max_speed2 = speed * speed;
+    c.stats.error_sum = e * n;
+    c.stats.count = n;
+    c.dt_chosen = 2e-3;
+    c.error_mean = e;
+    ChooseFlowStep{1.0, 0.0, 1.0, depth, 1e-8, 1.0, &c, 0.005, flow_target, 2.0}(0);
+    return c.limits.dt;
+  };
+  CHECK(choose(1.9f, 0.01) == Approx(2e-3 * ChooseFlowStep::kShrink).epsilon(1e-9));
+  CHECK(choose(2.1f, 0.01) == Approx(2e-3 * ChooseFlowStep::kGrow).epsilon(1e-9));
+  CHECK(choose(2.1f, 0.0) == Approx(2e-3 * ChooseFlowStep::kShrink).epsilon(1e-9));  // 0: step_error throughout
+  // The scene's keys: the flow target at least the one at rest, the speed in sqrt(g H).
+  const PbfParams p = make_pbf_params(resolve_scene(pbf_scene("scenes/dam_break.json",
+      {"pbf.step_error=0.02", "pbf.step_error_flow=0.01", "pbf.flow_speed=1.5"})).scene);
+  CHECK(p.step_error_flow == Approx(0.02f));
+  CHECK(p.flow_speed == Approx(1.5f * p.speed_floor));
+}
+
 TEST_CASE("pbf: the dam break takes fewer steps under the error-sized step, at a mean compression near its target",
           "[sph][cpu]") {
   // At this coarse spacing PBF's 5 ms cap would set every step; without it
