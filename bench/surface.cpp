@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <iomanip>
+#include <numeric>
 #include <random>
 #include <ostream>
 #include <sstream>
@@ -49,11 +50,10 @@ double pool_top_layer(const std::vector<Vec3f>& pos, double lo, double hi, int l
   std::vector<double> z;
   for (const Vec3f& p : pos)
     if (p.x >= lo && p.x <= hi && p.y >= lo && p.y <= hi) z.push_back(p.z);
-  const size_t k = std::max<size_t>(1, z.size() / size_t(std::max(layers, 1)));
-  std::partial_sort(z.begin(), z.begin() + std::ptrdiff_t(std::min(k, z.size())), z.end(), std::greater<double>());
-  double sum = 0;
-  for (size_t q = 0; q < k && q < z.size(); ++q) sum += z[q];
-  return z.empty() ? 0.0 : sum / double(std::min(k, z.size()));
+  if (z.empty()) return 0.0;
+  const auto top = z.begin() + std::ptrdiff_t(std::max<size_t>(1, z.size() / size_t(std::max(layers, 1))));
+  std::partial_sort(z.begin(), top, z.end(), std::greater<double>());
+  return std::accumulate(z.begin(), top, 0.0) / double(top - z.begin());
 }
 
 std::string bench_surface_scene(int cells) {
@@ -97,8 +97,9 @@ std::vector<BenchSurfaceRow> bench_surface(Backend b, const BenchSurfaceOptions&
   // lies half a spacing above its top layer.
   const double wall = 6 * dx;
   const double top_layer = pool_top_layer(pool->download().pos, wall, L - wall, cells / 2);
+  const double top_layer_dx = (height - 0.5 * dx - top_layer) / dx;
   log << "  settled pool: height " << height / dx << " spacings, top layer at " << top_layer / dx << " ("
-      << (height - 0.5 * dx - top_layer) / dx << " below the lattice's)\n";
+      << top_layer_dx << " below the lattice's)\n";
 
   // A ball of particles (lattice points within 0.3 L of the tank's centre,
   // jittered), one step from rest without gravity: its true surface is the
@@ -151,14 +152,14 @@ std::vector<BenchSurfaceRow> bench_surface(Backend b, const BenchSurfaceOptions&
       // Rays start 12 spacings outside each surface and stay 6 from the walls.
       const double margin = 12 * dx;
       const std::vector<float> field = builder->download();
-      row.pool = in_spacings(plane_surface_error(field, fs.geom, iso, {wall, wall, 0.0},
-                                                 {L - wall, L - wall, height + margin}, height, 0.5 * dx),
-                             dx);
-      row.pool_layer = in_spacings(plane_surface_error(field, fs.geom, iso, {wall, wall, 0.0},
-                                                       {L - wall, L - wall, height + margin}, top_layer + 0.5 * dx,
-                                                       0.5 * dx),
-                                   dx);
-      row.top_layer_dx = (height - 0.5 * dx - top_layer) / dx;
+      auto pool_error = [&](double plane) {
+        return in_spacings(plane_surface_error(field, fs.geom, iso, {wall, wall, 0.0},
+                                               {L - wall, L - wall, height + margin}, plane, 0.5 * dx),
+                           dx);
+      };
+      row.pool = pool_error(height);
+      row.pool_layer = pool_error(top_layer + 0.5 * dx);
+      row.top_layer_dx = top_layer_dx;
       builder->build(ball_solver->view());
       row.sphere = in_spacings(sphere_surface_error(builder->download(), fs.geom, iso, c, ball_radius, 2000, margin), dx);
       builder->build(sheet_solver->view());
