@@ -101,14 +101,19 @@ struct ChooseFlowStep {
     if (dt < min_dt) { c.outcome = kStepBelowFloor; return; }
     c.outcome = kStepOk;
     c.dt_chosen = dt;
-    // No sliver of a step before an output time: PBF's velocities are
-    // position changes over dt and DFSPH's pressures scale with 1 / dt^2, so
-    // a tiny step turns a correction into a huge speed or pressure. Land on
-    // `until` a little beyond the limit, or in two halves.
-    l.dt = remaining <= kLandStretch * dt ? remaining : remaining < 2.0 * dt ? 0.5 * remaining : dt;
+    // No short step before an output time: PBF's velocities are position
+    // changes over dt and DFSPH's pressures scale with 1 / dt^2, so a step
+    // much shorter than the one before turns the compression it left into a
+    // large speed or pressure. The time left is split into the fewest equal
+    // steps of at most kLandStretch dt, so that with k steps to go a step is
+    // at most 1 / k shorter than dt (landing with one step and then halves
+    // made every output time's last steps up to half as long).
+    const double k = std::ceil(remaining / (kLandStretch * dt));
+    l.dt = k <= 1.0 ? remaining : k <= kPlanSteps ? remaining / k : dt;
   }
   static constexpr double kShrink = 0.9, kGrow = 1.05, kKeep = 0.9;
   static constexpr double kLandStretch = 1.01;
+  static constexpr double kPlanSteps = 64;  // more steps to go (or no output time): dt, then at most 1/64 shorter
 };
 
 }  // namespace sphray
