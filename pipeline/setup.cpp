@@ -255,6 +255,7 @@ PbfParams make_pbf_params(const Scene& s) {
   p.inv_w_dq = float(1.0 / k.W(dq * dq));
   p.scorr_n = c.scorr_n;
   p.max_correction = float(c.max_correction * dx);
+  p.wall_margin = float(c.wall_margin * dx);
   p.xsph = float(c.xsph);
   p.vorticity = float(c.vorticity);
   p.presence_scale = float(0.5 / presence_lobe_on_lattice(k, dx, volume));

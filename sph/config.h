@@ -19,6 +19,7 @@ struct PbfConfig {
   double scorr_k = 0;         // s_corr strength, as a share of the lambda of a 100% compression (off: docs/method.md)
   double scorr_dq = 0.2;      // s_corr reference distance [supports]
   int scorr_n = 4;            // s_corr exponent
+  double wall_margin = 0;     // [spacings] the projection into the tank keeps particles this far inside its walls (docs/method.md)
   double max_correction = 0.25;  // largest correction per particle and iteration [spacings]; 0: none
   double depth_error = 0.01;  // compression a column may keep between steps (the depth limit of dt); 0: no limit
   double step_error = 0.005;  // mean compression the steps after the first are sized to (ChooseFlowStep); 0: the depth limit throughout

@@ -54,12 +54,13 @@ SPHRAY_HD SPHRAY_FORCEINLINE float fast_div(float a, float b) {
 #endif
 }
 
-// Projects x into the tank (the top stays open where the tank has none).
-SPHRAY_HD SPHRAY_FORCEINLINE Vec3f inside_tank(const SphParams& prm, Vec3f x) {
-  x.x = std::fmin(std::fmax(x.x, prm.tank.min.x), prm.tank.max.x);
-  x.y = std::fmin(std::fmax(x.y, prm.tank.min.y), prm.tank.max.y);
-  x.z = std::fmax(x.z, prm.tank.min.z);
-  if (!prm.open_top) x.z = std::fmin(x.z, prm.tank.max.z);
+// Projects x into the tank (the top stays open where the tank has none),
+// `margin` [m] inside its walls.
+SPHRAY_HD SPHRAY_FORCEINLINE Vec3f inside_tank(const SphParams& prm, Vec3f x, float margin = 0.0f) {
+  x.x = std::fmin(std::fmax(x.x, prm.tank.min.x + margin), prm.tank.max.x - margin);
+  x.y = std::fmin(std::fmax(x.y, prm.tank.min.y + margin), prm.tank.max.y - margin);
+  x.z = std::fmax(x.z, prm.tank.min.z + margin);
+  if (!prm.open_top) x.z = std::fmin(x.z, prm.tank.max.z - margin);
   return x;
 }
 

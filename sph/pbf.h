@@ -59,11 +59,12 @@ struct Predict {
   const Float4* vel;
   Float4* pred;
   Obstacles obstacles;  // the path is stopped at them (obstacles.h)
+  float margin;         // pbf.wall_margin [m]
   SPHRAY_HD void operator()(uint32_t i) const {
     const float dt = float(control->limits.dt);
     const Vec3f v = xyz(vel[i]) + dt * prm.gravity;
-    Vec3f x = inside_tank(prm, xyz(pos[i]) + dt * v);
-    if (stop_at_obstacles(obstacles, xyz(pos[i]), x, obstacles.time, obstacles.time + dt).hit()) x = inside_tank(prm, x);
+    Vec3f x = inside_tank(prm, xyz(pos[i]) + dt * v, margin);
+    if (stop_at_obstacles(obstacles, xyz(pos[i]), x, obstacles.time, obstacles.time + dt).hit()) x = inside_tank(prm, x, margin);
     pred[i] = {x.x, x.y, x.z, 0.0f};
   }
 };
@@ -169,7 +170,7 @@ struct Correct {
     const float len2 = length2(dx);
     if (pbf.max_correction > 0.0f && len2 > pbf.max_correction * pbf.max_correction)
       dx = (pbf.max_correction / std::sqrt(len2)) * dx;
-    const Vec3f x = inside_tank(prm, xi + dx);
+    const Vec3f x = inside_tank(prm, xi + dx, pbf.wall_margin);
     out[i] = {x.x, x.y, x.z, 0.0f};
   }
 };
@@ -185,11 +186,12 @@ struct StopCorrection {
   const FlowControl* control;  // the step's dt
   const Float4* from;          // x* before the correction
   Float4* to;                  // after it
+  float margin;                // pbf.wall_margin [m]
   SPHRAY_HD void operator()(uint32_t i) const {
     const float t_end = obstacles.time + float(control->limits.dt);
     Vec3f x = xyz(to[i]);
     if (!stop_at_obstacles(obstacles, xyz(from[i]), x, t_end, t_end).hit()) return;
-    x = inside_tank(prm, x);
+    x = inside_tank(prm, x, margin);
     to[i] = {x.x, x.y, x.z, 0.0f};
   }
 };

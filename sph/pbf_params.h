@@ -22,6 +22,7 @@ struct PbfParams {
   // at 20-50 m/s where it hits the far wall. Jacobi carries a correction
   // about one support per iteration anyway; the rest waits for the next.
   float max_correction;
+  float wall_margin;     // [m] the projection into the tank keeps this far inside its walls
   float xsph;            // XSPH viscosity c
   float vorticity;       // [m/s] vorticity confinement epsilon; 0: off
   float presence_scale;  // 1 / (2 K) with this kernel (interaction.h)

@@ -106,7 +106,7 @@ class PbfSolverImpl final : public Solver {
                                std::max(until - t_, 0.0), control, double(pbf_.step_error),
                                double(pbf_.step_error_flow), double(pbf_.flow_speed)});
     walls_.move(obstacles_.view, control);  // to the step's end, where the corrections meet them
-    parallel_for("pbf_predict", n_, Predict{prm_, control, raw(pos_), raw(vel_), raw(pred_), obstacles_.view});
+    parallel_for("pbf_predict", n_, Predict{prm_, control, raw(pos_), raw(vel_), raw(pred_), obstacles_.view, pbf_.wall_margin});
     if (transport_) {
       exchange(pred_);
       clock_.end_of("exchange");
@@ -307,7 +307,7 @@ class PbfSolverImpl final : public Solver {
 
   // The corrections from pred_ to `out` stopped at the obstacles (pbf.h).
   void stop_corrections(Vector<Float4>& out) {
-    parallel_for("pbf_stop", n_, StopCorrection{prm_, obstacles_.view, raw(control_), raw(pred_), raw(out)});
+    parallel_for("pbf_stop", n_, StopCorrection{prm_, obstacles_.view, raw(control_), raw(pred_), raw(out), pbf_.wall_margin});
   }
 
   void finish(bool presence) {
