@@ -19,11 +19,11 @@ struct PbfConfig {
   double scorr_k = 0;         // s_corr strength, as a share of the lambda of a 100% compression (off: docs/method.md)
   double scorr_dq = 0.2;      // s_corr reference distance [supports]
   int scorr_n = 4;            // s_corr exponent
-  double wall_margin = 0;     // [spacings] the projection into the tank keeps particles this far inside its walls (docs/method.md)
+  double wall_margin = 0.1;   // [spacings] the projection into the tank keeps particles this far inside its walls (docs/method.md)
   double max_correction = 0.25;  // largest correction per particle and iteration [spacings]; 0: none
   double depth_error = 0.01;  // compression a column may keep between steps (the depth limit of dt); 0: no limit
   double step_error = 0.005;  // mean compression the steps after the first are sized to (ChooseFlowStep); 0: the depth limit throughout
-  double step_error_flow = 0;     // the same while the largest speed is above flow_speed sqrt(g H) (at least step_error); 0: step_error throughout
+  double step_error_flow = 0.01;  // the same while the largest speed is above flow_speed sqrt(g H) (at least step_error); 0: step_error throughout
   double flow_speed = 1.0;        // [sqrt(g H)] the speed above which a liquid is flowing (step_error_flow)
   double xsph = 0.3;          // XSPH viscosity c (the share of the neighbours' mean velocity difference per step)
   double vorticity = 0;       // vorticity confinement epsilon [m/s]; 0: off (docs/method.md)
@@ -54,7 +54,7 @@ struct SphConfig {
   double density_diffusion = 0.1;
   // WCSPH: dt = cfl h / (c0 + v_max) (and the force and viscous limits);
   // PBF and DFSPH: dt = cfl dx / v_max. The default depends on the solver.
-  static constexpr double kWcsphCfl = 0.25, kPbfCfl = 0.9, kDfsphCfl = 0.4;
+  static constexpr double kWcsphCfl = 0.25, kPbfCfl = 1.0, kDfsphCfl = 0.4;
   double cfl = kWcsphCfl;
   int boundary_layers = 0;  // 0 = auto: enough to cover the support radius
   bool presence = false;    // presence on every step (studies); otherwise only where a stage needs it

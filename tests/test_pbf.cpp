@@ -138,11 +138,16 @@ TEST_CASE("pbf and dfsph keep the ids they are given (a resumed run's, a rank's 
   }
 }
 
-TEST_CASE("pbf: no particle leaves a closed tank, and the step follows the flow CFL", "[sph][cpu]") {
+TEST_CASE("pbf: no particle leaves a closed tank or comes closer to a wall than pbf.wall_margin, and the step follows the flow CFL",
+          "[sph][cpu]") {
   const Scene s = pbf_scene("scenes/dam_break.json", {"sph.spacing=0.04", "run.end_time=0.6"});
   auto solver = make_cpu_solver(make_solver_input(resolve_scene(s), PresenceMode::Off));
   const size_t n = solver->num_fluid();
-  const Aabb tank = resolve_scene(s).params.tank;  // the walls in the solver's single precision
+  Aabb tank = resolve_scene(s).params.tank;  // the walls in the solver's single precision
+  const float margin = float(0.999 * s.sph.pbf.wall_margin * s.sph.spacing);
+  REQUIRE(margin > 0.0f);
+  tank.min = tank.min + Vec3f{margin, margin, margin};
+  tank.max = tank.max - Vec3f{margin, margin, margin};
   double worst_cfl = 0;
   while (solver->time() < s.run.end_time - 1e-12) {
     solver->step(s.run.end_time);
@@ -155,6 +160,32 @@ TEST_CASE("pbf: no particle leaves a closed tank, and the step follows the flow 
   // dt <= cfl dx / v_max at the speed the step started from (1% landing stretch).
   CHECK(worst_cfl <= 1.01 * s.sph.cfl + 1e-9);
   CHECK(solver->last_solve().iterations == s.sph.pbf.iterations);
+}
+
+// A particle projected onto a wall coincides with its own mirror image,
+// which adds W(0) to its density and no gradient to push it off (three
+// images at an edge): such particles were the dam break's most compressed
+// and fastest. The margin keeps the image a fifth of a spacing away.
+TEST_CASE("pbf: the wall margin keeps particles pressed against the walls from over-compressing", "[sph][cpu]") {
+  auto run = [](const std::string& margin, double& speed) {
+    const Scene s = pbf_scene("scenes/dam_break.json", {"sph.spacing=0.03", "run.end_time=0.6", "pbf.wall_margin=" + margin});
+    auto solver = make_cpu_solver(make_solver_input(resolve_scene(s), PresenceMode::Off));
+    double worst = 0;
+    speed = 0;
+    while (solver->time() < s.run.end_time - 1e-12) {
+      solver->step(s.run.end_time);
+      worst = std::max(worst, solver->last_solve().density_error_max);
+      speed = std::max(speed, solver->last_limits().max_speed);
+    }
+    return worst;
+  };
+  double speed_on = 0, speed_off = 0;
+  const double on = run("0.1", speed_on), off = run("0", speed_off);
+  INFO("largest compression of one particle " << off << " -> " << on << ", largest speed " << speed_off << " -> "
+                                               << speed_on << " m/s");
+  CHECK(on < 0.1);
+  CHECK(on < 0.5 * off);
+  CHECK(speed_on < speed_off);
 }
 
 TEST_CASE("pbf step size: after the first step the limit follows the mean compression left, never below the depth limit",
@@ -194,11 +225,31 @@ TEST_CASE("pbf step size: after the first step the limit follows the mean compre
   CHECK(c.error_mean == Approx(smooth));
   CHECK(c.limits.dt == Approx(2e-3 * std::max(ChooseFlowStep::kShrink, std::sqrt(target / smooth))).epsilon(1e-9));
   // The flow CFL still caps it, and the controller's base is the step before
-  // landing on an output time, not the landed sliver.
+  // landing on an output time, not the landed one.
   CHECK(choose(2e-3, target / 4, target / 4, 1.5e-3).limits.dt == Approx(1.5e-3));
   c = choose(2e-3, target / 4, target / 4, 1.0, 2.5e-3);
   CHECK(c.limits.dt == Approx(1.25e-3));
   CHECK(c.dt_chosen == Approx(2.1e-3));
+  // Landing: the time left in the fewest equal steps of at most 1% beyond
+  // dt (here the flow CFL's 1.5 ms throughout): 10.5 steps' worth is 11
+  // steps of 0.955 dt, not 10 steps and two halves; 3.02 steps' worth is 3
+  // steps stretched by 0.7%.
+  for (const double steps_left : {10.5, 3.02}) {
+    double remaining = steps_left * 1.5e-3, shortest = 1.0, longest = 0.0;
+    int taken = 0;
+    while (remaining > 1e-12 && taken < 100) {
+      const double dt = choose(1.5e-3, target / 4, target / 4, 1.5e-3, remaining).limits.dt;
+      shortest = std::min(shortest, dt);
+      longest = std::max(longest, dt);
+      remaining -= dt;
+      ++taken;
+    }
+    INFO(steps_left << " steps' worth: " << taken << " steps of " << shortest << " to " << longest << " s");
+    CHECK(taken == int(std::ceil(steps_left / ChooseFlowStep::kLandStretch)));
+    CHECK(longest <= ChooseFlowStep::kLandStretch * 1.5e-3 * (1 + 1e-12));
+    CHECK(shortest == Approx(longest).epsilon(1e-9));
+    CHECK(std::abs(remaining) < 1e-15);
+  }
   // pbf.step_error = 0: the depth limit throughout.
   FlowControl off{};
   off.stats.max_speed2 = 1.0f;
