@@ -426,6 +426,8 @@ TEST_CASE("pbf scene options: refused by name where they do not apply or are out
   CHECK(error_of(R"("sph": {"spacing": 0.1, "solver": "pbf", "cfl": 0}})").find("sph.cfl") != std::string::npos);
   CHECK(error_of(R"("sph": {"spacing": 0.1, "solver": "pbf"}, "pbf": {"step_error": -0.01}})").find("pbf.step_error") !=
         std::string::npos);
+  CHECK(error_of(R"("sph": {"spacing": 0.1, "solver": "pbf"}, "pbf": {"wall_margin": 0.6}})").find("pbf.wall_margin") !=
+        std::string::npos);
   CHECK(error_of(R"("sph": {"spacing": 0.1, "solver": "pbf"}, "run": {"min_dt": 0.01, "max_dt": 0.001}})")
             .find("run.max_dt") != std::string::npos);
   CHECK(error_of(R"("sph": {"spacing": 0.1, "solver": "pbf"}, "pbf": {"iterations": 4}})").empty());
