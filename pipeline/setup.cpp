@@ -317,6 +317,7 @@ DfsphParams make_dfsph_params(const Scene& s) {
   p.min_iterations = c.min_iterations;
   p.max_iterations = c.max_iterations;
   p.max_divergence_iterations = c.max_divergence_iterations;
+  p.wall_margin = float(c.wall_margin * dx);
   return p;
 }
 

@@ -58,8 +58,9 @@ PbfConfig read_pbf_config(const ConfigReader& r) {
 
 DfsphConfig read_dfsph_config(const ConfigReader& r) {
   r.only({"tolerance", "divergence_tolerance", "min_iterations", "max_iterations", "max_divergence_iterations",
-          "kernel", "support", "viscosity"});
+          "kernel", "support", "viscosity", "wall_margin"});
   DfsphConfig c;
+  c.wall_margin = r.number("wall_margin", c.wall_margin, 0, 0.5);
   c.tolerance = r.number("tolerance", c.tolerance, 0, 1, false, true);
   c.divergence_tolerance = r.number("divergence_tolerance", c.divergence_tolerance, 0, 1, false, true);
   c.min_iterations = r.integer("min_iterations", c.min_iterations, 1, 1000);

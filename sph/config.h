@@ -40,6 +40,7 @@ struct DfsphConfig {
   KernelType kernel = KernelType::CubicSpline;
   double support = 2.1;                 // kernel support [spacings]
   double viscosity = -1;                // kinematic viscosity [m^2/s]; < 0: auto (docs/scenes.md)
+  double wall_margin = 0.1;             // [spacings] the projection into the tank keeps particles this far inside its walls (docs/method.md)
 };
 
 struct SphConfig {

@@ -373,6 +373,7 @@ struct DfsphKick {
   Float4* pos_out;
   Obstacles obstacles;  // the advection is stopped at them (obstacles.h)
   WallsView walls;  // the obstacles' wall particles
+  float margin;     // dfsph.wall_margin [m]
   SPHRAY_HD void operator()(uint32_t i) const {
     const float dt = float(control->limits.dt);
     Vec3f v = xyz(vel[i]) + dt * xyz(acc[i]);
@@ -385,14 +386,14 @@ struct DfsphKick {
       // g dt a step. Elsewhere the mirror images turn it (zeroed there too,
       // the Martin & Moyce front at a/20 erred by 6.0% instead of 4.9%).
       const Vec3f x0 = xyz(pos[i]), want = x0 + dt * v;
-      x = inside_tank(prm, want);
+      x = inside_tank(prm, want, margin);
       if (walls.near_point(x0)) {
         if (x.x != want.x && x.x == x0.x) v.x = 0.0f;
         if (x.y != want.y && x.y == x0.y) v.y = 0.0f;
         if (x.z != want.z && x.z == x0.z) v.z = 0.0f;
       }
       const Stop stop = stop_at_obstacles(obstacles, xyz(pos[i]), x, obstacles.time, obstacles.time + dt);
-      if (stop.hit()) x = inside_tank(prm, x);
+      if (stop.hit()) x = inside_tank(prm, x, margin);
       v = velocity_after(v, stop);
     }
     vel[i] = {v.x, v.y, v.z, 0.0f};

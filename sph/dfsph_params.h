@@ -17,6 +17,7 @@ struct DfsphParams {
   float presence_scale;  // 1 / (2 K) with this kernel (interaction.h)
   float speed_floor;     // [m/s] the CFL's speed is at least this (ChooseFlowStep)
   float max_dt_viscous;  // [s] the explicit viscosity's stability limit, 0.125 h^2 / nu
+  float wall_margin;     // [m] the projection into the tank keeps this far inside its walls
   // A particle with fewer neighbours (wall images included) than this is at
   // a free surface or alone: the divergence solve leaves its density rate
   // alone, as SPlisHSPlasH does, since a surface particle expanding into the

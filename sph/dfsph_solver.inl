@@ -337,7 +337,7 @@ class DfsphSolverImpl final : public Solver {
     accel<false>();
     parallel_for(Advect ? "dfsph_advect" : "dfsph_kick", n_,
                  DfsphKick<Advect>{prm_, raw(control_), raw(acc_), raw(press_), raw(vel_), raw(warm_), raw(pos_), raw(pos_tmp_),
-                                   obstacles_.view, walls_.view()});
+                                   obstacles_.view, walls_.view(), df_.wall_margin});
   }
 
   // Speed, density error and finiteness of the current state, into the

@@ -81,12 +81,17 @@ TEST_CASE("dfsph: a column at rest holds hydrostatic pressure within 2% of rho0 
   CHECK(solver->last_limits().max_speed < 0.1 * std::sqrt(g * H));
 }
 
-TEST_CASE("dfsph: no particle leaves a closed tank, the step follows the flow CFL, the density error meets the tolerance",
+TEST_CASE("dfsph: no particle leaves a closed tank or comes closer to a wall than dfsph.wall_margin, the step follows "
+          "the flow CFL, the density error meets the tolerance",
           "[sph][cpu]") {
   const Scene s = dfsph_scene("scenes/dam_break.json", {"sph.spacing=0.04", "run.end_time=0.6"});
   auto solver = make_cpu_solver(make_solver_input(resolve_scene(s), PresenceMode::Off));
   const size_t n = solver->num_fluid();
-  const Aabb tank = resolve_scene(s).params.tank;  // the walls in the solver's single precision
+  Aabb tank = resolve_scene(s).params.tank;  // the walls in the solver's single precision
+  const float margin = float(0.999 * s.sph.dfsph.wall_margin * s.sph.spacing);
+  REQUIRE(margin > 0.0f);
+  tank.min = tank.min + Vec3f{margin, margin, margin};
+  tank.max = tank.max - Vec3f{margin, margin, margin};
   double worst_cfl = 0, error_sum = 0;
   int steps = 0, unconverged = 0;
   while (solver->time() < s.run.end_time - 1e-12) {
@@ -132,12 +137,13 @@ TEST_CASE("dfsph: the iteration limits bound the solves, and a step that hits on
 
 TEST_CASE("dfsph: a diverging run stops with the step named", "[sph][cpu]") {
   // A block thrown at a wall at 200 m/s with one pressure iteration and steps
-  // of ten spacings piles onto the wall: the pressure of one iteration throws
-  // particles at absurd speeds, and the run stops on whichever guard trips
-  // first (the step falling below run.min_dt, the density error past 100%,
-  // a non-finite value), naming the step.
+  // of ten spacings piles onto the wall, projected onto it (no wall margin:
+  // with the default margin the same block survives 20 s): the pressure of
+  // one iteration throws particles at absurd speeds, and the run stops on
+  // whichever guard trips first (the step falling below run.min_dt, the
+  // density error past 100%, a non-finite value), naming the step.
   Scene s = dfsph_scene("scenes/dam_break.json", {"sph.spacing=0.04", "dfsph.min_iterations=1", "dfsph.max_iterations=1",
-                                                  "sph.cfl=10", "run.max_dt=0.1"});
+                                                  "sph.cfl=10", "run.max_dt=0.1", "dfsph.wall_margin=0"});
   s.fluid[0] = {{{0.2, 0.0, 0.0}, {0.6, 0.67, 0.3}}, {-200.0, 0.0, 0.0}};
   auto solver = make_cpu_solver(make_solver_input(resolve_scene(s), PresenceMode::Off));
   const std::string message = test::run_to_error(*solver, 100.0);
@@ -158,6 +164,8 @@ TEST_CASE("dfsph scene options: refused by name where they do not apply or are o
   CHECK(test::has(error_of(R"("sph": {"spacing": 0.1, "solver": "dfsph"}, "pbf": {"iterations": 3}})"), "pbf"));
   CHECK(test::has(error_of(R"("sph": {"spacing": 0.1, "solver": "dfsph"}, "dfsph": {"tolerance": 0}})"),
                   "dfsph.tolerance"));
+  CHECK(test::has(error_of(R"("sph": {"spacing": 0.1, "solver": "dfsph"}, "dfsph": {"wall_margin": -0.1}})"),
+                  "dfsph.wall_margin"));
   CHECK(test::has(error_of(R"("sph": {"spacing": 0.1, "solver": "dfsph"}, "dfsph": {"divergence_tolerance": -1}})"),
                   "dfsph.divergence_tolerance"));
   CHECK(test::has(error_of(R"("sph": {"spacing": 0.1, "solver": "dfsph"}, "dfsph": {"max_iterations": 0}})"),
