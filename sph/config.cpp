@@ -60,7 +60,6 @@ DfsphConfig read_dfsph_config(const ConfigReader& r) {
   r.only({"tolerance", "divergence_tolerance", "min_iterations", "max_iterations", "max_divergence_iterations",
           "kernel", "support", "viscosity", "wall_margin"});
   DfsphConfig c;
-  c.wall_margin = r.number("wall_margin", c.wall_margin, 0, 0.5);
   c.tolerance = r.number("tolerance", c.tolerance, 0, 1, false, true);
   c.divergence_tolerance = r.number("divergence_tolerance", c.divergence_tolerance, 0, 1, false, true);
   c.min_iterations = r.integer("min_iterations", c.min_iterations, 1, 1000);
@@ -71,6 +70,7 @@ DfsphConfig read_dfsph_config(const ConfigReader& r) {
                                ") below dfsph.min_iterations (" + std::to_string(c.min_iterations) + ")");
   }
   c.max_divergence_iterations = r.integer("max_divergence_iterations", c.max_divergence_iterations, 1, 1000);
+  c.wall_margin = r.number("wall_margin", c.wall_margin, 0, 0.5);
   c.kernel = r.string("kernel", "cubic_spline", {"cubic_spline", "wendland_c2"}) == "wendland_c2"
                  ? KernelType::WendlandC2
                  : KernelType::CubicSpline;

@@ -21,11 +21,14 @@
 // liquid: a wall beside a free surface mirrors the surface (a half-space of
 // liquid beyond each wall instead over-counts there and at corners, and
 // pushed the liquid up the walls of a pool at rest). The walls are free-slip.
-// Each correction ends with the position projected into the tank, so no
-// particle leaves it (mirror_walls.h). The obstacles' wall particles
-// (mesh_walls.h) are static wall particles in the same way: they add to the
-// density and to grad_i C_i and push with lambda_i alone; the Lambda pass
-// keeps their gradient sum for the Correct pass at the same positions.
+// Each prediction and correction ends with the position projected into the
+// tank, pbf.wall_margin inside its walls, so no particle leaves it
+// (mirror_walls.h) or lies on a wall, where it would coincide with its own
+// image: W(0) added to its density and no gradient to push it off. The
+// obstacles' wall particles (mesh_walls.h) are static wall particles in the
+// same way: they add to the density and to grad_i C_i and push with
+// lambda_i alone; the Lambda pass keeps their gradient sum for the Correct
+// pass at the same positions.
 // The step (ChooseFlowStep, flow_step.h) has a depth limit besides the CFL:
 // each Jacobi iteration carries a correction about one support, so a column
 // of depth H under gravity stays compressed by about g H dt^2 / (K s^2) with
