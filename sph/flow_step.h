@@ -106,8 +106,7 @@ struct ChooseFlowStep {
     // much shorter than the one before turns the compression it left into a
     // large speed or pressure. The time left is split into the fewest equal
     // steps of at most kLandStretch dt, so that with k steps to go a step is
-    // at most 1 / k shorter than dt (landing with one step and then halves
-    // made every output time's last steps up to half as long).
+    // at most 1 / k shorter than dt.
     const double k = std::ceil(remaining / (kLandStretch * dt));
     l.dt = k <= 1.0 ? remaining : k <= kPlanSteps ? remaining / k : dt;
   }

@@ -16,7 +16,7 @@ TEST_CASE("a coarse Martin-Moyce dam break follows the experimental surge front"
   INFO("sph.solver " << kind);
   // a/10 (400 particles), DFSPH a/20 (3,200): at a/10 its no-slip floor,
   // with the automatic viscosity that scales with the spacing, holds the
-  // front back by 13-15% RMS. At a/20 the error swings between 4.5% and
+  // front back by 13-15% RMS. At a/20 the error swings between 5.9% and
   // 9.4% with small changes of the settings (whether the surge's thin tip
   // sticks to the floor late in the run; docs/validation.md).
   const std::string dx = kind == "dfsph" ? "0.0028575" : "0.005715";
