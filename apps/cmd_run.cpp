@@ -106,6 +106,11 @@ nlohmann::json completed_json(const RunSummary& r, const RunArgs& a, const Scene
                       {"particle_steps", r.particle_steps}, {"spacing_m", scene.sph.spacing},
                       {"mean_dt_s", r.mean_dt},          {"max_speed_m_s", r.max_speed},
                       {"realtime_factor", r.realtime_factor()}, {"solver", r.solver}};
+  j["max_speed_time_s"] = r.max_speed_time;
+  if (r.max_speed_id != kNoBadParticle) {  // one rank: where the largest speed was
+    j["max_speed_particle"] = r.max_speed_id;
+    j["max_speed_position_m"] = {r.max_speed_at.x, r.max_speed_at.y, r.max_speed_at.z};
+  }
   const StageTimes& st = r.mean_stage_ms;
   j["stage_ms"] = {{"grid", st.grid}, {"pairs", st.pairs}, {"integrate", st.integrate}, {"exchange", st.exchange}};
   if (st.skin > 0) j["stage_ms"]["skin"] = st.skin;

@@ -83,7 +83,12 @@ struct StepTally {
       ++free_steps;
       r.min_dt = std::min(r.min_dt, double(l.dt));
     }
-    r.max_speed = std::max(r.max_speed, l.max_speed);
+    if (l.max_speed > r.max_speed) {  // the limits are the state's the step started from
+      r.max_speed = l.max_speed;
+      r.max_speed_time = solver.time() - l.dt;
+      r.max_speed_id = l.fastest_id;
+      r.max_speed_at = l.fastest_at;
+    }
     r.particle_steps += solver.num_fluid();
     const SolveStats solve = solver.last_solve();
     iterations_sum += solve.iterations;
@@ -279,7 +284,14 @@ void print_summary(const RunSummary& r, std::ostream& log) {
                                                   : " steps above pbf.tolerance");
     log << "\n";
   }
-  log << "  max speed      " << r.max_speed << " m/s\n"
+  log << "  max speed      " << r.max_speed << " m/s";
+  if (r.max_speed > 0) {
+    log << " at t = " << r.max_speed_time << " s";
+    if (r.max_speed_id != kNoBadParticle)
+      log << ", particle " << r.max_speed_id << " (initial index) at (" << r.max_speed_at.x << ", "
+          << r.max_speed_at.y << ", " << r.max_speed_at.z << ") m";
+  }
+  log << "\n"
       << "  ms per step    grid (with the pair masks) " << r.mean_stage_ms.grid
       << ", pairs (forces, density rate, presence where needed) " << r.mean_stage_ms.pairs << ", integrate "
       << r.mean_stage_ms.integrate;

@@ -113,6 +113,12 @@ struct RunSummary {
   double mean_dt = 0, min_dt = 1e300;
   StageTimes mean_stage_ms;
   double max_speed = 0;
+  // Where max_speed was reached: the time the step started from, the
+  // particle's id (initial index) and position; the id is kNoBadParticle where
+  // the solver does not know it (a run over several ranks).
+  double max_speed_time = 0;
+  uint32_t max_speed_id = kNoBadParticle;
+  Vec3f max_speed_at = {0.0f, 0.0f, 0.0f};
   // The constraint or pressure solve of each step (Solver::last_solve; PBF,
   // DFSPH): iterations mean and max (DFSPH: also of the divergence solve),
   // the density error left (mean over the steps of each step's mean, and the

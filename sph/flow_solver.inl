@@ -81,11 +81,12 @@ inline double mean_over_run(const Vector<float>& values, uint32_t n, uint32_t gh
 // *stats, on the device; a decomposed run's over all ranks (its own
 // particles only: status marks the ghosts), so that every rank takes the
 // same step. first_bad stays the rank's own: the rank that has one raises
-// the step's error (check_flow_state).
+// the step's error (check_flow_state); so do the fastest particle's id and
+// place (the solver reports them as unknown over several ranks).
 inline void reduce_flow_stats(uint32_t n, const Vector<Float4>& pos, const Vector<Float4>& vel,
-                              const Vector<float>& error, const Vector<uint8_t>& status, ParticleTransport* transport,
-                              FlowStats* stats) {
-  transform_reduce_into(n, FlowStatsOf{raw(pos), raw(vel), raw(error), transport ? raw(status) : nullptr},
+                              const Vector<float>& error, const Vector<uint8_t>& status, const Vector<uint32_t>& id,
+                              ParticleTransport* transport, FlowStats* stats) {
+  transform_reduce_into(n, FlowStatsOf{raw(pos), raw(vel), raw(error), transport ? raw(status) : nullptr, raw(id)},
                         CombineFlowStats(), kEmptyFlowStats, stats);
   if (!transport) return;
   static_assert(offsetof(FlowStats, error_max) == offsetof(FlowStats, max_speed2) + sizeof(float) &&

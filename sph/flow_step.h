@@ -20,13 +20,17 @@ struct FlowStats {
   double error_sum;  // summed over the particles
   double count;      // the particles summed (a decomposed run's over all ranks: solvers reduce the pairs together)
   uint32_t first_bad;
+  uint32_t fastest_id;  // the fastest particle (the lowest id of equals) and where it is
+  Vec3f fastest_at;
 };
-constexpr FlowStats kEmptyFlowStats{0.0f, 0.0f, 0.0, 0.0, kNoBadParticle};
+constexpr FlowStats kEmptyFlowStats{0.0f, 0.0f, 0.0, 0.0, kNoBadParticle, kNoBadParticle, {0.0f, 0.0f, 0.0f}};
 
 struct CombineFlowStats {
   SPHRAY_HD FlowStats operator()(const FlowStats& a, const FlowStats& b) const {
-    return {a.max_speed2 > b.max_speed2 ? a.max_speed2 : b.max_speed2, a.error_max > b.error_max ? a.error_max : b.error_max,
-            a.error_sum + b.error_sum, a.count + b.count, a.first_bad < b.first_bad ? a.first_bad : b.first_bad};
+    const bool a_faster = a.max_speed2 > b.max_speed2 || (a.max_speed2 == b.max_speed2 && a.fastest_id < b.fastest_id);
+    return {a_faster ? a.max_speed2 : b.max_speed2, a.error_max > b.error_max ? a.error_max : b.error_max,
+            a.error_sum + b.error_sum, a.count + b.count, a.first_bad < b.first_bad ? a.first_bad : b.first_bad,
+            a_faster ? a.fastest_id : b.fastest_id, a_faster ? a.fastest_at : b.fastest_at};
   }
 };
 
@@ -37,12 +41,13 @@ struct FlowStatsOf {
   const Float4* vel;
   const float* error;
   const uint8_t* status = nullptr;
+  const uint32_t* id = nullptr;  // null: the index stands for the id
   SPHRAY_HD FlowStats operator()(uint32_t i) const {
     if (status && status[i] == kStatusGhost) return kEmptyFlowStats;
     const Float4 p = pos[i], v = vel[i];
     const bool finite = all_finite(xyz(p)) && std::isfinite(p.w) && all_finite(xyz(v));
     const float e = error[i];
-    return {length2(xyz(v)), e, double(e), 1.0, finite && std::isfinite(e) ? kNoBadParticle : i};
+    return {length2(xyz(v)), e, double(e), 1.0, finite && std::isfinite(e) ? kNoBadParticle : i, id ? id[i] : i, xyz(p)};
   }
 };
 
@@ -82,6 +87,8 @@ struct ChooseFlowStep {
     FlowControl& c = *control;
     StepLimits& l = c.limits;
     l.max_speed = std::sqrt(double(c.stats.max_speed2));
+    l.fastest_id = c.stats.fastest_id;
+    l.fastest_at = c.stats.fastest_at;
     const double v = l.max_speed > speed_floor ? l.max_speed : speed_floor;
     l.dt_cfl = v > 0 ? cfl_dx / v : HUGE_VAL;
     l.dt_force = max_dt_solver;

@@ -75,6 +75,11 @@ constexpr StepStats kEmptyStepStats{0.0f, 0.0f, kNoBadParticle, 0u, kNoBadPartic
 struct StepLimits {
   double dt = 0, dt_cfl = 0, dt_force = 0, dt_viscous = 0;
   double max_speed = 0, max_accel = 0;
+  // The particle that moved at max_speed: its id (initial index) and where it
+  // was. fastest_id is kNoBadParticle where the solver does not know it (a
+  // run over several ranks: the largest speed may be another rank's).
+  uint32_t fastest_id = kNoBadParticle;
+  Vec3f fastest_at = {0.0f, 0.0f, 0.0f};
 };
 
 // The step-size rule: Monaghan (1992) / Monaghan & Kos (1999), CFL (sound +
@@ -128,6 +133,10 @@ struct ChooseStep {
   SPHRAY_HD void operator()(uint32_t) const {
     StepControl& c = *control;
     c.limits = rule.limits(c.stats);
+    if (c.stats.fastest != kNoBadParticle) {
+      c.limits.fastest_id = state.id[c.stats.fastest];
+      c.limits.fastest_at = xyz(state.pos[c.stats.fastest]);
+    }
     const bool bad = c.stats.first_bad != kNoBadParticle;
     if (bad || c.limits.max_speed > rule.speed_of_sound) {
       const uint32_t i = bad ? c.stats.first_bad & ~kBadDerived : c.stats.fastest;

@@ -130,6 +130,7 @@ class PbfSolverImpl final : public Solver {
       throw SimulationError(describe_flow_dt_floor(c.limits, min_dt_, cfl_, t_, steps_));
     check_flow_state("PBF", "lower sph.cfl or raise pbf.iterations", c.stats, steps_, t_, pos_, vel_, id_);
     limits_ = c.limits;
+    if (transport_) limits_.fastest_id = kNoBadParticle;  // the largest speed may be another rank's
     times_ = {clock_.ms("grid"), clock_.ms("pairs"), clock_.ms("integrate")};
     times_.exchange = transport_ ? clock_.ms("exchange") : 0.0;
     solve_.iterations = iterations;
@@ -350,7 +351,7 @@ class PbfSolverImpl final : public Solver {
 
   // Speed, density error and finiteness of the current state, into the
   // control that the next step's size is chosen from.
-  void reduce_stats() { reduce_flow_stats(n_, pos_, vel_, error_, status_, transport_, &raw(control_)->stats); }
+  void reduce_stats() { reduce_flow_stats(n_, pos_, vel_, error_, status_, id_, transport_, &raw(control_)->stats); }
 
 
   SphParams prm_;

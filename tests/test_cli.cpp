@@ -126,6 +126,40 @@ TEST_CASE("sphray run warns when the wall guard, not the walls, held the liquid"
   }
 }
 
+TEST_CASE("the summary says where and when the largest speed was reached", "[cli][cpu]") {
+  // Without gravity a small block thrown at 1.5 m/s beside a block at rest
+  // holds the largest speed: the summary's particle lies in the thrown block
+  // (moved by at most 1.5 m/s x t), at a time within the run, under every solver.
+  std::ofstream(tmp + "/sphray_thrown.json") << R"({"tank": {"min": [0,0,0], "max": [0.4,0.2,0.2]},
+    "fluid": [{"min": [0,0,0], "max": [0.1,0.2,0.1]},
+              {"min": [0.22,0.08,0.08], "max": [0.26,0.12,0.12], "velocity": [1.5,0,0]}],
+    "gravity": [0,0,0], "sph": {"spacing": 0.02}, "run": {"end_time": 0.02}})";
+  for (const char* solver : {"wcsph", "pbf", "dfsph"}) {
+    INFO(solver);
+    const std::string json = tmp + "/sphray_thrown_" + solver + ".json";
+    const Result r = run_cli("run " + tmp + "/sphray_thrown.json --backend cpu --quiet --set sph.solver=" + solver +
+                             " --summary-json " + json);
+    INFO(r.output);
+    REQUIRE(r.code == 0);
+    const nlohmann::json j = nlohmann::json::parse(slurp(json));
+    CHECK(std::abs(j.at("max_speed_m_s").get<double>() - 1.5) < 0.15);
+    const double t = j.at("max_speed_time_s").get<double>();
+    CHECK(t >= 0.0);
+    CHECK(t < 0.02);
+    const auto at = j.at("max_speed_position_m").get<std::vector<double>>();
+    REQUIRE(at.size() == 3);
+    CHECK(at[0] >= 0.22);
+    CHECK(at[0] <= 0.26 + 1.5 * t + 1e-6);
+    CHECK(at[1] >= 0.08);
+    CHECK(at[1] <= 0.12);
+    CHECK(at[2] >= 0.08);
+    CHECK(at[2] <= 0.12);
+    // Initial indices follow the blocks: the first holds 5 x 10 x 5.
+    CHECK(j.at("max_speed_particle").get<uint32_t>() >= 250u);
+    CHECK(has(r.output, "max speed"));
+  }
+}
+
 TEST_CASE("a run stopped by a guard exits 1 and leaves a summary JSON that says so", "[cli][cpu]") {
   // The particle dropped 0.3 m with c0 = 2 m/s outruns c0 at t = 0.204 s
   // (free fall, tests/test_sph.cpp); the summary file, opened before the run,

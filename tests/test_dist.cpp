@@ -319,6 +319,7 @@ void check_ranks_follow_one_rank(const std::string& solver_args, const std::stri
   const CliResult r1 = run_ranks(1, "--metrics-csv " + path("metrics", 1) + ".csv " + args + path("ranks", 1) + ".h5");
   INFO(r1.output);
   REQUIRE(r1.code == 0);
+  CHECK(has(slurp(summary), "\"max_speed_particle\""));  // one rank knows where its largest speed was
   const FrameReader ref(path("ranks", 1) + ".h5");
   REQUIRE(ref.frames().size() == 7);
   for (int ranks : {2, 3}) {
@@ -339,6 +340,7 @@ void check_ranks_follow_one_rank(const std::string& solver_args, const std::stri
     // three along x alone (slabs.h).
     CHECK(has(r.output, "ranks: " + std::to_string(ranks) + " slabs along " + (ranks == 2 ? "y" : "x")));
     CHECK(has(slurp(summary), "\"status\": \"completed\""));
+    CHECK_FALSE(has(slurp(summary), "\"max_speed_particle\""));  // it may have been another rank's
     const FrameReader got(path("ranks", ranks) + ".h5");
     REQUIRE(got.frames().size() == ref.frames().size());
     for (size_t k = 0; k < ref.frames().size(); ++k) {
