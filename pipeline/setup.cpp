@@ -257,6 +257,7 @@ PbfParams make_pbf_params(const Scene& s) {
   p.max_correction = float(c.max_correction * dx);
   p.wall_margin = float(c.wall_margin * dx);
   p.xsph = float(c.xsph);
+  p.mirrored_images = c.mirrored_images;
   p.vorticity = float(c.vorticity);
   p.presence_scale = float(0.5 / presence_lobe_on_lattice(k, dx, volume));
   // The flow speed the scene can reach, sqrt(g H) (or its fastest initial

@@ -1,7 +1,8 @@
 // The walls of a box tank as mirrors, for the incompressible solvers (PBF,
 // pbf.h; DFSPH, dfsph.h): a particle within the support of a wall sees the
 // mirror images of itself and of its neighbours across it (across two or
-// three walls at an edge or a corner) as static wall particles. Images follow
+// three walls at an edge or a corner) as wall particles: PBF's carry their
+// originals' lambdas (or none, pbf.images), DFSPH's their pressures. Images follow
 // the liquid: a wall beside a free surface mirrors the surface (a half-space
 // of liquid beyond each wall instead over-counts there and at corners).
 // The walls are free-slip. After a step's positions change they are

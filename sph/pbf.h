@@ -13,11 +13,17 @@
 // otherwise be pulled together. Walls are the tank's planes, as mirrors: a
 // particle within the support of a wall sees the mirror images of itself
 // and of its neighbours across it (across two or three walls at an edge or
-// a corner) as static wall particles: they add to its density and to
-// grad_i C_i, and its correction pushes it away from them with its own
-// lambda only, as a constraint against a static body does in PBD (giving
-// the images their originals' lambda as well made the walls twice as stiff
-// and a dam break unstable at the default relaxation). Images follow the
+// a corner). By default (pbf.images "mirrored") they are the liquid
+// mirrored across the wall: they add to its density, to grad_i C_i and to
+// the denominator's sum over the neighbours' gradients, and each pushes with
+// lambda_i plus its original's lambda (its own image with 2 lambda_i), so a
+// particle near a free-slip wall is corrected as in the mirrored liquid
+// (tests/test_pbf.cpp checks that against an explicitly mirrored run). With
+// "static" they are static wall particles pushing with lambda_i alone, as a
+// constraint against a static body does in PBD: a particle pressed against a
+// wall then met more compression than its correction undid, and the dam
+// break's largest speeds, single particles at the walls, were higher
+// (docs/validation.md, "Wall images"). Images follow the
 // liquid: a wall beside a free surface mirrors the surface (a half-space of
 // liquid beyond each wall instead over-counts there and at corners, and
 // pushed the liquid up the walls of a pool at rest). The walls are free-slip.
@@ -79,8 +85,9 @@ SPHRAY_HD SPHRAY_FORCEINLINE Vec3f volume_grad(const PbfParams& pbf, Vec3f r, fl
 }
 
 // Density at x* and lambda_i: out[i] = {x*_i, lambda_i}; error[i] = C_i.
-// The wall images (Mirrors) add to the density and to grad_i C_i; they do not
-// move, so they add nothing to the sum over the neighbours' gradients.
+// The wall images (Mirrors) add to the density and to grad_i C_i, and, as
+// mirrored particles (pbf.mirrored_images), to the sum over the neighbours'
+// gradients; static ones do not move and add nothing to it.
 template <int P>
 struct Lambda {
   // 40 registers where the tank's walls are the only walls: 46 unbounded,
@@ -105,13 +112,12 @@ struct Lambda {
     const bool near_mesh = walls.near_point(xi);
     float w_sum = k.W(0.0f), g2 = 0.0f;
     Vec3f grad = {0.0f, 0.0f, 0.0f};
-    // The images are static: they add nothing to the sum over the neighbours' gradients.
     for_each_neighbour_and_image<P>(grid, offsets, pairs, pred, i, xi, s2, mirrors, 0, [](uint32_t, Float4) { return 0; },
                                     [&](Vec3f r, float r2, int, uint32_t set) {
       w_sum += k.W(r2);
       const Vec3f g = volume_grad(pbf, r, r2);  // grad_j C_i = -g
       grad += g;
-      if (set == 0u) g2 += length2(g);
+      if (set == 0u || pbf.mirrored_images) g2 += length2(g);
     });
     float wall_volume = 0.0f;
     if (with_mesh_walls(P) && near_mesh) {
@@ -152,11 +158,13 @@ struct Correct {
     const Mirrors mirrors = mirrors_of(prm, k.s, xi);
     const bool near_mesh = walls.near_point(xi);
     Vec3f dx = {0.0f, 0.0f, 0.0f};
-    // An image is a static wall particle: lambda_i only, no s_corr.
+    // An image pushes with lambda_i and, mirrored, its original's lambda
+    // (i's own images: lambda_i again); no s_corr.
     auto lambda = [](uint32_t, Float4 pj) { return pj.w; };
-    for_each_neighbour_and_image<P>(grid, offsets, pairs, pred, i, xi, s2, mirrors, 0.0f, lambda,
+    for_each_neighbour_and_image<P>(grid, offsets, pairs, pred, i, xi, s2, mirrors, pi.w, lambda,
                                     [&](Vec3f r, float r2, float lambda_j, uint32_t set) {
       float scale = pi.w;
+      if (set != 0u && pbf.mirrored_images) scale += lambda_j;
       if (set == 0u) {
         scale += lambda_j;
         if (pbf.scorr_coef != 0.0f) {  // off by default: the same for every thread, no divergence
@@ -168,7 +176,7 @@ struct Correct {
       }
       dx += (scale * pbf.volume * k.dW_over_r_sq(r2)) * r;
     });
-    if (with_mesh_walls(P) && near_mesh) dx += pi.w * xyz(wall_grad[i]);  // lambda_i only, as the images
+    if (with_mesh_walls(P) && near_mesh) dx += pi.w * xyz(wall_grad[i]);  // lambda_i only: static wall particles
     // At most pbf.max_correction per iteration (pbf_params.h).
     const float len2 = length2(dx);
     if (pbf.max_correction > 0.0f && len2 > pbf.max_correction * pbf.max_correction)
@@ -200,7 +208,8 @@ struct StopCorrection {
 };
 
 // The end of the step: v = (x* - x) / dt with XSPH viscosity
-// (v_i += c sum_j (m / rho0) (v_j - v_i) W_ij), x = x*, and at x* the density
+// (v_i += c sum_j (m / rho0) (v_j - v_i) W_ij; mirrored images take part with
+// their originals' velocities reflected), x = x*, and at x* the density
 // with the wall images and the obstacles' walls (error[i] = its compression) and, when asked for,
 // presence (fluid only).
 template <bool WithPresence, int P>
@@ -236,7 +245,10 @@ struct Finish {
                                     [&](Vec3f r, float r2, Vec3f vj, uint32_t set) {
       const float w = k.W(r2);
       w_sum += w;
-      if (set != 0u) return;
+      if (set != 0u) {  // a mirrored image moves as its original reflected (free slip); a static one not at all
+        if (pbf.mirrored_images) smooth += w * (Mirrors::flip(vj, set) - vi);
+        return;
+      }
       smooth += w * (vj - vi);
       if (WithPresence) {  // V_j = m / rho0: the volume the lobes are normalised with (make_pbf_params)
         const float v_dwr = pbf.volume * k.dW_over_r_sq(r2);

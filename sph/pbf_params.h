@@ -33,6 +33,11 @@ struct PbfParams {
   float flow_speed;      // [m/s] pbf.flow_speed x speed_floor
   int iterations;        // constraint iterations per step
   float tolerance;       // mean density error that ends the iterations early; 0: off
+  // The wall images as mirrored particles (pbf.images "mirrored"): each
+  // carries its original's lambda into the correction and counts in the
+  // constraint's denominator, so that a free-slip wall corrects like the
+  // liquid mirrored across it; false: static wall particles (lambda_i only).
+  bool mirrored_images;
 };
 
 }  // namespace sphray
