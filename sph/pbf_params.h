@@ -34,9 +34,10 @@ struct PbfParams {
   int iterations;        // constraint iterations per step
   float tolerance;       // mean density error that ends the iterations early; 0: off
   // The wall images as mirrored particles (pbf.images "mirrored"): each
-  // carries its original's lambda into the correction and counts in the
-  // constraint's denominator, so that a free-slip wall corrects like the
-  // liquid mirrored across it; false: static wall particles (lambda_i only).
+  // carries its original's lambda into the correction, counts in the
+  // constraint's denominator and takes part in XSPH with its original's
+  // velocity reflected, so that a free-slip wall acts as the liquid mirrored
+  // across it; false: static wall particles (lambda_i only, no XSPH).
   bool mirrored_images;
 };
 
