@@ -41,7 +41,10 @@ class SlabSolver final : public Solver {
   size_t num_fluid() const override { return size_t(totals_[0]); }
   size_t num_removed() const override { return size_t(totals_[1]); }
   uint64_t num_clamped() const override { return uint64_t(totals_[2]); }
-  const StepLimits& last_limits() const override { return inner_->last_limits(); }
+  // The inner solver's, but for the fastest particle: its step statistics
+  // reduce the largest speed over all ranks, and the particle that has it
+  // may be another rank's (StepLimits::fastest_id).
+  const StepLimits& last_limits() const override { return limits_; }
   const StageTimes& last_stage_times() const override { return inner_->last_stage_times(); }
   // The iterations (the same on every rank) and the density error over all ranks.
   SolveStats last_solve() const override { return inner_->last_solve(); }
@@ -72,6 +75,8 @@ class SlabSolver final : public Solver {
       comm_.broadcast(error, failed);
       throw RanksStopped("rank " + std::to_string(failed) + " of " + std::to_string(comm_.size()) + ": " + error);
     }
+    limits_ = inner_->last_limits();
+    limits_.fastest_id = kNoBadParticle;
     sum_totals();
     if (opt_.rebalance_every > 0 && steps() % uint64_t(opt_.rebalance_every) == 0) rebalance();
   }
@@ -236,6 +241,7 @@ class SlabSolver final : public Solver {
   SlabPlan plan_;
   SlabOptions opt_;
   std::unique_ptr<Solver> inner_;
+  StepLimits limits_;  // last_limits
   std::vector<double> totals_{0.0, 0.0, 0.0};  // owned, removed, clamped: over all ranks
   HostParticles gathered_;
   uint64_t gathered_step_ = ~uint64_t(0);

@@ -125,7 +125,6 @@ class DfsphSolverImpl final : public Solver {
       throw SimulationError(describe_flow_dt_floor(c.limits, min_dt_, cfl_, t_, steps_));
     check_flow_state("DFSPH", "lower sph.cfl or raise dfsph.max_iterations", c.stats, steps_, t_, pos_, vel_, id_);
     limits_ = c.limits;
-    if (transport_) limits_.fastest_id = kNoBadParticle;  // the largest speed may be another rank's
     times_ = {clock_.ms("grid"), clock_.ms("pairs"), clock_.ms("integrate")};
     times_.exchange = transport_ ? clock_.ms("exchange") : 0.0;
     solve_.iterations = pressure.iterations;

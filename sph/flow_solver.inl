@@ -82,7 +82,7 @@ inline double mean_over_run(const Vector<float>& values, uint32_t n, uint32_t gh
 // particles only: status marks the ghosts), so that every rank takes the
 // same step. first_bad stays the rank's own: the rank that has one raises
 // the step's error (check_flow_state); so do the fastest particle's id and
-// place (the solver reports them as unknown over several ranks).
+// place (a run over several ranks reports them as unknown, dist/slab_solver.cpp).
 inline void reduce_flow_stats(uint32_t n, const Vector<Float4>& pos, const Vector<Float4>& vel,
                               const Vector<float>& error, const Vector<uint8_t>& status, const Vector<uint32_t>& id,
                               ParticleTransport* transport, FlowStats* stats) {

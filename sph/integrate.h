@@ -76,8 +76,8 @@ struct StepLimits {
   double dt = 0, dt_cfl = 0, dt_force = 0, dt_viscous = 0;
   double max_speed = 0, max_accel = 0;
   // The particle that moved at max_speed: its id (initial index) and where it
-  // was. fastest_id is kNoBadParticle where the solver does not know it (a
-  // run over several ranks: the largest speed may be another rank's).
+  // was. fastest_id is kNoBadParticle where it is not known (a run over
+  // several ranks, dist/slab_solver.cpp: it may be another rank's).
   uint32_t fastest_id = kNoBadParticle;
   Vec3f fastest_at = {0.0f, 0.0f, 0.0f};
 };

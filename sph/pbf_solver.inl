@@ -130,7 +130,6 @@ class PbfSolverImpl final : public Solver {
       throw SimulationError(describe_flow_dt_floor(c.limits, min_dt_, cfl_, t_, steps_));
     check_flow_state("PBF", "lower sph.cfl or raise pbf.iterations", c.stats, steps_, t_, pos_, vel_, id_);
     limits_ = c.limits;
-    if (transport_) limits_.fastest_id = kNoBadParticle;  // the largest speed may be another rank's
     times_ = {clock_.ms("grid"), clock_.ms("pairs"), clock_.ms("integrate")};
     times_.exchange = transport_ ? clock_.ms("exchange") : 0.0;
     solve_.iterations = iterations;

@@ -172,7 +172,6 @@ class SolverImpl final : public Solver {
     if (c.outcome == kStepSupersonic) throw SimulationError(describe_supersonic(c));
     clamped_total_ += c.stats.clamped;
     limits_ = c.limits;
-    if (transport_) limits_.fastest_id = kNoBadParticle;  // the largest speed may be another rank's
     if (c.outcome == kStepBelowFloor) throw SimulationError(describe_dt_floor());
     times_ = {clock_.ms("grid"), clock_.ms("pairs"), clock_.ms("integrate")};
     times_.exchange = transport_ ? clock_.ms("exchange") : 0.0;
