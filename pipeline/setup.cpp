@@ -13,6 +13,7 @@
 #include "mesh/bvh.h"
 #include "nsearch/pair_masks.h"
 #include "sph/eos.h"
+#include "sph/pbf_weights.h"
 #include "sph/skin.h"
 
 namespace sphray {
@@ -258,6 +259,15 @@ PbfParams make_pbf_params(const Scene& s) {
   p.wall_margin = float(c.wall_margin * dx);
   p.xsph = float(c.xsph);
   p.mirrored_images = c.mirrored_images;
+  p.rest_weights = 0;
+  if (c.rest_chebyshev) {
+    // Over more iterations than kRestWeights the schedule of kRestWeights repeats.
+    const double top = PbfRestSpectrum::top(
+        pbf_lattice_spectrum_bound(k.support(), dx, [&](double r) { return k.dW_over_r(r); }), c.relaxation);
+    const std::vector<double> w = pbf_rest_weights(std::min(c.iterations, PbfParams::kRestWeights), top);
+    p.rest_weights = int(w.size());
+    for (size_t i = 0; i < w.size(); ++i) p.rest_weight[i] = float(w[i]);
+  }
   p.vorticity = float(c.vorticity);
   p.presence_scale = float(0.5 / presence_lobe_on_lattice(k, dx, volume));
   // The flow speed the scene can reach, sqrt(g H) (or its fastest initial

@@ -36,7 +36,7 @@ void read_wcsph_options(const ConfigReader& r, SphConfig& c) {
 
 PbfConfig read_pbf_config(const ConfigReader& r) {
   r.only({"iterations", "tolerance", "support", "relaxation", "scorr_k", "scorr_dq", "scorr_n", "depth_error", "step_error", "max_correction", "xsph",
-          "vorticity", "step_error_flow", "flow_speed", "wall_margin", "images"});
+          "vorticity", "step_error_flow", "flow_speed", "wall_margin", "images", "rest_weights"});
   PbfConfig c;
   c.iterations = r.integer("iterations", c.iterations, 1, 100);
   c.tolerance = r.number("tolerance", c.tolerance, 0, 1);
@@ -52,6 +52,8 @@ PbfConfig read_pbf_config(const ConfigReader& r) {
   c.max_correction = r.number("max_correction", c.max_correction, 0, 10);
   c.wall_margin = r.number("wall_margin", c.wall_margin, 0, 0.5);
   c.mirrored_images = r.string("images", c.mirrored_images ? "mirrored" : "static", {"mirrored", "static"}) == "mirrored";
+  c.rest_chebyshev =
+      r.string("rest_weights", c.rest_chebyshev ? "chebyshev" : "uniform", {"chebyshev", "uniform"}) == "chebyshev";
   c.xsph = r.number("xsph", c.xsph, 0, 1);
   c.vorticity = r.number("vorticity", c.vorticity, 0, 100);
   return c;

@@ -21,6 +21,7 @@ struct PbfConfig {
   int scorr_n = 4;            // s_corr exponent
   double wall_margin = 0.1;   // [spacings] the projection into the tank keeps particles this far inside its walls (docs/method.md)
   bool mirrored_images = true;  // "images": the tank walls' images are the mirrored liquid ("mirrored") or static wall particles ("static")
+  bool rest_chebyshev = true;   // "rest_weights": lambda weighted per iteration at rest ("chebyshev", pbf_weights.h) or as is ("uniform")
   double max_correction = 0.25;  // largest correction per particle and iteration [spacings]; 0: none
   double depth_error = 0.01;  // compression a column may keep between steps (the depth limit of dt); 0: no limit
   double step_error = 0.005;  // mean compression the steps after the first are sized to (ChooseFlowStep); 0: the depth limit throughout

@@ -3,7 +3,9 @@
 //   predict   v* = v + dt g, x* = x + dt v*            (Predict)
 //   grid      sort by x*, pair masks at x*, reused by every pass below
 //   iterate   density constraint C_i = max(rho_i / rho0 - 1, 0):
-//             lambda_i = -C_i / (sum_k |grad_k C_i|^2 + eps)        (Lambda)
+//             lambda_i = -w_k C_i / (sum_k |grad_k C_i|^2 + eps)    (Lambda)
+//             (w_k = 1 while the liquid flows; at rest iteration k's
+//             weight, so that no constraint mode overshoots: pbf_weights.h)
 //             dx_i = (m / rho0) sum_j (lambda_i + lambda_j + s_corr) grad W_ij
 //                    + lambda_i grad_i C_i(walls)                     (Correct)
 //   finish    v = (x* - x) / dt, XSPH viscosity, x = x*; the density left
@@ -104,6 +106,8 @@ struct Lambda {
   float* error;
   WallsView walls;
   Float4* wall_grad;  // out where the obstacles' walls are near: sum_b V_b grad W_ib
+  const FlowControl* control;  // the step's largest speed: at rest lambda takes rest_weight
+  float rest_weight;           // this iteration's (PbfParams::rest_weight)
   SPHRAY_HD void operator()(uint32_t i) const {
     const PbfKernel<float>& k = pbf.kernel;
     const float s2 = k.s * k.s;
@@ -130,7 +134,8 @@ struct Lambda {
       wall_grad[i] = {gw.x, gw.y, gw.z, 0.0f};
     }
     const float c = fmaxf(pbf.volume * w_sum + wall_volume - 1.0f, 0.0f);  // rho / rho0 - 1
-    const float lambda = -c / (length2(grad) + g2 + pbf.epsilon);
+    const float weight = control->limits.max_speed > pbf.flow_speed ? 1.0f : rest_weight;
+    const float lambda = -weight * c / (length2(grad) + g2 + pbf.epsilon);
     out[i] = {xi.x, xi.y, xi.z, lambda};
     error[i] = c;
   }

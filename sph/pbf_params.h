@@ -39,6 +39,12 @@ struct PbfParams {
   // velocity reflected, so that a free-slip wall acts as the liquid mirrored
   // across it; false: static wall particles (lambda_i only, no XSPH).
   bool mirrored_images;
+  // The weights of lambda in the iterations of a step taken at rest (the
+  // largest speed at most flow_speed; pbf.rest_weights, pbf_weights.h):
+  // iteration k's is rest_weight[k % rest_weights]; 0 weights: lambda as is.
+  static constexpr int kRestWeights = 8;
+  int rest_weights;
+  float rest_weight[kRestWeights];
 };
 
 }  // namespace sphray

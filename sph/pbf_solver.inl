@@ -258,8 +258,10 @@ class PbfSolverImpl final : public Solver {
   int solve() {
     const bool stop = obstacles_.view.count > 0;
     for (int k = 0; k < pbf_.iterations; ++k) {
+      const float rest_weight = pbf_.rest_weights > 0 ? pbf_.rest_weight[k % pbf_.rest_weights] : 1.0f;
       iteration_pass<Lambda>(kLambdaNames, pred_tmp_, false, prm_, pbf_, step_grid_, raw(fine_offsets_), pairs(),
-                             raw(pred_), raw(pred_tmp_), raw(error_), walls_.view(), raw(wall_grad_));
+                             raw(pred_), raw(pred_tmp_), raw(error_), walls_.view(), raw(wall_grad_), raw(control_),
+                             rest_weight);
       pred_.swap(pred_tmp_);
       if (pbf_.tolerance > 0) {
         // Ending early needs the error on the host: one read per iteration.

@@ -2,7 +2,10 @@
 // in double, the rest state at the mirror walls, the guards, and the scene's
 // "pbf" options. The physics studies (front, stress suite, column at rest)
 // are [slow].
+#include <Eigen/Dense>
+#include <algorithm>
 #include <cmath>
+#include <random>
 #include <string>
 
 #include "catch.h"
@@ -10,6 +13,7 @@
 #include "nsearch_probe.h"
 #include "sph/pbf.h"
 #include "sph/pbf_kernel.h"
+#include "sph/pbf_weights.h"
 
 using namespace sphray;
 
@@ -27,6 +31,51 @@ double plane_integral(double s, double z, W w) {
     sum += w(std::sqrt(rho * rho + z * z)) * rho;
   }
   return 2 * M_PI * sum * R / n;
+}
+
+// The eigenvalues of (D + eps)^-1 A, A = J J^T of the density
+// constraints C_i = sum_j V W(x_i - x_j) of L^3 particles in a periodic box
+// (nominal spacing 1, jittered by up to `jitter` per axis), D = diag(A) and
+// eps = relaxation x (the lattice's D): dense, with Eigen.
+template <class F>
+void for_each_lattice_offset(double support, F f) {
+  const int m = int(std::ceil(support));
+  for (int z = -m; z <= m; ++z)
+    for (int y = -m; y <= m; ++y)
+      for (int x = -m; x <= m; ++x) {
+        const Eigen::Vector3d d(x, y, z);
+        if ((x || y || z) && d.norm() < support) f(d);
+      }
+}
+
+Eigen::VectorXd dense_spectrum(const PbfKernel<double>& k, int L, double jitter, double relaxation) {
+  const int n = L * L * L;
+  std::vector<Eigen::Vector3d> x(n);
+  std::mt19937 rng(7);
+  std::uniform_real_distribution<double> u(-jitter, jitter);
+  for (int i = 0; i < n; ++i) x[i] = Eigen::Vector3d(i % L, (i / L) % L, i / (L * L)) + Eigen::Vector3d(u(rng), u(rng), u(rng));
+  auto wrap = [&](Eigen::Vector3d d) {
+    for (int c = 0; c < 3; ++c) d[c] -= L * std::round(d[c] / L);
+    return d;
+  };
+  // J: rows the constraints, columns the 3n coordinates.
+  Eigen::MatrixXd J = Eigen::MatrixXd::Zero(n, 3 * n);
+  for (int i = 0; i < n; ++i)
+    for (int m = 0; m < n; ++m) {
+      if (m == i) continue;
+      const Eigen::Vector3d d = wrap(x[i] - x[m]);
+      const double r = d.norm();
+      if (r >= k.support()) continue;
+      const Eigen::Vector3d g = k.dW_over_r(r) * d;  // grad_i W(x_i - x_m), V = 1
+      J.block<1, 3>(i, 3 * i) += g.transpose();
+      J.block<1, 3>(i, 3 * m) -= g.transpose();
+    }
+  const Eigen::MatrixXd A = J * J.transpose();
+  double g0 = 0;  // the lattice's D: sum_d |grad W(d)|^2
+  for_each_lattice_offset(k.support(), [&](Eigen::Vector3d d) { g0 += (k.dW_over_r(d.norm()) * d).squaredNorm(); });
+  const Eigen::VectorXd s = (A.diagonal().array() + relaxation * g0).rsqrt();
+  const Eigen::MatrixXd B = s.asDiagonal() * A * s.asDiagonal();
+  return Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd>(B, Eigen::EigenvaluesOnly).eigenvalues();
 }
 
 Scene pbf_scene(const std::string& file, std::vector<std::string> overrides) {
@@ -229,6 +278,67 @@ TEST_CASE("pbf: with mirrored images a free-slip wall corrects as the liquid mir
   CHECK(moved > 0.3);
   CHECK(as_mirror < 1e-3);  // 3e-5 measured
   CHECK(as_static > 0.05);  // 0.22 measured
+}
+
+TEST_CASE("pbf rest weights: the spectrum they cover is the constraint operator's, and K iterations leave every mode in (-1/3, 1]",
+          "[sph][cpu]") {
+  const PbfKernel<double> k = PbfKernel<double>::make(2.1);  // the default support, spacing 1
+  const double bound = pbf_lattice_spectrum_bound(k.support(), 1.0, [&](double r) { return k.dW_over_r(r); });
+  // The lattice's modes on a periodic 6^3 box are a subset of the k grid's
+  // continuum (its largest, 3.03, lies near k = (0.29, 0.29, 0.33) pi).
+  const double lattice = dense_spectrum(k, 6, 0.0, 0.0).maxCoeff();
+  INFO("k-space bound " << bound << ", dense 6^3 lattice " << lattice);
+  CHECK(std::abs(bound - 3.03) < 0.01);
+  CHECK(lattice <= bound * (1 + 1e-9));
+  CHECK(lattice >= 0.98 * bound);
+  const double top = PbfRestSpectrum::top(bound, 0.1);  // the default relaxation
+  for (double jitter : {0.0, 0.1, 0.2, 0.3}) {
+    // Disordered particles (lattices jittered by up to `jitter` per axis).
+    const Eigen::VectorXd p = dense_spectrum(k, 8, jitter, 0.1);
+    INFO("jitter " << jitter << ": relaxed spectrum up to " << p.maxCoeff() << ", the weights' top " << top);
+    if (jitter <= 0.2) CHECK(p.maxCoeff() < top);
+    // K iterations leave a mode of eigenvalue p at q(p) = prod_k (1 - w_k p):
+    // the step-to-step recurrence is stable for -1/3 < q <= 1.
+    for (int K = 1; K <= PbfParams::kRestWeights; ++K) {
+      const std::vector<double> w = pbf_rest_weights(K, top);
+      REQUIRE(int(w.size()) == K);
+      CHECK(std::is_sorted(w.begin(), w.end()));  // the smallest weight first
+      double lowest = 1, highest = -1;
+      for (Eigen::Index i = 0; i < p.size(); ++i) {
+        double q = 1;
+        for (double wk : w) q *= 1 - wk * p[i];
+        lowest = std::min(lowest, q);
+        highest = std::max(highest, q);
+      }
+      INFO(K << " iterations: q in [" << lowest << ", " << highest << "]");
+      CHECK(lowest > -1.0 / 3.0);
+      CHECK(highest <= 1.0 + 1e-9);
+    }
+  }
+}
+
+TEST_CASE("pbf rest weights: a flowing liquid's iterations take lambda as is, a liquid at rest the weights", "[sph][cpu]") {
+  // The dam break's column, thrown at 3 m/s or at rest, five steps; flowing
+  // above pbf.flow_speed x 3 m/s = 1.5 m/s (the scene's flow speed is its
+  // fastest initial speed, at least sqrt(g H)).
+  auto run = [](const std::string& weights, float speed) {
+    Scene s = pbf_scene("scenes/dam_break.json", {"sph.spacing=0.04", "pbf.flow_speed=0.5", "pbf.rest_weights=" + weights});
+    s.fluid[0].velocity = {speed, 0, 0};
+    auto solver = make_cpu_solver(make_solver_input(resolve_scene(s), PresenceMode::Off));
+    for (int k = 0; k < 5; ++k) solver->step(1.0);
+    return solver->download();
+  };
+  auto largest_difference = [](const HostParticles& a, const HostParticles& b) {
+    REQUIRE(a.id == b.id);
+    double d = 0;
+    for (size_t i = 0; i < a.pos.size(); ++i) d = std::max(d, double(std::sqrt(length2(a.pos[i] - b.pos[i]))));
+    return d;
+  };
+  const double flowing = largest_difference(run("chebyshev", 3.0f), run("uniform", 3.0f));
+  const double resting = largest_difference(run("chebyshev", 0.0f), run("uniform", 0.0f));
+  INFO("largest position difference, flowing " << flowing << " m, at rest " << resting << " m");
+  CHECK(flowing == 0.0);
+  CHECK(resting > 1e-6);
 }
 
 TEST_CASE("pbf step size: after the first step the limit follows the mean compression left, never below the depth limit",
@@ -474,6 +584,9 @@ TEST_CASE("pbf scene options: refused by name where they do not apply or are out
   CHECK(error_of(R"("sph": {"spacing": 0.1, "solver": "pbf"}, "pbf": {"images": "moving"}})").find("pbf.images") !=
         std::string::npos);
   CHECK(error_of(R"("sph": {"spacing": 0.1, "solver": "pbf"}, "pbf": {"images": "static"}})").empty());
+  CHECK(error_of(R"("sph": {"spacing": 0.1, "solver": "pbf"}, "pbf": {"rest_weights": "chebychev"}})")
+            .find("pbf.rest_weights") != std::string::npos);
+  CHECK(error_of(R"("sph": {"spacing": 0.1, "solver": "pbf"}, "pbf": {"rest_weights": "uniform"}})").empty());
   CHECK(error_of(R"("sph": {"spacing": 0.1, "solver": "pbf"}, "run": {"min_dt": 0.01, "max_dt": 0.001}})")
             .find("run.max_dt") != std::string::npos);
   CHECK(error_of(R"("sph": {"spacing": 0.1, "solver": "pbf"}, "pbf": {"iterations": 4}})").empty());
@@ -483,17 +596,25 @@ TEST_CASE("pbf scene options: refused by name where they do not apply or are out
   CHECK(p.run.max_dt == Scene::Run::kFlowMaxDt);
   CHECK(p.sph.wall_layers() == 0);
   CHECK(p.sph.pbf.mirrored_images);
+  CHECK(p.sph.pbf.rest_chebyshev);
   const Scene w = parse_scene(base + R"("sph": {"spacing": 0.1}})", "s.json");
   CHECK(w.sph.cfl == SphConfig::kWcsphCfl);
 }
 
 // The issue's criterion is a largest speed below 1% of sqrt(g H) after 0.2 s;
-// PBF with a few Jacobi iterations does not reach it: its particles keep
-// jittering at a few percent of sqrt(g H) (docs/validation.md has the
-// measurements). What is asserted: the column stays put and compressed
-// under 1% on average, with no speed beyond half of sqrt(g H).
+// PBF with a few Jacobi iterations does not reach it: the column's
+// compression mode rings after the release, a few percent of sqrt(g H) for
+// a few tenths of a second, and single particles of the bulk move at 1-3%
+// as its packing settles (docs/validation.md has the measurements). What is
+// asserted: the column stays put and compressed under 1% on average, and
+// with the rest weights (pbf.rest_weights, the default) no speed beyond
+// 0.15 sqrt(g H) (measured: 0.09, in the ringing just after 0.2 s); with
+// lambda as is in every iteration the Jacobi overshoot keeps single
+// particles at a quarter of it (measured: 0.25).
 TEST_CASE("pbf: a column at rest stays at rest (1 s, 40 layers)", "[sph][slow][cpu]") {
-  Scene s = load_scene(test::source_path("scenes/stress/tall_column.json"), {"sph.solver=pbf", "run.end_time=1.0"});
+  const std::string weights = GENERATE(as<std::string>(), "chebyshev", "uniform");
+  Scene s = load_scene(test::source_path("scenes/stress/tall_column.json"),
+                       {"sph.solver=pbf", "run.end_time=1.0", "pbf.rest_weights=" + weights});
   s.fluid[0].box.max.x = s.tank.max.x;  // a pool 0.4 m deep across the tank: no collapse, only settling
   auto solver = make_cpu_solver(make_solver_input(resolve_scene(s), PresenceMode::Off));
   const double H = s.fluid[0].box.max.z - s.fluid[0].box.min.z, v_ref = std::sqrt(9.81 * H);
@@ -509,9 +630,10 @@ TEST_CASE("pbf: a column at rest stays at rest (1 s, 40 layers)", "[sph][slow][c
   const HostParticles p = solver->download();
   double top = 0;
   for (const Vec3f& x : p.pos) top = std::max(top, double(x.z));
-  INFO("largest speed after 0.2 s " << worst / v_ref << " sqrt(g H), mean density error " << error_sum / steps
-                                    << ", top " << top);
-  CHECK(worst < 0.5 * v_ref);
+  INFO(weights << ": largest speed after 0.2 s " << worst / v_ref << " sqrt(g H), mean density error "
+                << error_sum / steps << ", top " << top);
+  CHECK(worst < (weights == "chebyshev" ? 0.15 : 0.5) * v_ref);
+  if (weights == "uniform") CHECK(worst > 0.2 * v_ref);  // what the rest weights remove
   CHECK(error_sum / steps < 0.01);
   CHECK(std::abs(top - H) < 2 * s.sph.spacing);
 }
