@@ -62,16 +62,20 @@ class SlabSolver final : public Solver {
     // calls (the exchange included): the ranks then agree on it. Any other
     // error may leave the others inside one of them: it ends every rank
     // (apps/main.cpp, MPI_Abort).
+    // The rank that reports is the first to fail for a particle of its own
+    // (SimulationError::elsewhere), else the first to fail.
     std::string error;
-    int failed = comm_.size();
+    const int none = 2 * comm_.size();
+    int failed = none;
     try {
       inner_->step(until);
     } catch (const SimulationError& e) {
       error = e.what();
-      failed = comm_.rank();
+      failed = e.elsewhere ? comm_.size() + comm_.rank() : comm_.rank();
     }
-    comm_.min(&failed, 1);  // every rank learns whether one failed, and the first that did
-    if (failed < comm_.size()) {
+    comm_.min(&failed, 1);  // every rank learns whether one failed, and which reports
+    if (failed < none) {
+      failed %= comm_.size();
       comm_.broadcast(error, failed);
       throw RanksStopped("rank " + std::to_string(failed) + " of " + std::to_string(comm_.size()) + ": " + error);
     }

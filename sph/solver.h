@@ -31,8 +31,13 @@ namespace sphray {
 enum class PresenceMode { Off, EveryStep, AtUntil };
 
 // A run that cannot go on (non-finite value, time step below its floor).
+// In a run over several ranks a rank may stop for a particle another rank
+// holds (the largest speed is reduced over all ranks): `elsewhere` then says
+// so, and the rank that holds it reports (dist/slab_solver.cpp).
 struct SimulationError : std::runtime_error {
   using std::runtime_error::runtime_error;
+  SimulationError(const std::string& what, bool elsewhere) : std::runtime_error(what), elsewhere(elsewhere) {}
+  bool elsewhere = false;
 };
 
 struct SolverInput {

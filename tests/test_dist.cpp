@@ -700,6 +700,32 @@ TEST_CASE("an export written by every rank holds what rank 0 writes of the same 
   }
 }
 
+TEST_CASE("a particle that outruns c0 on one rank is named by that rank, not by the first", "[dist][mpi]") {
+  // Two blocks of 4^3 particles at either end of the tank, the far one thrown
+  // down at 1.9 m/s: it outruns c0 = 2 m/s after about 0.01 s, and every rank
+  // stops (the largest speed is every rank's). The still block lies on rank 0
+  // (measured: before the fix rank 0 named one of its particles in both
+  // layouts). The thrown block's ids follow the other's (0-63) or come first.
+  const std::string path = tmp_dir() + "/two_blocks.json";
+  for (const bool thrown_first : {false, true}) {
+    const std::string still = R"({"min": [0.05,0.03,0.2], "max": [0.09,0.07,0.24]})";
+    const std::string thrown = R"({"min": [0.51,0.03,0.2], "max": [0.55,0.07,0.24], "velocity": [0,0,-1.9]})";
+    std::ofstream(path) << R"({"tank": {"min": [0,0,0], "max": [0.6,0.1,0.4]}, "fluid": [)"
+                        << (thrown_first ? thrown + "," + still : still + "," + thrown)
+                        << R"(], "sph": {"spacing": 0.01, "speed_of_sound": 2}, "run": {"end_time": 0.05}})";
+    const CliResult r = run_ranks(2, path + " --backend cpu --quiet");
+    INFO(r.output);
+    CHECK(r.code == 1);
+    const size_t at = r.output.find("faster than the speed of sound");
+    REQUIRE(at != std::string::npos);
+    const size_t p = r.output.rfind("particle ", at);
+    REQUIRE(p != std::string::npos);
+    const int id = std::stoi(r.output.substr(p + 9));
+    if (thrown_first) CHECK(id < 64);
+    else CHECK(id >= 64);
+  }
+}
+
 TEST_CASE("a rank that dies ends the run with its rank named, and the frames written stay readable", "[dist][mpi]") {
   // Both writers of the export: rank 0's, and every rank's where this build has parallel HDF5.
   for (const std::string writer : {"rank0", "auto"}) {
