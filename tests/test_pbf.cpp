@@ -33,10 +33,7 @@ double plane_integral(double s, double z, W w) {
   return 2 * M_PI * sum * R / n;
 }
 
-// The eigenvalues of (D + eps)^-1 A, A = J J^T of the density
-// constraints C_i = sum_j V W(x_i - x_j) of L^3 particles in a periodic box
-// (nominal spacing 1, jittered by up to `jitter` per axis), D = diag(A) and
-// eps = relaxation x (the lattice's D): dense, with Eigen.
+// f(d) for each offset d of a unit lattice within `support` of a node.
 template <class F>
 void for_each_lattice_offset(double support, F f) {
   const int m = int(std::ceil(support));
@@ -48,6 +45,11 @@ void for_each_lattice_offset(double support, F f) {
       }
 }
 
+// The eigenvalues of (D + eps)^-1 A, A = J J^T of the density
+// constraints C_i = sum_j V W(x_i - x_j) of L^3 particles in a periodic box
+// (nominal spacing 1, jittered by up to `jitter` per axis), D = diag(A) and
+// eps = relaxation x (the lattice's D): dense, with Eigen (V = 1: the
+// spectrum does not depend on it).
 Eigen::VectorXd dense_spectrum(const PbfKernel<double>& k, int L, double jitter, double relaxation) {
   const int n = L * L * L;
   std::vector<Eigen::Vector3d> x(n);
