@@ -669,6 +669,14 @@ TEST_CASE("sphray view opens a real window under Xvfb and shows the liquid", "[v
   REQUIRE(std::sscanf(rt.c_str() + t_at, ", t = %lf s", &t_end) == 1);
   CHECK(t_end > 0);
   CHECK(t_end <= 5.0 / 30.0 * (1 + 1e-5));  // the first frame has no previous one; t printed to 6 digits
+  // The built-in scene runs PBF; under WCSPH the same playback is slow motion
+  // (x0.11 on two cores), and the viewer says which solver steps faster.
+  CHECK(!has(rt, "slow motion"));
+  REQUIRE(std::system((xvfb + SPHRAY_EXE + " view --backend cpu --frames 6 --size 320x180 --set sph.solver=wcsph > " +
+                       rt_log + " 2>&1").c_str()) == 0);
+  const std::string rt_wcsph = slurp(rt_log);
+  INFO(rt_wcsph);
+  CHECK(has(rt_wcsph, "viewer: slow motion: WCSPH steps at the speed of sound; --set sph.solver=pbf"));
 
   Result bad = run_cli("view --backend cpu --screenshot " + tmp + "/x.png");
   CHECK(bad.code == 2);

@@ -271,6 +271,16 @@ struct PanelState {
   std::string status;
 };
 
+// Real-time playback far below real speed under WCSPH, whose step is the
+// acoustic one (docs/rendering.md, "The viewer"): the panel and the closing
+// line name the solver that plays a scene faster; "" otherwise.
+std::string slow_motion_hint(const PanelState& s, SolverKind kind) {
+  constexpr double kSlowMotion = 0.5;  // x real time
+  if (!s.realtime || kind != SolverKind::Wcsph || s.realtime_factor <= 0 || s.realtime_factor >= kSlowMotion) return "";
+  return "slow motion: WCSPH steps at the speed of sound; --set sph.solver=pbf (position-based fluids) takes far "
+         "larger steps";
+}
+
 void draw_panel(PanelState& s, RenderSettings& rs, const Solver& solver, Backend b, bool paused, int w, int h) {
   ImGui_ImplOpenGL3_NewFrame();
   ImGui_ImplGlfw_NewFrame();
@@ -280,6 +290,8 @@ void draw_panel(PanelState& s, RenderSettings& rs, const Solver& solver, Backend
   ImGui::Begin("sphray", nullptr, ImGuiWindowFlags_AlwaysAutoResize);
   ImGui::Text("%s backend, %zu particles, t = %.3f s", backend_name(b), solver.num_fluid(), solver.time());
   ImGui::Text("solver %s, %d steps this frame, x%.3f real time", solver_name(solver.kind()), s.steps, s.realtime_factor);
+  const std::string hint = slow_motion_hint(s, solver.kind());
+  if (!hint.empty()) ImGui::TextWrapped("%s", hint.c_str());
   ImGui::Checkbox("real-time playback", &s.realtime);
   if (!s.realtime) ImGui::SliderInt("substeps / frame", &s.substeps, 1, 20);
   const char* methods[] = {"raycast", "screen_space", "slices"};
@@ -461,6 +473,8 @@ int run_viewer(const ViewOptions& opt, std::ostream& log) {
           << (s.realtime ? "real-time playback, x" + std::to_string(s.realtime_factor) + " real time, "
                          : "fixed substeps, ")
           << s.steps << " steps in the last frame, t = " << solver->time() << " s\n";
+      const std::string hint = slow_motion_hint(s, solver->kind());
+      if (!hint.empty()) log << "viewer: " << hint << "\n";
       break;
     }
     glfwSwapBuffers(win.w);
