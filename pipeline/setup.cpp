@@ -13,6 +13,7 @@
 #include "mesh/bvh.h"
 #include "nsearch/pair_masks.h"
 #include "sph/eos.h"
+#include "sph/lattice.h"
 #include "sph/pbf_weights.h"
 #include "sph/skin.h"
 
@@ -121,19 +122,6 @@ bool in_obstacle(const std::vector<ObstacleProbe>& probes, Vec3d p, double dx) {
   for (const ObstacleProbe& o : probes)
     if (o.inside(p) || o.distance(p, 0.49 * dx) < 0.49 * dx) return true;
   return false;
-}
-
-// Calls f(x, y, z, r) for every other node (x, y, z) dx of a cubic lattice
-// of spacing dx within `support` of a node, r its distance.
-template <class F>
-void for_lattice_neighbours(double support, double dx, F&& f) {
-  const int m = int(std::ceil(support / dx));
-  for (int z = -m; z <= m; ++z)
-    for (int y = -m; y <= m; ++y)
-      for (int x = -m; x <= m; ++x) {
-        const double r = dx * std::sqrt(double(x * x + y * y + z * z));
-        if ((x || y || z) && r < support) f(x, y, z, r);
-      }
 }
 
 // One presence lobe (sph/interaction.h) of a node inside a full lattice,

@@ -30,6 +30,8 @@
 #include <functional>
 #include <vector>
 
+#include "lattice.h"
+
 namespace sphray {
 
 // The largest eigenvalue of D^-1 A on a cubic lattice of spacing dx for a
@@ -43,17 +45,12 @@ double pbf_lattice_spectrum_bound(double s, double dx, DwOverR dW_over_r, int n 
   };
   std::vector<Term> terms;
   double g2 = 0;
-  const int m = int(std::ceil(s / dx));
-  for (int z = -m; z <= m; ++z)
-    for (int y = -m; y <= m; ++y)
-      for (int x = -m; x <= m; ++x) {
-        const double r = dx * std::sqrt(double(x * x + y * y + z * z));
-        if (!(x || y || z) || r >= s) continue;
-        const double f = dW_over_r(r);
-        Term t{{x * dx, y * dx, z * dx}, {x * dx * f, y * dx * f, z * dx * f}};
-        g2 += (t.g[0] * t.g[0] + t.g[1] * t.g[1] + t.g[2] * t.g[2]);
-        terms.push_back(t);
-      }
+  for_lattice_neighbours(s, dx, [&](int x, int y, int z, double r) {
+    const double f = dW_over_r(r);
+    Term t{{x * dx, y * dx, z * dx}, {x * dx * f, y * dx * f, z * dx * f}};
+    g2 += (t.g[0] * t.g[0] + t.g[1] * t.g[1] + t.g[2] * t.g[2]);
+    terms.push_back(t);
+  });
   if (g2 <= 0) return 0;
   const double pi = std::acos(-1.0), step = pi / (dx * n);
   double best = 0;

@@ -33,18 +33,6 @@ double plane_integral(double s, double z, W w) {
   return 2 * M_PI * sum * R / n;
 }
 
-// f(d) for each offset d of a unit lattice within `support` of a node.
-template <class F>
-void for_each_lattice_offset(double support, F f) {
-  const int m = int(std::ceil(support));
-  for (int z = -m; z <= m; ++z)
-    for (int y = -m; y <= m; ++y)
-      for (int x = -m; x <= m; ++x) {
-        const Eigen::Vector3d d(x, y, z);
-        if ((x || y || z) && d.norm() < support) f(d);
-      }
-}
-
 // The eigenvalues of (D + eps)^-1 A, A = J J^T of the density
 // constraints C_i = sum_j V W(x_i - x_j) of L^3 particles in a periodic box
 // (nominal spacing 1, jittered by up to `jitter` per axis), D = diag(A) and
@@ -74,7 +62,9 @@ Eigen::VectorXd dense_spectrum(const PbfKernel<double>& k, int L, double jitter,
     }
   const Eigen::MatrixXd A = J * J.transpose();
   double g0 = 0;  // the lattice's D: sum_d |grad W(d)|^2
-  for_each_lattice_offset(k.support(), [&](Eigen::Vector3d d) { g0 += (k.dW_over_r(d.norm()) * d).squaredNorm(); });
+  for_lattice_neighbours(k.support(), 1.0, [&](int x, int y, int z, double r) {
+    g0 += (k.dW_over_r(r) * Eigen::Vector3d(x, y, z)).squaredNorm();
+  });
   const Eigen::VectorXd s = (A.diagonal().array() + relaxation * g0).rsqrt();
   const Eigen::MatrixXd B = s.asDiagonal() * A * s.asDiagonal();
   return Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd>(B, Eigen::EigenvaluesOnly).eigenvalues();
