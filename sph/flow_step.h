@@ -55,6 +55,7 @@ struct FlowControl {
   FlowStats stats;      // of the state the step starts from
   StepLimits limits;   // limits.dt: the step taken when outcome is kStepOk
   uint32_t outcome;    // StepOutcome (integrate.h)
+  bool flowing;        // the largest speed is above flow_speed (ChooseFlowStep)
   double dt_chosen;    // the last step before landing on an output time (0 before the first)
   double error_mean;   // the mean compression of the steps so far, smoothed (ChooseFlowStep)
 };
@@ -87,6 +88,7 @@ struct ChooseFlowStep {
     FlowControl& c = *control;
     StepLimits& l = c.limits;
     l.max_speed = std::sqrt(double(c.stats.max_speed2));
+    c.flowing = l.max_speed > flow_speed;
     l.fastest_id = c.stats.fastest_id;
     l.fastest_at = c.stats.fastest_at;
     const double v = l.max_speed > speed_floor ? l.max_speed : speed_floor;
@@ -95,7 +97,7 @@ struct ChooseFlowStep {
     const double e_now = c.stats.count > 0 ? c.stats.error_sum / c.stats.count : 0.0;
     c.error_mean = c.dt_chosen > 0 ? kKeep * c.error_mean + (1.0 - kKeep) * e_now : e_now;
     if (error_target > 0 && c.dt_chosen > 0) {
-      const double target = error_target_flow > 0 && l.max_speed > flow_speed ? error_target_flow : error_target;
+      const double target = error_target_flow > 0 && c.flowing ? error_target_flow : error_target;
       const double e = e_now > c.error_mean ? e_now : c.error_mean;
       const double f = e > 0 ? std::sqrt(target / e) : kGrow;
       const double grown = c.dt_chosen * (f < kShrink ? kShrink : f > kGrow ? kGrow : f);

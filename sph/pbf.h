@@ -106,7 +106,7 @@ struct Lambda {
   float* error;
   WallsView walls;
   Float4* wall_grad;  // out where the obstacles' walls are near: sum_b V_b grad W_ib
-  const FlowControl* control;  // the step's largest speed: at rest lambda takes rest_weight
+  const FlowControl* control;  // whether the liquid flows (ChooseFlowStep): at rest lambda takes rest_weight
   float rest_weight;           // this iteration's (PbfParams::rest_weight)
   SPHRAY_HD void operator()(uint32_t i) const {
     const PbfKernel<float>& k = pbf.kernel;
@@ -134,7 +134,7 @@ struct Lambda {
       wall_grad[i] = {gw.x, gw.y, gw.z, 0.0f};
     }
     const float c = fmaxf(pbf.volume * w_sum + wall_volume - 1.0f, 0.0f);  // rho / rho0 - 1
-    const float weight = control->limits.max_speed > pbf.flow_speed ? 1.0f : rest_weight;
+    const float weight = control->flowing ? 1.0f : rest_weight;
     const float lambda = -weight * c / (length2(grad) + g2 + pbf.epsilon);
     out[i] = {xi.x, xi.y, xi.z, lambda};
     error[i] = c;
