@@ -37,7 +37,9 @@ namespace sphray {
 // The largest eigenvalue of D^-1 A on a cubic lattice of spacing dx for a
 // kernel with support s and gradient dW_over_r(r) (grad W(d) = d dW_over_r):
 // the maximum of p(k) over a grid of `n` steps per axis on [0, pi / dx]^3
-// (p is even in each component of k).
+// (p is even in each component of k), of its points with k_x >= k_y >= k_z
+// (the lattice's neighbours, and so p, do not change when the axes are
+// permuted).
 template <class DwOverR>
 double pbf_lattice_spectrum_bound(double s, double dx, DwOverR dW_over_r, int n = 24) {
   struct Term {
@@ -55,8 +57,8 @@ double pbf_lattice_spectrum_bound(double s, double dx, DwOverR dW_over_r, int n 
   const double pi = std::acos(-1.0), step = pi / (dx * n);
   double best = 0;
   for (int a = 0; a <= n; ++a)
-    for (int b = 0; b <= n; ++b)
-      for (int c = 0; c <= n; ++c) {
+    for (int b = 0; b <= a; ++b)
+      for (int c = 0; c <= b; ++c) {
         const double k[3] = {a * step, b * step, c * step};
         double h[3] = {0, 0, 0};
         for (const Term& t : terms) {
