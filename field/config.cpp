@@ -22,7 +22,7 @@ FieldKind parse_field_kind(const std::string& name) {
 
 FieldConfig read_field_config(const ConfigReader& r) {
   r.only({"builder", "refine", "radius", "core", "clip", "min_extent", "shrink_from", "full_fraction", "full_value",
-          "kernel", "anisotropy"});
+          "kernel", "anisotropy", "every_frame"});
   FieldConfig c;
   c.builder = parse_field_kind(r.string("builder", field_kind_name(c.builder), {"naive", "presence", "gather"}));
   const double refine = r.number("refine", c.refine, 0, 2);
@@ -36,6 +36,7 @@ FieldConfig read_field_config(const ConfigReader& r) {
   c.shrink_from = r.number("shrink_from", c.shrink_from, 0.0, 0.95);
   c.full_fraction = r.number("full_fraction", c.full_fraction, 0.1, 2.0);
   c.full_value_clip = r.string("full_value", c.full_value_clip ? "clip" : "coarse", {"clip", "coarse"}) == "clip";
+  c.every_frame = r.boolean("every_frame", c.every_frame);
   c.kernel = r.string("kernel", "isotropic", {"isotropic", "anisotropic"}) == "anisotropic" ? FieldKernel::Anisotropic
                                                                                           : FieldKernel::Isotropic;
   if (c.kernel == FieldKernel::Anisotropic && c.builder == FieldKind::Gather)

@@ -25,7 +25,8 @@ struct AnisotropyConfig {
 };
 
 struct FieldConfig {
-  bool given = false;                     // the scene has a "field" section: built at every output frame
+  bool given = false;                     // the scene has a "field" section
+  bool every_frame = true;                // ... and asks for the field at every output frame ("every_frame")
   FieldKind builder = FieldKind::Presence;
   int refine = 2;                         // voxels per SPH cell edge = 2^refine
   double radius = 2.0;                    // influence radius R [voxels]
@@ -37,6 +38,10 @@ struct FieldConfig {
   bool full_value_clip = true;            // ... and the value it gets: saturated ("clip") or just inside ("coarse")
   FieldKernel kernel = FieldKernel::Isotropic;
   AnisotropyConfig anisotropy;
+
+  // Built at every output frame (its time in the summary), not only where an
+  // output draws or exports it.
+  bool built_every_frame() const { return given && every_frame; }
 };
 
 FieldConfig read_field_config(const ConfigReader& r);

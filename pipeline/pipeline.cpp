@@ -32,7 +32,7 @@ StageNeeds needs_of(const Scene& s, const std::vector<OutputSink*>& sinks) {
   FrameNeeds ever;
   for (const OutputSink* k : sinks) ever |= k->needs_ever();
   StageNeeds n;
-  n.field = s.field.given || ever.field;
+  n.field = s.field.built_every_frame() || ever.field;
   // The presence builder reads presence once per frame: only the step that
   // reaches the frame computes it (sph.presence forces every step, for studies).
   const bool for_field =
@@ -191,13 +191,13 @@ RunSummary run_scene(const Scene& s, Solver& solver, const RunOptions& opt, std:
   const double t0_sim = solver.time();
   const uint64_t steps0 = solver.steps();
   double field_ms = 0;
-  // What frame k needs: the field at every frame for a scene with a "field"
-  // section, else where a sink needs it; presence toward it (when the solver
-  // computes it only where needed) where the presence builder builds the
-  // field, or a sink needs it.
+  // What frame k needs: the field at every frame for a scene whose "field"
+  // section asks for it (field.every_frame), else where a sink needs it;
+  // presence toward it (when the solver computes it only where needed) where
+  // the presence builder builds the field, or a sink needs it.
   auto needs_at = [&](int k) {
     FrameNeeds n = sinks_need(opt.sinks, k);
-    n.field = opt.field && (s.field.given || n.field);
+    n.field = opt.field && (s.field.built_every_frame() || n.field);
     n.presence = n.presence || (n.field && opt.field->kind() == FieldKind::Presence);
     return n;
   };

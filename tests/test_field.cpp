@@ -261,8 +261,9 @@ TEST_CASE("run_scene computes presence only toward the frames that use it", "[fi
   // sorts again by the final positions when the field reads its grid).
   const std::string kind = GENERATE(std::string("wcsph"), std::string("pbf"), std::string("dfsph"));
   INFO("sph.solver " << kind);
-  Scene s = small_scene({"sph.spacing=0.0125", "run.end_time=0.05", "run.output_interval=0.005", "sph.solver=" + kind});
-  s.field.given = false;  // built only where a sink needs it
+  // The section only configures the field: it is built where a sink needs it.
+  const Scene s = small_scene({"sph.spacing=0.0125", "run.end_time=0.05", "run.output_interval=0.005",
+                               "sph.solver=" + kind, "field.every_frame=false"});
   std::vector<int> with;
   FunctionSink every_third([&](const Solver& sv, const FieldBuilder*, int f) {
     if (sv.has_presence()) with.push_back(f);
@@ -299,6 +300,10 @@ TEST_CASE("a scene pays only for the stages it needs: no field, no presence", "[
   CHECK(needs_of(plain).presence == PresenceMode::AtUntil);
   const Scene naive = small_scene({"field.builder=naive"});
   CHECK(needs_of(naive).presence == PresenceMode::Off);
+  // A section that only configures the field (its kernel here): neither, until an output needs them.
+  const Scene configured = small_scene({"field.every_frame=false", "field.kernel=anisotropic"});
+  CHECK_FALSE(needs_of(configured).field);
+  CHECK(needs_of(configured).presence == PresenceMode::Off);
   auto off = make_cpu_solver(make_solver_input(resolve_scene(plain), PresenceMode::Off));
   auto on = make_cpu_solver(make_solver_input(resolve_scene(plain), PresenceMode::AtUntil));
   CHECK(on->device_bytes() >= off->device_bytes() + 2 * 6 * sizeof(float) * off->num_fluid());
@@ -326,4 +331,5 @@ TEST_CASE("field scene values are validated", "[field][scene]") {
   names("field.min_extent=3", "field.min_extent");
   names("field.clip=1", "field.clip");
   names("field.colour=1", "unknown key");
+  names("field.every_frame=2", "field.every_frame");
 }

@@ -1,5 +1,6 @@
 // Scene parsing and validation: every bad value gets one message naming the
 // file, the key and the value.
+#include <filesystem>
 #include <map>
 #include <string>
 
@@ -233,10 +234,26 @@ TEST_CASE("a scene too large for memory is refused before allocating", "[scene][
 }
 
 TEST_CASE("the shipped scenes all parse", "[scene][cpu]") {
-  for (const char* f : {"scenes/dam_break.json", "scenes/bench/dam_break.json", "scenes/validation/martin_moyce.json",
-                        "scenes/stress/stiff.json", "scenes/stress/jet.json", "scenes/stress/tall_column.json",
-                        "scenes/stress/one_cell.json", "scenes/stress/zero_gravity.json",
-                        "scenes/stress/high_gravity.json", "scenes/stress/single_particle.json",
-                        "scenes/stress/empty_tank.json"})
-    CHECK_NOTHROW(load_scene(test::source_path(f)));
+  int n = 0;
+  for (const auto& e : std::filesystem::recursive_directory_iterator(test::source_path("scenes"))) {
+    if (e.path().extension() != ".json") continue;
+    INFO(e.path().string());
+    CHECK_NOTHROW(load_scene(e.path().string()));
+    ++n;
+  }
+  CHECK(n >= 18);  // the stress suite's ten among them
+}
+
+TEST_CASE("the main job's scene is the dam break, under PBF with ellipsoids", "[scene][cpu]") {
+  const Scene reference = load_scene(test::source_path("scenes/dam_break.json"));
+  const Scene watched = load_scene(test::source_path("scenes/dam_break_realtime.json"));
+  for (const char* key : {"tank", "fluid", "gravity", "run"}) {
+    INFO(key);
+    CHECK(watched.json.at(key) == reference.json.at(key));
+  }
+  CHECK(watched.sph.solver == SolverKind::Pbf);
+  CHECK(reference.sph.solver == SolverKind::Wcsph);
+  CHECK(watched.field.kernel == FieldKernel::Anisotropic);
+  CHECK_FALSE(watched.field.built_every_frame());  // built where frames or the viewer draw it
+  CHECK(watched.sph.spacing == Approx(0.00432));
 }
