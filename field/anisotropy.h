@@ -58,6 +58,10 @@ struct Ellipsoid {
     e[n + p] = {axx, ayy, azz, axy};
     e[2 * size_t(n) + p] = {axz, ayz, half.x, half.y};
   }
+  // The mark of a particle the presence builder leaves out (EllipsoidPass):
+  // a negative half-extent in the first Float4, the only one written.
+  SPHRAY_HD SPHRAY_FORCEINLINE static void store_buried(Float4* e, uint32_t p) { e[p] = {0.0f, 0.0f, 0.0f, -1.0f}; }
+  SPHRAY_HD SPHRAY_FORCEINLINE static bool is_buried(const Float4* e, uint32_t p) { return e[p].w < 0.0f; }
   SPHRAY_HD SPHRAY_FORCEINLINE float r2(float dx, float dy, float dz) const {
     return axx * dx * dx + ayy * dy * dy + azz * dz * dz + 2.0f * (axy * dx * dy + axz * dx * dz + ayz * dy * dz);
   }
@@ -123,6 +127,26 @@ SPHRAY_HD SPHRAY_FORCEINLINE void ellipsoid_axes(const AnisotropyParams& ap, con
   e.axy = A(0, 1); e.axz = A(0, 2); e.ayz = A(1, 2);
   e.half = {std::sqrt(M(0, 0)), std::sqrt(M(1, 1)), std::sqrt(M(2, 2))};
 }
+
+// What a particle's ellipsoid can reach before it is computed, in voxels:
+// its centre lies less than smoothing * radius from the particle (the mean
+// offset m of ellipsoid_of is a weighted mean of offsets shorter than the
+// radius, and the particle's own weight keeps |m| < 1), and no half-extent
+// of the unit ellipsoid, sqrt((R diag(s^2) R^T)_aa), exceeds the largest
+// axis scale, at most stretch^(2/3) (the scales keep the volume, s1 s2 s3 =
+// 1, and the smallest is at least the largest / stretch). So along any
+// axis the box of radius r reaches at most shift + scale * r from the
+// particle (a thousandth added for rounding).
+struct EllipsoidBound {
+  float shift = 0, scale = 1;
+  static EllipsoidBound of(const AnisotropyParams& ap, const VolumeGeom& vol) {
+    EllipsoidBound b;
+    b.shift = 1.001f * ap.smoothing * ap.radius / vol.voxel + 1e-3f;
+    b.scale = 1.001f * (ap.stretch > 1.0f ? std::cbrt(ap.stretch * ap.stretch) : 1.0f);
+    return b;
+  }
+  SPHRAY_HD SPHRAY_FORCEINLINE float reach(float r) const { return shift + scale * r; }
+};
 
 // The ellipsoid of particle i at xi from its neighbour sums (sph/covariance.h).
 SPHRAY_HD SPHRAY_FORCEINLINE Ellipsoid ellipsoid_of(const AnisotropyParams& ap, const VolumeGeom& vol, Vec3f xi,

@@ -177,6 +177,49 @@ struct CoarseFill {
   }
 };
 
+// The presence builder's full cells (CoarseFill: at least full_count
+// particles, filled with the clip value): cover() says whether every cell
+// under a voxel box is full, so that a splat over that box would find every
+// voxel saturated (false for an empty box, or full_count 0: full cells not
+// saturated). A box of at most 2 x 2 x 2 cells reads their counts together.
+struct FullCells {
+  VolumeGeom vol;
+  GridGeom grid;
+  const uint32_t* offsets;
+  uint32_t full_count;
+  SPHRAY_HD SPHRAY_FORCEINLINE bool cover(int x0, int x1, int y0, int y1, int z0, int z1) const {
+    if (full_count == 0 || x0 > x1 || y0 > y1 || z0 > z1) return false;
+    const int s = vol.refine;
+    const int cx0 = x0 >> s, cy0 = y0 >> s, cz0 = z0 >> s, cx1 = x1 >> s, cy1 = y1 >> s, cz1 = z1 >> s;
+    if (cx1 - cx0 <= 1 && cy1 - cy0 <= 1 && cz1 - cz0 <= 1) {
+      // At most 2 x 2 x 2 cells (a deep particle's box): their counts read
+      // together, not one round trip after another (a cell repeats where
+      // the box spans one along an axis).
+      uint32_t first[8], end[8];
+      SPHRAY_UNROLL
+      for (int q = 0; q < 8; ++q) {
+        const int cx = cx0 + (q & 1) < cx1 ? cx0 + (q & 1) : cx1;
+        const int cy = cy0 + ((q >> 1) & 1) < cy1 ? cy0 + ((q >> 1) & 1) : cy1;
+        const int cz = cz0 + (q >> 2) < cz1 ? cz0 + (q >> 2) : cz1;
+        const uint32_t c = vol.cell_key(grid, cx << s, cy << s, cz << s);
+        first[q] = offsets[c];
+        end[q] = offsets[c + 1];
+      }
+      bool full = true;
+      SPHRAY_UNROLL
+      for (int q = 0; q < 8; ++q) full = full && end[q] - first[q] >= full_count;
+      return full;
+    }
+    for (int cz = z0 >> s; cz <= z1 >> s; ++cz)
+      for (int cy = y0 >> s; cy <= y1 >> s; ++cy)
+        for (int cx = x0 >> s; cx <= x1 >> s; ++cx) {
+          const uint32_t c = vol.cell_key(grid, cx << s, cy << s, cz << s);
+          if (offsets[c + 1] - offsets[c] < full_count) return false;
+        }
+    return true;
+  }
+};
+
 // presence, pass 2 (FieldSetup::mark_occupied): the voxel that holds a
 // particle's (kernel) centre u becomes `coarse` too. A sphere's iso radius is
 // at least half the voxel diagonal, so that voxel is inside; an ellipsoid may
@@ -212,14 +255,41 @@ struct MarkOccupied {
 // The ellipsoids' pass (anisotropy.h: ComputeAnisotropy or
 // AnisotropyFromSums), and for the presence builder pass 2 on the ellipsoid
 // it has just computed (mark: after the coarse fill), so that the marks do
-// not read the ellipsoids back in a pass of their own.
+// not read the ellipsoids back in a pass of their own. With full.offsets set
+// (the presence builder, where the pass sums each neighbourhood itself:
+// ComputeAnisotropy) it first leaves out the particles whose ellipsoid,
+// whatever it turns out to be (EllipsoidBound), has its splat box (pass 3:
+// extents shrunk by presence) in full cells only: their splat would add
+// nothing and their mark would fall in a saturated voxel, so neither their
+// neighbours' covariance nor their ellipsoid is computed, and pass 3 skips
+// them on the mark they get (Ellipsoid::store_buried).
 template <class Ellipsoids>
 struct EllipsoidPass {
   Ellipsoids make;
   float* mark;  // the volume, or null: no marks (naive)
   FieldShape shape;
+  FullCells full{};          // offsets null: no particle left out (naive)
+  const float* presence = nullptr;  // [6][n] or null: full extents
+  EllipsoidBound bound{};
+
+  SPHRAY_HD SPHRAY_FORCEINLINE bool buried(uint32_t p) const {
+    if (!full.offsets || full.full_count == 0) return false;
+    const Vec3f u = make.vol.to_voxels(xyz(make.pos[p]));
+    auto reach = [&](uint32_t d) {
+      return bound.reach(presence ? shape.extent(presence[d * make.n + p]) : shape.radius);
+    };
+    int x0, x1, y0, y1, z0, z1;
+    voxel_span(u.x, reach(1), reach(0), make.vol.nx, x0, x1);
+    voxel_span(u.y, reach(3), reach(2), make.vol.ny, y0, y1);
+    voxel_span(u.z, reach(5), reach(4), make.vol.nz, z0, z1);
+    return full.cover(x0, x1, y0, y1, z0, z1);
+  }
 
   SPHRAY_HD void operator()(uint32_t p) const {
+    if (buried(p)) {
+      Ellipsoid::store_buried(make.out, p);
+      return;
+    }
     SplatKernel<true> kn;
     kn.e = make.compute(p);
     kn.e.store(make.out, make.n, p);
@@ -255,35 +325,7 @@ struct PresenceSplat {
   uint32_t full_count;  // 0: full cells are not saturated, no cell test
 
   SPHRAY_HD SPHRAY_FORCEINLINE bool all_full(int x0, int x1, int y0, int y1, int z0, int z1) const {
-    if (full_count == 0 || x0 > x1 || y0 > y1 || z0 > z1) return false;
-    const int s = vol.refine;
-    const int cx0 = x0 >> s, cy0 = y0 >> s, cz0 = z0 >> s, cx1 = x1 >> s, cy1 = y1 >> s, cz1 = z1 >> s;
-    if (cx1 - cx0 <= 1 && cy1 - cy0 <= 1 && cz1 - cz0 <= 1) {
-      // At most 2 x 2 x 2 cells (a deep particle's box): their counts read
-      // together, not one round trip after another (a cell repeats where
-      // the box spans one along an axis).
-      uint32_t first[8], end[8];
-      SPHRAY_UNROLL
-      for (int q = 0; q < 8; ++q) {
-        const int cx = cx0 + (q & 1) < cx1 ? cx0 + (q & 1) : cx1;
-        const int cy = cy0 + ((q >> 1) & 1) < cy1 ? cy0 + ((q >> 1) & 1) : cy1;
-        const int cz = cz0 + (q >> 2) < cz1 ? cz0 + (q >> 2) : cz1;
-        const uint32_t c = vol.cell_key(grid, cx << s, cy << s, cz << s);
-        first[q] = offsets[c];
-        end[q] = offsets[c + 1];
-      }
-      bool full = true;
-      SPHRAY_UNROLL
-      for (int q = 0; q < 8; ++q) full = full && end[q] - first[q] >= full_count;
-      return full;
-    }
-    for (int cz = z0 >> s; cz <= z1 >> s; ++cz)
-      for (int cy = y0 >> s; cy <= y1 >> s; ++cy)
-        for (int cx = x0 >> s; cx <= x1 >> s; ++cx) {
-          const uint32_t c = vol.cell_key(grid, cx << s, cy << s, cz << s);
-          if (offsets[c + 1] - offsets[c] < full_count) return false;
-        }
-    return true;
+    return FullCells{vol, grid, offsets, full_count}.cover(x0, x1, y0, y1, z0, z1);
   }
 
   SPHRAY_HD SPHRAY_FORCEINLINE float extent(uint32_t p, uint32_t d) const {
@@ -304,6 +346,10 @@ struct PresenceSplat {
 
   SPHRAY_HD void operator()(uint32_t t) const {
     const uint32_t p = t / uint32_t(G), lane = t % uint32_t(G);
+    if (Aniso && Ellipsoid::is_buried(ell, p)) {  // left out by the ellipsoids' pass
+      if (Count) sink.put(t, 0, 0, 0, 0);
+      return;
+    }
     const SplatKernel<Aniso> kn(vol, pos, ell, n, p);
     const Vec3f u = kn.u;
     const float R2 = shape.radius * shape.radius, clip = shape.clip;

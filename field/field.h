@@ -24,6 +24,10 @@ struct FieldSetup {
   // any occupied cell is just inside (the paper's rule).
   bool mark_occupied = false;
   AnisotropyParams aniso;   // aniso.on: ellipsoids (field/anisotropy.h)
+  // The presence builder with ellipsoids leaves out the particles whose splat
+  // box lies in full cells whatever their ellipsoid (EllipsoidPass): on by
+  // default; off only to compare against.
+  bool leave_out_buried = true;
 };
 
 // What a build did (counted only when asked; see docs/field.md).

@@ -15,6 +15,7 @@
 #include "catch.h"
 #include "helpers.h"
 #include "host_particles.h"
+#include "field/builders.h"
 #include "field/field.h"
 #include "io/metrics.h"
 #include "io/surface_error.h"
@@ -314,6 +315,107 @@ TEST_CASE("presence builder with ellipsoids and without presence classifies exac
     CHECK(differ == 0);
     CHECK(*std::max_element(pres.begin(), pres.end()) <= fs.shape.clip * (1.0f + 1e-6f));
   }
+}
+
+// Presence for a lattice block of nx x ny x nz points: toward each side, the
+// layers of liquid beyond the point over 4 (at most 1), [6][n] as the solvers
+// write it (+x, -x, +y, -y, +z, -z).
+std::vector<float> block_presence(int nx, int ny, int nz) {
+  const size_t n = size_t(nx) * ny * nz;
+  std::vector<float> p(6 * n);
+  size_t q = 0;
+  for (int k = 0; k < nz; ++k)
+    for (int j = 0; j < ny; ++j)
+      for (int i = 0; i < nx; ++i, ++q) {
+        const int beyond[6] = {nx - 1 - i, i, ny - 1 - j, j, nz - 1 - k, k};
+        for (int d = 0; d < 6; ++d) p[d * n + q] = std::min(1.0f, float(beyond[d]) / 4.0f);
+      }
+  return p;
+}
+
+TEST_CASE("an ellipsoid's splat box lies within its bound, whatever the settings", "[field]") {
+  struct Case {
+    const char* stretch;
+    const char* smoothing;
+    const char* radius;
+  };
+  for (const Case c : {Case{"4", "0.9", "3"}, Case{"16", "1", "3"}, Case{"1", "0.5", "2"}, Case{"2.5", "0", "4"}}) {
+    INFO("stretch " << c.stretch << ", smoothing " << c.smoothing << ", radius " << c.radius);
+    const Scene s = aniso_scene({std::string("field.anisotropy.stretch=") + c.stretch,
+                                 std::string("field.anisotropy.smoothing=") + c.smoothing,
+                                 std::string("field.anisotropy.radius=") + c.radius});
+    const FieldSetup fs = make_field_setup(resolve_scene(s));
+    const std::vector<Vec3f> pts = liquid(s, 0.3, 300, 11);
+    std::mt19937 rng(3);
+    std::uniform_real_distribution<float> up(0.0f, 1.0f);
+    std::vector<float> presence(6 * pts.size());
+    for (float& v : presence) v = up(rng);
+    const HostParticleSet ps(measure_scene(s).grid, pts, presence);
+    const std::vector<Ellipsoid> e = kernels_of(ps, fs);
+    const EllipsoidBound bound = EllipsoidBound::of(fs.aniso, fs.geom);
+    const uint32_t n = uint32_t(ps.pos.size());
+    double worst = 0;  // the largest share of its bound that a side's reach takes
+    for (uint32_t p = 0; p < n; ++p) {
+      const Vec3f u = fs.geom.to_voxels(xyz(ps.pos[p]));
+      const float centre[3] = {e[p].centre.x, e[p].centre.y, e[p].centre.z}, at[3] = {u.x, u.y, u.z};
+      const float half[3] = {e[p].half.x, e[p].half.y, e[p].half.z};
+      for (int a = 0; a < 3; ++a)
+        for (int side = 0; side < 2; ++side) {
+          const float ext = fs.shape.extent(ps.presence[(2 * a + side) * n + p]);
+          const float reach = side == 0 ? centre[a] + half[a] * ext - at[a] : at[a] - (centre[a] - half[a] * ext);
+          worst = std::max(worst, double(reach) / double(bound.reach(ext)));
+        }
+    }
+    INFO("the largest reach is " << worst << " of its bound");
+    CHECK(worst <= 1.0);
+    CHECK(worst > 0.25);  // the bound is not vacuous (0.29 at stretch 16, which no particle here reaches)
+  }
+}
+
+TEST_CASE("the presence builder leaves out particles deep in full cells, and its field stays the same", "[field]") {
+  const Scene s = aniso_scene({"tank.max=[0.4,0.4,0.4]"});
+  const FieldSetup fs = make_field_setup(resolve_scene(s));
+  const int nx = 36, ny = 36, nz = 32;
+  std::vector<Vec3f> pts;
+  std::mt19937 rng(23);
+  std::uniform_real_distribution<double> jit(-0.1, 0.1);
+  for (int k = 0; k < nz; ++k)
+    for (int j = 0; j < ny; ++j)
+      for (int i = 0; i < nx; ++i)
+        pts.push_back({float((i + 2.5 + jit(rng)) * 0.01), float((j + 2.5 + jit(rng)) * 0.01), float((k + 0.5 + jit(rng)) * 0.01)});
+  const HostParticleSet ps(measure_scene(s).grid, pts, block_presence(nx, ny, nz));
+  const ParticleView v = ps.view();
+  REQUIRE(v.presence);
+
+  // Which particles the ellipsoids' pass leaves out (after the coarse fill, as in a build).
+  std::vector<float> field(size_t(fs.geom.num_voxels()), 0.0f);
+  const uint32_t full = fs.full_fill >= fs.shape.clip ? fs.full_count : 0u;
+  REQUIRE(full > 0);
+  std::vector<Float4> ell(3 * size_t(v.n));
+  const EllipsoidPass<ComputeAnisotropy> pass{{v.grid, v.fine_offsets, v.pos, v.n, fs.geom, fs.aniso, ell.data()},
+                                              field.data(), fs.shape, FullCells{fs.geom, v.grid, v.offsets, full},
+                                              v.presence, EllipsoidBound::of(fs.aniso, fs.geom)};
+  uint32_t buried = 0;
+  for (uint32_t p = 0; p < v.n; ++p) buried += pass.buried(p);
+  INFO(buried << " of " << v.n << " particles left out");
+  CHECK(buried > v.n / 20);
+  CHECK(buried < v.n / 2);
+
+  FieldSetup all = fs;
+  all.leave_out_buried = false;
+  const std::vector<float> with = test::cpu_field(fs, v, FieldKind::Presence);
+  const std::vector<float> without = test::cpu_field(all, v, FieldKind::Presence);
+  size_t differ = 0, inside = 0;
+  float worst = 0;
+  for (size_t q = 0; q < with.size(); ++q) {
+    differ += (with[q] >= fs.shape.iso) != (without[q] >= fs.shape.iso);
+    inside += without[q] >= fs.shape.iso;
+    worst = std::max(worst, std::abs(with[q] - without[q]));
+  }
+  INFO("largest difference " << worst << " (clip " << fs.shape.clip << ")");
+  CHECK(inside > 20000);
+  CHECK(differ == 0);
+  CHECK(worst <= 1e-5f * fs.shape.clip);
 }
 
 TEST_CASE("surface error metrics on analytic fields", "[field]") {
