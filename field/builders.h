@@ -177,6 +177,23 @@ struct CoarseFill {
   }
 };
 
+// The presence splat's extent toward side d (+x, -x, +y, -y, +z, -z) of
+// particle p, from its presence there ([6][n]; null: the full radius).
+SPHRAY_HD SPHRAY_FORCEINLINE float side_extent(const FieldShape& shape, const float* presence, uint32_t n, uint32_t p,
+                                               uint32_t d) {
+  return presence ? shape.extent(presence[d * n + p]) : shape.radius;
+}
+
+// The voxels within reach(d) of u toward each side d (+x, -x, +y, -y, +z,
+// -z): the box a splat from u may touch.
+template <class Reach>
+SPHRAY_HD SPHRAY_FORCEINLINE void side_box(const VolumeGeom& vol, Vec3f u, const Reach& reach, int& x0, int& x1,
+                                           int& y0, int& y1, int& z0, int& z1) {
+  voxel_span(u.x, reach(1u), reach(0u), vol.nx, x0, x1);
+  voxel_span(u.y, reach(3u), reach(2u), vol.ny, y0, y1);
+  voxel_span(u.z, reach(5u), reach(4u), vol.nz, z0, z1);
+}
+
 // The presence builder's full cells (CoarseFill: at least full_count
 // particles, filled with the clip value): cover() says whether every cell
 // under a voxel box is full, so that a splat over that box would find every
@@ -274,14 +291,10 @@ struct EllipsoidPass {
 
   SPHRAY_HD SPHRAY_FORCEINLINE bool buried(uint32_t p) const {
     if (!full.offsets || full.full_count == 0) return false;
-    const Vec3f u = make.vol.to_voxels(xyz(make.pos[p]));
-    auto reach = [&](uint32_t d) {
-      return bound.reach(presence ? shape.extent(presence[d * make.n + p]) : shape.radius);
-    };
     int x0, x1, y0, y1, z0, z1;
-    voxel_span(u.x, reach(1), reach(0), make.vol.nx, x0, x1);
-    voxel_span(u.y, reach(3), reach(2), make.vol.ny, y0, y1);
-    voxel_span(u.z, reach(5), reach(4), make.vol.nz, z0, z1);
+    side_box(make.vol, make.vol.to_voxels(xyz(make.pos[p])),
+             [&](uint32_t d) { return bound.reach(side_extent(shape, presence, make.n, p, d)); }, x0, x1, y0, y1, z0,
+             z1);
     return full.cover(x0, x1, y0, y1, z0, z1);
   }
 
@@ -328,9 +341,6 @@ struct PresenceSplat {
     return FullCells{vol, grid, offsets, full_count}.cover(x0, x1, y0, y1, z0, z1);
   }
 
-  SPHRAY_HD SPHRAY_FORCEINLINE float extent(uint32_t p, uint32_t d) const {
-    return presence ? shape.extent(presence[d * n + p]) : shape.radius;
-  }
 
   // A thread's voxels in batches of kBatch: the batch's reads are issued
   // together, then its adds, then its take-backs, so that the thread waits
@@ -354,9 +364,8 @@ struct PresenceSplat {
     const Vec3f u = kn.u;
     const float R2 = shape.radius * shape.radius, clip = shape.clip;
     int x0, x1, y0, y1, z0, z1;
-    voxel_span(u.x, kn.reach(0, extent(p, 1)), kn.reach(0, extent(p, 0)), vol.nx, x0, x1);
-    voxel_span(u.y, kn.reach(1, extent(p, 3)), kn.reach(1, extent(p, 2)), vol.ny, y0, y1);
-    voxel_span(u.z, kn.reach(2, extent(p, 5)), kn.reach(2, extent(p, 4)), vol.nz, z0, z1);
+    side_box(vol, u, [&](uint32_t d) { return kn.reach(int(d / 2), side_extent(shape, presence, n, p, d)); }, x0, x1,
+             y0, y1, z0, z1);
     uint32_t pairs = 0, touched = 0, atomics = 0, skipped = 0;
     if (!all_full(x0, x1, y0, y1, z0, z1)) {
       const VoxelBox box(x0, x1, y0, y1, z0, z1);

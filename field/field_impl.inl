@@ -88,21 +88,21 @@ class FieldBuilderImpl final : public FieldBuilder {
       float* mark = kind == FieldKind::Presence && setup_.mark_occupied ? f : nullptr;
       // The solver's neighbour loop may have summed the covariance already
       // (ParticleView::covariance): only the ellipsoids are left to compute.
-      // Where the pass sums each neighbourhood itself, the presence builder
-      // leaves out the particles deep in full cells first (from the solver's
-      // sums the ellipsoid costs less than that test: docs/field.md).
-      const bool leave_out = kind == FieldKind::Presence && setup_.leave_out_buried;
-      const FullCells cells{vol, pv.grid, leave_out ? pv.offsets : nullptr, full};
-      const EllipsoidBound bound = EllipsoidBound::of(setup_.aniso, vol);
-      if (pv.covariance && pv.covariance_radius == setup_.aniso.radius)
+      if (pv.covariance && pv.covariance_radius == setup_.aniso.radius) {
         parallel_for("field_anisotropy_from_sums", pv.n,
                      EllipsoidPass<AnisotropyFromSums>{
                          {pv.pos, pv.covariance, pv.n, vol, setup_.aniso, raw(ellipsoids_)}, mark, shape});
-      else
+      } else {
+        // Where the pass sums each neighbourhood itself, the presence builder
+        // leaves out the particles deep in full cells first (from the solver's
+        // sums the ellipsoid costs less than that test: docs/field.md).
+        const bool leave_out = kind == FieldKind::Presence && setup_.leave_out_buried;
+        const FullCells cells{vol, pv.grid, leave_out ? pv.offsets : nullptr, full};
         parallel_for("field_anisotropy", pv.n,
                      EllipsoidPass<ComputeAnisotropy>{
                          {pv.grid, pv.fine_offsets, pv.pos, pv.n, vol, setup_.aniso, raw(ellipsoids_)}, mark, shape,
-                         cells, pv.presence, bound});
+                         cells, pv.presence, EllipsoidBound::of(setup_.aniso, vol)});
+      }
       ell = raw(ellipsoids_);
     }
     clock_.end_of("anisotropy");
