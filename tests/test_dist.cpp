@@ -703,9 +703,9 @@ TEST_CASE("an export written by every rank holds what rank 0 writes of the same 
 TEST_CASE("a particle that outruns c0 on one rank is named by that rank, not by the first", "[dist][mpi]") {
   // Two blocks of 4^3 particles at either end of the tank, the far one thrown
   // down at 1.9 m/s: it outruns c0 = 2 m/s after about 0.01 s, and every rank
-  // stops (the largest speed is every rank's). The still block lies on rank 0
-  // (measured: before the fix rank 0 named one of its particles in both
-  // layouts). The thrown block's ids follow the other's (0-63) or come first.
+  // stops (the largest speed is every rank's). The still block lies on rank 0,
+  // which reports first and would name one of its own particles in both
+  // layouts. The thrown block's ids follow the other's (0-63) or come first.
   const std::string path = tmp_dir() + "/two_blocks.json";
   for (const bool thrown_first : {false, true}) {
     const std::string still = R"({"min": [0.05,0.03,0.2], "max": [0.09,0.07,0.24]})";
