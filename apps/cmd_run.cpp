@@ -305,7 +305,7 @@ int cmd_run(RunArgs a) {
     SlabOptions so;
     so.frame_view = needs.field || out.png;  // rank 0 builds the field and renders from the gathered particles
     // Alike on every rank: whether an output reads all particles on rank 0.
-    so.gather_to_root = !ranks_write || !a.metrics_csv.empty() || !a.fa.dir.empty() || scene.field.built_every_frame();
+    so.gather_to_root = !ranks_write || !a.metrics_csv.empty() || !a.fa.dir.empty() || scene.field.every_frame;
     so.keep_owned = ranks_write;
     so.rebalance_every = a.rebalance_every;
     so.overlap_above = a.overlap == "on" ? 0.0f : a.overlap == "off" ? SlabBounds::kOverlapNever : SlabBounds::kOverlapAuto;
@@ -335,7 +335,7 @@ int cmd_run(RunArgs a) {
   opt.field = field.get();
   opt.sinks = out.sinks();
   // Alike on every rank (from the arguments and the scene, not from rank 0's sinks).
-  opt.gather_frames = !a.ex.path.empty() || !a.metrics_csv.empty() || !a.fa.dir.empty() || scene.field.built_every_frame();
+  opt.gather_frames = !a.ex.path.empty() || !a.metrics_csv.empty() || !a.fa.dir.empty() || scene.field.every_frame;
   RunSummary r;
   try {
     r = run_scene(scene, *solver, opt, std::cout);

@@ -36,7 +36,7 @@ FieldConfig read_field_config(const ConfigReader& r) {
   c.shrink_from = r.number("shrink_from", c.shrink_from, 0.0, 0.95);
   c.full_fraction = r.number("full_fraction", c.full_fraction, 0.1, 2.0);
   c.full_value_clip = r.string("full_value", c.full_value_clip ? "clip" : "coarse", {"clip", "coarse"}) == "clip";
-  c.every_frame = r.boolean("every_frame", c.every_frame);
+  c.every_frame = r.boolean("every_frame", true);  // the section's own; io/scene.cpp: false without one
   c.kernel = r.string("kernel", "isotropic", {"isotropic", "anisotropic"}) == "anisotropic" ? FieldKernel::Anisotropic
                                                                                           : FieldKernel::Isotropic;
   if (c.kernel == FieldKernel::Anisotropic && c.builder == FieldKind::Gather)

@@ -25,8 +25,10 @@ struct AnisotropyConfig {
 };
 
 struct FieldConfig {
-  bool given = false;                     // the scene has a "field" section
-  bool every_frame = true;                // ... and asks for the field at every output frame ("every_frame")
+  // Built at every output frame (its time in the summary), not only where an
+  // output draws or exports it: the scene has a "field" section whose
+  // "every_frame" is true (the key's default).
+  bool every_frame = false;
   FieldKind builder = FieldKind::Presence;
   int refine = 2;                         // voxels per SPH cell edge = 2^refine
   double radius = 2.0;                    // influence radius R [voxels]
@@ -38,10 +40,6 @@ struct FieldConfig {
   bool full_value_clip = true;            // ... and the value it gets: saturated ("clip") or just inside ("coarse")
   FieldKernel kernel = FieldKernel::Isotropic;
   AnisotropyConfig anisotropy;
-
-  // Built at every output frame (its time in the summary), not only where an
-  // output draws or exports it.
-  bool built_every_frame() const { return given && every_frame; }
 };
 
 FieldConfig read_field_config(const ConfigReader& r);

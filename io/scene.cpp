@@ -386,7 +386,7 @@ Scene parse_scene(const std::string& text, const std::string& file, const std::v
                                          "\" or remove the section)");
   }
   s.field = read_field_config(root.child("field"));
-  s.field.given = root.has("field");
+  s.field.every_frame = s.field.every_frame && root.has("field");
   s.render = read_render_settings(root.child("render"));
   const ConfigReader exp = root.child("export");
   exp.only({"gzip", "writer"});

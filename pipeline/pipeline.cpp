@@ -32,7 +32,7 @@ StageNeeds needs_of(const Scene& s, const std::vector<OutputSink*>& sinks) {
   FrameNeeds ever;
   for (const OutputSink* k : sinks) ever |= k->needs_ever();
   StageNeeds n;
-  n.field = s.field.built_every_frame() || ever.field;
+  n.field = s.field.every_frame || ever.field;
   // The presence builder reads presence once per frame: only the step that
   // reaches the frame computes it (sph.presence forces every step, for studies).
   const bool for_field =
@@ -197,7 +197,7 @@ RunSummary run_scene(const Scene& s, Solver& solver, const RunOptions& opt, std:
   // the presence builder builds the field, or a sink needs it.
   auto needs_at = [&](int k) {
     FrameNeeds n = sinks_need(opt.sinks, k);
-    n.field = opt.field && (s.field.built_every_frame() || n.field);
+    n.field = opt.field && (s.field.every_frame || n.field);
     n.presence = n.presence || (n.field && opt.field->kind() == FieldKind::Presence);
     return n;
   };

@@ -293,7 +293,7 @@ TEST_CASE("run_scene computes presence only toward the frames that use it", "[fi
 TEST_CASE("a scene pays only for the stages it needs: no field, no presence", "[field]") {
   const Scene plain = small_scene();
   Scene no_field = plain;
-  no_field.field.given = false;
+  no_field.field.every_frame = false;  // as without a "field" section
   CHECK(needs_of(no_field).presence == PresenceMode::Off);
   CHECK_FALSE(needs_of(no_field).field);
   CHECK(make_field(resolve_scene(no_field), Backend::Cpu, needs_of(no_field)) == nullptr);

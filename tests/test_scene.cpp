@@ -254,6 +254,6 @@ TEST_CASE("the main job's scene is the dam break, under PBF with ellipsoids", "[
   CHECK(watched.sph.solver == SolverKind::Pbf);
   CHECK(reference.sph.solver == SolverKind::Wcsph);
   CHECK(watched.field.kernel == FieldKernel::Anisotropic);
-  CHECK_FALSE(watched.field.built_every_frame());  // built where frames or the viewer draw it
+  CHECK_FALSE(watched.field.every_frame);  // built where frames or the viewer draw it
   CHECK(watched.sph.spacing == Approx(0.00432));
 }
