@@ -164,27 +164,50 @@ SPHRAY_HD SPHRAY_FORCEINLINE Ellipsoid ellipsoid_of(const AnisotropyParams& ap, 
   return e;
 }
 
-// One thread per particle: the weighted covariance of its neighbours (the
-// solver's grid, candidate rows culled to the radius), its kernel and centre.
+// The grid the anisotropy pass sorts the particles by (field_impl.inl), over
+// the view grid's extent. The view's cells are two supports wide under PBF
+// and DFSPH (4.2 spacings: about 760 candidates for the 113 neighbours within
+// the default radius of 3 spacings); in cells of half the radius the 25 rows
+// around a query, culled to its sphere, hold far fewer (docs/field.md, "Cost
+// of the ellipsoids"). No finer than a third of the view's cells, so that
+// its slab table has at most 27 times the view's entries whatever the
+// radius (at least half the radius: ComputeAnisotropy reads two rows out).
+constexpr float kAnisotropyCellsPerRadius = 2.0f;
+static_assert(kAnisotropyCellsPerRadius <= 2.0f, "ComputeAnisotropy reads two rows out: cells of at least half the radius");
+inline GridGeom anisotropy_grid(const GridGeom& view, float radius) {
+  const float half = radius / kAnisotropyCellsPerRadius, third = view.cell_size / 3.0f;
+  const float cell = half > third ? half : third;
+  auto cells = [&](int n) { return int(std::ceil(double(n) * view.cell_size / cell)); };
+  return {view.origin, cell, cells(view.nx), cells(view.ny), cells(view.nz)};
+}
+
+// One thread per particle of a set sorted by a grid whose cells are at least
+// half the radius wide (anisotropy_grid; or the view's): the weighted
+// covariance of its neighbours (the 25 candidate rows of that grid culled to
+// the radius), its kernel and centre. `order` maps the sorted index to the
+// view's (null: the set is the view), where the kernel is stored.
 struct ComputeAnisotropy {
+  static constexpr int kSpan = 2;
   GridGeom grid;
   const uint32_t* fine_offsets;
-  const Float4* pos;
+  const Float4* pos;        // sorted by grid
+  const uint32_t* order;    // sorted index -> the view's, or null
   uint32_t n;
   VolumeGeom vol;
   AnisotropyParams ap;
-  Float4* out;  // [3][n]
+  Float4* out;  // [3][n], in the view's order
 
-  SPHRAY_HD void operator()(uint32_t i) const { compute(i).store(out, n, i); }
-  SPHRAY_HD Ellipsoid compute(uint32_t i) const {
-    const Vec3f xi = xyz(pos[i]);
+  SPHRAY_HD SPHRAY_FORCEINLINE uint32_t particle(uint32_t t) const { return order ? order[t] : t; }
+  SPHRAY_HD void operator()(uint32_t t) const { compute(t).store(out, n, particle(t)); }
+  SPHRAY_HD Ellipsoid compute(uint32_t t) const {
+    const Vec3f xi = xyz(pos[t]);
     const float inv_r = 1.0f / ap.radius;
     CovarianceSums s;
-    for (int row = 0; row < kCandidateRows; ++row) {
+    for (int row = 0; row < candidate_rows<kSpan>(); ++row) {
       uint32_t begin = 0, end = 0;
-      if (!candidate_row(grid, fine_offsets, xi, row, begin, end, ap.radius)) continue;
+      if (!candidate_row<kSpan>(grid, fine_offsets, xi, row, begin, end, ap.radius)) continue;
       for (uint32_t j = begin; j < end; ++j) {
-        if (j == i) continue;
+        if (j == t) continue;
         const Vec3f pj = xyz(pos[j]);
         const float dx = (pj.x - xi.x) * inv_r, dy = (pj.y - xi.y) * inv_r, dz = (pj.z - xi.z) * inv_r;
         const float q2 = dx * dx + dy * dy + dz * dz;
@@ -204,6 +227,7 @@ struct AnisotropyFromSums {
   VolumeGeom vol;
   AnisotropyParams ap;
   Float4* out;  // [3][n]
+  SPHRAY_HD SPHRAY_FORCEINLINE uint32_t particle(uint32_t t) const { return t; }
   SPHRAY_HD void operator()(uint32_t i) const { compute(i).store(out, n, i); }
   SPHRAY_HD Ellipsoid compute(uint32_t i) const {
     return ellipsoid_of(ap, vol, xyz(pos[i]), CovarianceSums::load(sums, n, i));

@@ -289,22 +289,25 @@ struct EllipsoidPass {
   const float* presence = nullptr;  // [6][n] or null: full extents
   EllipsoidBound bound{};
 
-  SPHRAY_HD SPHRAY_FORCEINLINE bool buried(uint32_t p) const {
+  // Item t of the pass (make's order: the particle make.particle(t) of the view).
+  SPHRAY_HD SPHRAY_FORCEINLINE bool buried(uint32_t t) const {
     if (!full.offsets || full.full_count == 0) return false;
+    const uint32_t p = make.particle(t);
     int x0, x1, y0, y1, z0, z1;
-    side_box(make.vol, make.vol.to_voxels(xyz(make.pos[p])),
+    side_box(make.vol, make.vol.to_voxels(xyz(make.pos[t])),
              [&](uint32_t d) { return bound.reach(side_extent(shape, presence, make.n, p, d)); }, x0, x1, y0, y1, z0,
              z1);
     return full.cover(x0, x1, y0, y1, z0, z1);
   }
 
-  SPHRAY_HD void operator()(uint32_t p) const {
-    if (buried(p)) {
+  SPHRAY_HD void operator()(uint32_t t) const {
+    const uint32_t p = make.particle(t);
+    if (buried(t)) {
       Ellipsoid::store_buried(make.out, p);
       return;
     }
     SplatKernel<true> kn;
-    kn.e = make.compute(p);
+    kn.e = make.compute(t);
     kn.e.store(make.out, make.n, p);
     if (!mark) return;
     kn.u = kn.e.centre;

@@ -18,7 +18,7 @@ FieldKind parse_field_kind(const std::string& name);  // throws std::invalid_arg
 enum class FieldKernel { Isotropic, Anisotropic };
 
 struct AnisotropyConfig {
-  double radius = 3.0;     // neighbourhood of the covariance [particle spacings]; at most the SPH grid cell
+  double radius = 3.0;     // neighbourhood of the covariance [particle spacings]
   double stretch = 4.0;    // largest over smallest axis, at most (>= 1; 1: spheres)
   double smoothing = 0.9;  // kernel centre moved this share of the way to the neighbours' weighted mean (0..1)
   int min_neighbours = 8;  // fewer neighbours than this: a sphere (spray, lone particles)

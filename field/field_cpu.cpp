@@ -7,6 +7,7 @@
 
 #define SPHRAY_BK cpu_backend
 namespace sphray::cpu_backend {
+#include "nsearch/sort.inl"
 #include "field_impl.inl"
 }  // namespace sphray::cpu_backend
 

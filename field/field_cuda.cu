@@ -7,6 +7,7 @@
 
 #define SPHRAY_BK cuda_backend
 namespace sphray::cuda_backend {
+#include "nsearch/sort.inl"
 #include "field_impl.inl"
 }  // namespace sphray::cuda_backend
 

@@ -1,6 +1,7 @@
 // The field builders' driver, written once for both backends. Included by
 // field_cpu.cpp and field_cuda.cu inside their backend namespace (which
-// supplies Vector, raw, policy, parallel_for, download, StageClock, kBackend).
+// supplies Vector, raw, policy, parallel_for, download, StageClock, kBackend),
+// after nsearch/sort.inl.
 
 struct CounterToU64 {
   const uint32_t* c;
@@ -44,7 +45,9 @@ class FieldBuilderImpl final : public FieldBuilder {
   const FieldCounts& last_counts() const override { return counts_; }
   const float* data() const override { return raw(field_); }
   size_t device_bytes() const override {
-    return field_.size() * sizeof(float) + counters_.size() * sizeof(uint32_t) + ellipsoids_.size() * sizeof(Float4);
+    return field_.size() * sizeof(float) + counters_.size() * sizeof(uint32_t) + ellipsoids_.size() * sizeof(Float4) +
+           (aniso_keys_.size() + aniso_order_.size() + aniso_offsets_.size()) * sizeof(uint32_t) +
+           aniso_pos_.size() * sizeof(Float4);
   }
   std::vector<float> download() const override { return sphray::SPHRAY_BK::download(field_, field_.size()); }
 
@@ -98,10 +101,12 @@ class FieldBuilderImpl final : public FieldBuilder {
         // sums the ellipsoid costs less than that test: docs/field.md).
         const bool leave_out = kind == FieldKind::Presence && setup_.leave_out_buried;
         const FullCells cells{vol, pv.grid, leave_out ? pv.offsets : nullptr, full};
+        const GridGeom ag = sort_for_anisotropy(pv);
         parallel_for("field_anisotropy", pv.n,
                      EllipsoidPass<ComputeAnisotropy>{
-                         {pv.grid, pv.fine_offsets, pv.pos, pv.n, vol, setup_.aniso, raw(ellipsoids_)}, mark, shape,
-                         cells, pv.presence, EllipsoidBound::of(setup_.aniso, vol)});
+                         {ag, raw(aniso_offsets_), raw(aniso_pos_), raw(aniso_order_), pv.n, vol, setup_.aniso,
+                          raw(ellipsoids_)},
+                         mark, shape, cells, pv.presence, EllipsoidBound::of(setup_.aniso, vol)});
       }
       ell = raw(ellipsoids_);
     }
@@ -165,6 +170,22 @@ class FieldBuilderImpl final : public FieldBuilder {
     return uint64_t(n) * 4u <= 2ull * resident_threads() ? 4 : 1;
   }
 
+  // The view's particles sorted by the anisotropy pass's grid (anisotropy.h:
+  // cells of half the radius over the view grid's extent): their positions
+  // in that order, the order, and the grid's slab table.
+  GridGeom sort_for_anisotropy(const ParticleView& pv) {
+    const GridGeom g = anisotropy_grid(pv.grid, setup_.aniso.radius);
+    const uint32_t n = pv.n;
+    aniso_keys_.resize(n);
+    aniso_order_.resize(n);
+    aniso_pos_.resize(n);
+    aniso_offsets_.resize(size_t(g.num_fine_cells()) + 1);
+    parallel_for("field_anisotropy_keys", n, KeyOf<Float4>{g, pv.pos, raw(aniso_keys_)});
+    sort_and_offsets(g, n, aniso_keys_, aniso_order_, aniso_offsets_, nullptr);
+    thrust::gather(policy(), aniso_order_.begin(), aniso_order_.begin() + n, pv.pos, aniso_pos_.begin());
+    return g;
+  }
+
   // Full cells are saturated when the coarse fill writes the clip value into them (mark_occupied).
   uint32_t saturated_full_count() const {
     return setup_.mark_occupied && setup_.full_fill >= setup_.shape.clip ? setup_.full_count : 0u;
@@ -175,6 +196,8 @@ class FieldBuilderImpl final : public FieldBuilder {
   Vector<float> field_;
   Vector<uint32_t> counters_;
   Vector<Float4> ellipsoids_;  // [3][n] (anisotropic kernels)
+  Vector<uint32_t> aniso_keys_, aniso_order_, aniso_offsets_;  // sort_for_anisotropy
+  Vector<Float4> aniso_pos_;
   StageClock clock_;
   double ms_ = 0, aniso_ms_ = 0;
   FieldCounts counts_;

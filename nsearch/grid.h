@@ -57,32 +57,50 @@ struct GridGeom {
   GridGeom halved() const { return {origin, 0.5f * cell_size, 2 * nx, 2 * ny, 2 * nz}; }
 };
 
-// The candidate rows of a query at p: the 9 rows (dz, dy in -1..1, row =
-// (dz + 1) * 3 + (dy + 1)) of the cells around p's cell, each one contiguous
-// range of a set sorted by this grid (fluid or boundary; `fine_offsets` is its
-// slab table, num_fine_cells() + 1 entries), culled to the support sphere (see
-// the top of this file). Returns false for a row outside the grid or wholly
-// beyond the support; otherwise sets [begin, end) (possibly empty). The culling
-// radius is padded by 1e-3 of a cell so that float rounding of p and of the
-// cell bounds never drops a neighbour whose distance the caller computes as
-// just inside the support. `reach` (at most the cell size; 0: the cell
-// size) culls to a smaller sphere, for a search radius below the cell size
-// (the PBF solver's). Pure function of (g, fine_offsets, p, row, reach), so a
-// query that walks the rows again (the pair masks, pair_masks.h) sees the same ranges.
-constexpr int kCandidateRows = 9;
+// The candidate rows of a query at p: the (2 Span + 1)^2 rows (dz, dy in
+// -Span..Span, row = (dz + Span) * (2 Span + 1) + (dy + Span)) of the cells
+// around p's cell (Span 1: the 9 rows of the 3 x 3 cells), each one
+// contiguous range of a set sorted by this grid (fluid or boundary;
+// `fine_offsets` is its slab table, num_fine_cells() + 1 entries), culled to
+// the support sphere (see the top of this file). Returns false for a row
+// outside the grid or wholly beyond the support; otherwise sets [begin, end)
+// (possibly empty). The culling radius is padded by 1e-3 of a cell so that
+// float rounding of p and of the cell bounds never drops a neighbour whose
+// distance the caller computes as just inside the support. `reach` (at most
+// Span cells; 0: one cell, with Span 1) culls to that sphere, for a search
+// radius below the cell size (the PBF solver's) or, with a wider Span, above
+// it (the anisotropy pass's, field/anisotropy.h). Pure function of (g,
+// fine_offsets, p, row, reach), so a query that walks the rows again (the
+// pair masks, pair_masks.h) sees the same ranges.
+template <int Span>
+constexpr int candidate_rows() { return (2 * Span + 1) * (2 * Span + 1); }
+constexpr int kCandidateRows = candidate_rows<1>();
 
+template <int Span = 1>
 SPHRAY_HD SPHRAY_FORCEINLINE bool candidate_row(const GridGeom& g, const uint32_t* fine_offsets, Vec3f p, int row,
                                                 uint32_t& begin, uint32_t& end, float reach = 0.0f) {
+  static_assert(Span >= 1, "a query reads at least the rows beside its own");
   const float s = g.cell_size;
   const float pad = reach > 0.0f ? reach + 0.001f * s : 1.001f * s;
   const float reach2 = pad * pad;
-  const int dz = row / 3 - 1, dy = row % 3 - 1;
+  constexpr int side = 2 * Span + 1;
+  const int dz = row / side - Span, dy = row % side - Span;
   const int cz = g.coord(p.z, g.origin.z), z = cz + dz;
   const int cy = g.coord(p.y, g.origin.y), y = cy + dy;
   if (z < 0 || z >= g.nz || y < 0 || y >= g.ny) return false;
-  // Distance from p to the face of its own cell toward the row (0 for the row through p).
-  const float ez = dz < 0 ? p.z - (g.origin.z + float(cz) * s) : dz > 0 ? g.origin.z + float(cz + 1) * s - p.z : 0.0f;
-  const float ey = dy < 0 ? p.y - (g.origin.y + float(cy) * s) : dy > 0 ? g.origin.y + float(cy + 1) * s - p.y : 0.0f;
+  // Distance from p to the near face of the row's cells (0 for the row
+  // through p). Both forms compute it; with Span 1 the solvers' neighbour
+  // kernels keep the registers they were measured with (the second form
+  // changed them by up to 8), with Span 2 the anisotropy pass takes 40
+  // registers instead of the first form's 46.
+  float ez, ey;
+  if constexpr (Span == 1) {
+    ez = dz < 0 ? p.z - (g.origin.z + float(cz) * s) : dz > 0 ? g.origin.z + float(cz + 1) * s - p.z : 0.0f;
+    ey = dy < 0 ? p.y - (g.origin.y + float(cy) * s) : dy > 0 ? g.origin.y + float(cy + 1) * s - p.y : 0.0f;
+  } else {
+    ez = dz < 0 ? p.z - (g.origin.z + float(z + 1) * s) : dz > 0 ? g.origin.z + float(z) * s - p.z : 0.0f;
+    ey = dy < 0 ? p.y - (g.origin.y + float(y + 1) * s) : dy > 0 ? g.origin.y + float(y) * s - p.y : 0.0f;
+  }
   const float left = reach2 - (ez > 0.0f ? ez * ez : 0.0f) - (ey > 0.0f ? ey * ey : 0.0f);
   if (left <= 0.0f) return false;  // the whole row is beyond the support
   const float rx = std::sqrt(left);

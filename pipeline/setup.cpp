@@ -10,6 +10,7 @@
 #include <sstream>
 #include <string>
 
+#include "field/anisotropy.h"
 #include "mesh/bvh.h"
 #include "nsearch/pair_masks.h"
 #include "sph/eos.h"
@@ -396,7 +397,22 @@ void check_fits(const ResolvedScene& r, Backend backend, bool field, const RankS
     bytes = z.bytes - z.fluid * z.per_fluid + share->fluid * z.per_fluid + (share->whole_view ? z.bytes : 0);
     field = field && share->whole_view;
   }
-  if (field) bytes += size_t(make_field_setup(r).geom.num_voxels()) * sizeof(float);
+  if (field) {
+    const FieldSetup fs = make_field_setup(r);
+    bytes += size_t(fs.geom.num_voxels()) * sizeof(float);
+    if (fs.aniso.on) {
+      // The ellipsoids, and the anisotropy pass's sort: keys, order, positions and its grid's slab table.
+      const GridGeom ag = anisotropy_grid(z.grid, fs.aniso.radius);
+      const double slabs = double(ag.nx) * double(ag.ny) * double(ag.nz) * GridGeom::kSubX;
+      if (slabs >= 0xffffffffull) {
+        os << s.file << ": sph.spacing = " << s.sph.spacing << " with field.anisotropy.radius = "
+           << s.field.anisotropy.radius << " spacings gives the anisotropic kernels' grid " << slabs
+           << " slabs: more than sphray can index (2^32). Raise sph.spacing or field.anisotropy.radius.";
+        throw SceneError(os.str());
+      }
+      bytes += z.fluid * (3 * sizeof(Float4) + 2 * sizeof(uint32_t) + sizeof(Float4)) + size_t(slabs + 1) * sizeof(uint32_t);
+    }
+  }
   size_t avail = 0;
   if (backend == Backend::Cuda) {
     avail = cuda_free_memory();
@@ -649,12 +665,6 @@ FieldSetup make_field_setup(const ResolvedScene& r) {
   an.stretch = float(f.anisotropy.stretch);
   an.smoothing = float(f.anisotropy.smoothing);
   an.min_neighbours = uint32_t(f.anisotropy.min_neighbours);
-  if (an.on && an.radius > g.cell_size) {
-    std::ostringstream os;
-    os << s.file << ": field.anisotropy.radius = " << f.anisotropy.radius << " spacings is wider than the SPH grid cell ("
-       << g.cell_size / s.sph.spacing << " spacings), the farthest the neighbour grid reaches.";
-    throw SceneError(os.str());
-  }
   // With ellipsoids a particle's own voxel need not be inside (a flat kernel
   // is thinner than a voxel): only full cells are filled, and each particle's
   // voxel is marked only where its own kernel reaches the iso value there.
