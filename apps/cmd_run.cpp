@@ -91,6 +91,7 @@ void print_start(const ResolvedScene& rs, const std::string& scene_path, const S
               << " m/s (10x the flow speed " << v << " m/s the scene can reach): density varies as (v / c0)^2, about "
               << 100 * (v / scene.sph.speed_of_sound) * (v / scene.sph.speed_of_sound)
               << "% here, and the run stops if a particle outruns c0\n" << std::setprecision(6);
+  if (const std::string note = cpu_scale_note(rs, solver.backend()); !note.empty()) std::cout << "  note: " << note << "\n";
   if (const int layers = scene.sph.auto_boundary_layers(), given = scene.sph.boundary_layers; given > 0 && given < layers)
     std::cout << "  note: sph.boundary_layers = " << given << " is thinner than the kernel support (" << layers
               << " layers, \"auto\"): near a wall part of a particle's kernel is empty and the walls may not hold "

@@ -379,6 +379,21 @@ ResolvedScene resolve_scene(const Scene& s) {
           s.sph.solver == SolverKind::Dfsph ? make_dfsph_params(s) : DfsphParams{}, measure_scene(s)};
 }
 
+std::string cpu_scale_note(const ResolvedScene& r, Backend backend) {
+  const size_t n = r.size.fluid;
+  if (backend != Backend::Cpu || n <= kCpuLargeScene) return "";
+  // The particle count goes as spacing^-3; two significant digits, rounded up.
+  const double want = r.scene.sph.spacing * std::cbrt(double(n) / double(kCpuSceneTarget));
+  const double unit = std::pow(10.0, std::floor(std::log10(want)) - 1.0);
+  const double spacing = std::ceil(want / unit - 1e-9) * unit;
+  Scene coarse = r.scene;
+  coarse.sph.spacing = spacing;
+  std::ostringstream os;
+  os << n << " fluid particles on the CPU backend: a GPU's work, far below real time here. --set sph.spacing="
+     << spacing << " gives " << measure_scene(coarse).fluid << " (or --backend cuda on a machine with a GPU).";
+  return os.str();
+}
+
 void check_fits(const ResolvedScene& r, Backend backend, bool field, const RankShare* share) {
   const Scene& s = r.scene;
   const SceneSize& z = r.size;

@@ -257,3 +257,29 @@ TEST_CASE("the main job's scene is the dam break, under PBF with ellipsoids", "[
   CHECK_FALSE(watched.field.every_frame);  // built where frames or the viewer draw it
   CHECK(watched.sph.spacing == Approx(0.00432));
 }
+
+TEST_CASE("a scene sized for a GPU gets a note naming a spacing the CPU can play", "[scene][cpu]") {
+  const Scene watched = load_scene(test::source_path("scenes/dam_break_realtime.json"));
+  const ResolvedScene r = resolve_scene(watched);
+  REQUIRE(r.size.fluid > kCpuLargeScene);
+  CHECK(cpu_scale_note(r, Backend::Cuda).empty());
+  const std::string note = cpu_scale_note(r, Backend::Cpu);
+  INFO(note);
+  CHECK(test::has(note, std::to_string(r.size.fluid) + " fluid particles on the CPU backend"));
+  // The spacing it names, counted independently: about the target.
+  const std::string key = "sph.spacing=";
+  const size_t at = note.find(key);
+  REQUIRE(at != std::string::npos);
+  const double spacing = std::stod(note.substr(at + key.size()));
+  CHECK(spacing == Approx(0.015));  // the README's CPU fallback for this scene
+  const size_t n = measure_scene(load_scene(test::source_path("scenes/dam_break_realtime.json"),
+                                            {"sph.spacing=" + std::to_string(spacing)})).fluid;
+  CHECK(n <= kCpuSceneTarget * 11 / 10);
+  CHECK(n >= kCpuSceneTarget / 2);
+  CHECK(test::has(note, "gives " + std::to_string(n) + " "));
+  // At that spacing no note.
+  CHECK(cpu_scale_note(resolve_scene(load_scene(test::source_path("scenes/dam_break_realtime.json"),
+                                                {"sph.spacing=0.015"})),
+                       Backend::Cpu)
+            .empty());
+}

@@ -395,6 +395,7 @@ int run_viewer(const ViewOptions& opt, std::ostream& log) {
   const ResolvedScene rscene = resolve_view_scene(opt);
   const Scene& scene = rscene.scene;
   const Backend b = choose_backend(opt.backend, log);
+  if (const std::string note = cpu_scale_note(rscene, b); !note.empty()) log << "viewer: " << note << "\n";
   int W = scene.render.width, H = scene.render.height;  // the raycast image: the window's framebuffer
   Window win;
   open_window(win, W, H, "sphray view: " + scene.name, opt.frames == 0, log);
