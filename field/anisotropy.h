@@ -166,12 +166,13 @@ SPHRAY_HD SPHRAY_FORCEINLINE Ellipsoid ellipsoid_of(const AnisotropyParams& ap, 
 
 // The grid the anisotropy pass sorts the particles by (field_impl.inl), over
 // the view grid's extent. The view's cells are two supports wide under PBF
-// and DFSPH (4.2 spacings: about 760 candidates for the 113 neighbours within
-// the default radius of 3 spacings); in cells of half the radius the 25 rows
-// around a query, culled to its sphere, hold far fewer (docs/field.md, "Cost
-// of the ellipsoids"). No finer than a third of the view's cells, so that
-// its slab table has at most 27 times the view's entries whatever the
-// radius (at least half the radius: ComputeAnisotropy reads two rows out).
+// and DFSPH (4.2 spacings): its rows around a particle of a jittered block
+// hold 522 candidates for the 108 neighbours within the default radius of 3
+// spacings; in cells of half the radius the 25 rows around it, culled to
+// the radius, hold 231 (tests/test_anisotropy.cpp; docs/field.md, "Cost of
+// the ellipsoids"). No finer than a third of the view's cells, so that its
+// slab table has at most 27 times the view's entries whatever the radius (at
+// least half the radius: ComputeAnisotropy reads two rows out).
 constexpr float kAnisotropyCellsPerRadius = 2.0f;
 static_assert(kAnisotropyCellsPerRadius <= 2.0f, "ComputeAnisotropy reads two rows out: cells of at least half the radius");
 inline GridGeom anisotropy_grid(const GridGeom& view, float radius) {
