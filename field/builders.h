@@ -344,7 +344,6 @@ struct PresenceSplat {
     return FullCells{vol, grid, offsets, full_count}.cover(x0, x1, y0, y1, z0, z1);
   }
 
-
   // A thread's voxels in batches of kBatch: the batch's reads are issued
   // together, then its adds, then its take-backs, so that the thread waits
   // for each kind of round trip once per batch instead of once per voxel.

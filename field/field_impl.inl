@@ -175,7 +175,7 @@ class FieldBuilderImpl final : public FieldBuilder {
   // in that order, the order, and the grid's slab table.
   GridGeom sort_for_anisotropy(const ParticleView& pv) {
     const GridGeom g = anisotropy_grid(pv.grid, setup_.aniso.radius);
-    if (double(g.nx) * double(g.ny) * double(g.nz) * GridGeom::kSubX >= 0xffffffffull)
+    if (!g.fine_cells_indexable())
       throw std::invalid_argument("field builder: the anisotropic kernels' grid has more than 2^32 slabs (raise "
                                   "sph.spacing or field.anisotropy.radius)");
     const uint32_t n = pv.n;

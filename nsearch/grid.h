@@ -35,6 +35,9 @@ struct GridGeom {
 
   static constexpr int kSubX = 4;  // x slabs per cell in the sort key
   SPHRAY_HD SPHRAY_FORCEINLINE uint32_t num_fine_cells() const { return num_cells() * uint32_t(kSubX); }
+  // Whether every slab key, and the one past them, fits the 32-bit keys and
+  // slab tables (num_fine_cells() wraps beyond that).
+  bool fine_cells_indexable() const { return double(nx) * double(ny) * double(nz) * kSubX < 0xffffffffull; }
 
   // Slab index along x (floor((x - origin) / (cell_size / kSubX))). The coarse
   // x cell is slab / kSubX, so coarse and fine keys never disagree.

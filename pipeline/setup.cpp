@@ -418,14 +418,14 @@ void check_fits(const ResolvedScene& r, Backend backend, bool field, const RankS
     if (fs.aniso.on) {
       // The ellipsoids, and the anisotropy pass's sort: keys, order, positions and its grid's slab table.
       const GridGeom ag = anisotropy_grid(z.grid, fs.aniso.radius);
-      const double slabs = double(ag.nx) * double(ag.ny) * double(ag.nz) * GridGeom::kSubX;
-      if (slabs >= 0xffffffffull) {
+      if (!ag.fine_cells_indexable()) {
         os << s.file << ": sph.spacing = " << s.sph.spacing << " with field.anisotropy.radius = "
-           << s.field.anisotropy.radius << " spacings gives the anisotropic kernels' grid " << slabs
-           << " slabs: more than sphray can index (2^32). Raise sph.spacing or field.anisotropy.radius.";
+           << s.field.anisotropy.radius << " spacings gives the anisotropic kernels' grid more slabs than sphray "
+           << "can index (2^32). Raise sph.spacing or field.anisotropy.radius.";
         throw SceneError(os.str());
       }
-      bytes += z.fluid * (3 * sizeof(Float4) + 2 * sizeof(uint32_t) + sizeof(Float4)) + size_t(slabs + 1) * sizeof(uint32_t);
+      bytes += z.fluid * (3 * sizeof(Float4) + 2 * sizeof(uint32_t) + sizeof(Float4)) +
+               (size_t(ag.num_fine_cells()) + 1) * sizeof(uint32_t);
     }
   }
   size_t avail = 0;
