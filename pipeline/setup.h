@@ -97,9 +97,9 @@ void check_fits(const ResolvedScene& r, Backend backend, bool field = false, con
 
 // A scene sized for a GPU on the CPU backend: above kCpuLargeScene fluid
 // particles the note names the sph.spacing that gives about
-// kCpuSceneTarget (the README's main job falls back to 22,880 particles on
-// the CPU, about 15 s for its 1.5 s on two cores); "" on the GPU or for a
-// smaller scene. `sphray run` and `sphray view` print it at the start.
+// kCpuSceneTarget (the README's main job falls back to a spacing that gives
+// 22,880 particles on the CPU); "" on the GPU or for a smaller scene.
+// `sphray run` and `sphray view` print it at the start.
 constexpr size_t kCpuLargeScene = 200000, kCpuSceneTarget = 25000;
 std::string cpu_scale_note(const ResolvedScene& r, Backend backend);
 
