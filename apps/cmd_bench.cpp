@@ -250,6 +250,8 @@ void add_surface(CLI::App* bench, int& exit_code) {
   add_common(f, a->c, "");
   f->add_option("--cells", a->opt.cells, "pool width in particles (default 64 on CUDA, 24 on CPU)")
       ->check(CLI::Range(12, 512));
+  f->add_option("--layers", a->opt.layers, "pool depth in particle layers (default half its width)")
+      ->check(CLI::Range(4, 508));
   f->add_option("--settle", a->opt.settle, "seconds the pool settles under gravity")->check(CLI::Range(0.0, 10.0));
   f->add_option("--jitter", a->opt.jitter, "pool and ball start this many spacings off the lattice, at most")
       ->check(CLI::Range(0.0, 0.45));

@@ -7,6 +7,7 @@
 #include <random>
 #include <ostream>
 #include <sstream>
+#include <stdexcept>
 
 #include "sim.h"
 #include "io/scene.h"
@@ -56,8 +57,8 @@ double pool_top_layer(const std::vector<Vec3f>& pos, double lo, double hi, int l
   return std::accumulate(z.begin(), top, 0.0) / double(top - z.begin());
 }
 
-std::string bench_surface_scene(int cells) {
-  const double dx = 0.01, L = cells * dx, H = (cells / 2) * dx;
+std::string bench_surface_scene(int cells, int layers) {
+  const double dx = 0.01, L = cells * dx, H = layers * dx;
   std::ostringstream os;
   os.precision(10);
   os << "{\"name\": \"bench_surface_" << cells << "\",\n"
@@ -72,7 +73,13 @@ std::string bench_surface_scene(int cells) {
 
 std::vector<BenchSurfaceRow> bench_surface(Backend b, const BenchSurfaceOptions& opt, std::ostream& log) {
   const int cells = opt.cells > 0 ? opt.cells : (b == Backend::Cuda ? 64 : 24);
-  const ResolvedScene rs = resolve_scene(parse_scene(bench_surface_scene(cells), "bench_surface", opt.overrides));
+  const int layers = opt.layers > 0 ? opt.layers : cells / 2;
+  if (layers > cells - 4)
+    throw std::invalid_argument("bench surface: --layers " + std::to_string(layers) + " leaves less than 4 spacings of " +
+                                "the " + std::to_string(cells) + "-spacing tank above the pool (at most " +
+                                std::to_string(cells - 4) + ")");
+  const ResolvedScene rs =
+      resolve_scene(parse_scene(bench_surface_scene(cells, layers), "bench_surface", opt.overrides));
   const Scene& s = rs.scene;
   const double dx = s.sph.spacing, L = s.tank.max.x - s.tank.min.x;
 
@@ -80,7 +87,7 @@ std::vector<BenchSurfaceRow> bench_surface(Backend b, const BenchSurfaceOptions&
   // surface is the height its particles fill.
   const Vec3d c{0.5 * L, 0.5 * L, 0.5 * L};
   std::vector<Vec3f> lattice, ball, sheet;
-  for (int k = 0; k < cells / 2; ++k)
+  for (int k = 0; k < layers; ++k)
     for (int j = 0; j < cells; ++j)
       for (int i = 0; i < cells; ++i) lattice.push_back({float((i + 0.5) * dx), float((j + 0.5) * dx), float((k + 0.5) * dx)});
   auto pool = solver_of(rs, b, lattice, opt.jitter, true, PresenceMode::AtUntil);
@@ -96,7 +103,7 @@ std::vector<BenchSurfaceRow> bench_surface(Backend b, const BenchSurfaceOptions&
   // each column, counted over the rays' region), as the lattice's surface
   // lies half a spacing above its top layer.
   const double wall = 6 * dx;
-  const double top_layer = pool_top_layer(pool->download().pos, wall, L - wall, cells / 2);
+  const double top_layer = pool_top_layer(pool->download().pos, wall, L - wall, layers);
   const double top_layer_dx = (height - 0.5 * dx - top_layer) / dx;
   log << "  settled pool: height " << height / dx << " spacings, top layer at " << top_layer / dx << " ("
       << top_layer_dx << " below the lattice's)\n";

@@ -21,6 +21,7 @@ namespace sphray {
 
 struct BenchSurfaceOptions {
   int cells = 0;        // pool width in particles: 0 = 64 on CUDA, 24 on CPU
+  int layers = 0;       // pool depth in particle layers: 0 = half its width
   double settle = 1.0;  // seconds the pool settles under gravity (DFSPH)
   double jitter = 0.1;  // pool and ball start from the lattice moved up to this many spacings each way
   int warmup = 3, frames = 10;
@@ -47,7 +48,7 @@ struct BenchSurfaceRow {
 double pool_top_layer(const std::vector<Vec3f>& pos, double lo, double hi, int layers);
 
 // The generated pool scene (JSON text) with `cells` particles across.
-std::string bench_surface_scene(int cells);
+std::string bench_surface_scene(int cells, int layers);
 
 std::vector<BenchSurfaceRow> bench_surface(Backend b, const BenchSurfaceOptions& opt, std::ostream& log);
 nlohmann::json to_json(const std::vector<BenchSurfaceRow>& rows, Backend b, const BenchSurfaceOptions& opt);

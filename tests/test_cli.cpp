@@ -58,6 +58,9 @@ TEST_CASE("sphray run reports bad input with exit code 2", "[cli][cpu]") {
   r = run_cli("bench sim --backend cpu --steps -3");  // CLI11's own check, with sphray's prefix
   CHECK(r.code == 2);
   CHECK(has(r.output, "sphray: error: --steps: Value -3 not in range"));  // CLI11 2.3 and 2.4 word the range differently
+  r = run_cli("bench surface --backend cpu --cells 24 --layers 21");  // refused before the pool is built
+  CHECK(r.code == 2);
+  CHECK(has(r.output, "--layers 21 leaves less than 4 spacings of the 24-spacing tank above the pool (at most 20)"));
   r = run_cli("run " + sphray::test::source_path("scenes") + " --backend cpu");
   CHECK(r.code == 2);
   CHECK(has(r.output, "scenes: is a directory, not a scene file"));
