@@ -47,7 +47,7 @@ struct BenchSurfaceRow {
 // their count / layers of them).
 double pool_top_layer(const std::vector<Vec3f>& pos, double lo, double hi, int layers);
 
-// The generated pool scene (JSON text) with `cells` particles across.
+// The generated pool scene (JSON text): `cells` particles across, `layers` deep.
 std::string bench_surface_scene(int cells, int layers);
 
 std::vector<BenchSurfaceRow> bench_surface(Backend b, const BenchSurfaceOptions& opt, std::ostream& log);
