@@ -141,27 +141,62 @@ struct NaiveSplat {
   }
 };
 
+// presence, before pass 1 where cells are filled whole (FieldSetup::
+// mark_occupied): which of the volume's SPH cells are full. A count of
+// full_count particles alone does not make a cell full: a cell of dense
+// (settled or compressed) liquid holds that many while its top voxels lie
+// above the surface, and filling those whole lifted the surface by a voxel
+// over such cells (a flat pool rendered in terraces, docs/field.md). So a
+// cell is full when it holds full_count particles and each of its six face
+// neighbours holds face_count (liquid beyond every face: no free surface
+// crosses the cell); a face on the grid's edge counts as covered. One thread
+// per cell of the volume; the flags are indexed by the grid's cell key.
+struct FullCellFlags {
+  VolumeGeom vol;
+  GridGeom grid;
+  const uint32_t* offsets;
+  uint32_t full_count, face_count;
+  uint8_t* full;  // [grid.num_cells()], written for the volume's cells
+
+  SPHRAY_HD uint32_t num_items() const {
+    return uint32_t(vol.nx >> vol.refine) * uint32_t(vol.ny >> vol.refine) * uint32_t(vol.nz >> vol.refine);
+  }
+
+  SPHRAY_HD void operator()(uint32_t t) const {
+    const uint32_t cnx = uint32_t(vol.nx >> vol.refine), cny = uint32_t(vol.ny >> vol.refine);
+    const uint32_t x = uint32_t(vol.cell0[0]) + t % cnx, y = uint32_t(vol.cell0[1]) + (t / cnx) % cny,
+                   z = uint32_t(vol.cell0[2]) + t / (cnx * cny);
+    const uint32_t nx = uint32_t(grid.nx), ny = uint32_t(grid.ny), nz = uint32_t(grid.nz);
+    const uint32_t row = nx, plane = nx * ny, c = z * plane + y * row + x;
+    auto count = [&](uint32_t k) { return offsets[k + 1] - offsets[k]; };
+    bool f = count(c) >= full_count;
+    f = f && (x == 0 || count(c - 1) >= face_count) && (x + 1 == nx || count(c + 1) >= face_count);
+    f = f && (y == 0 || count(c - row) >= face_count) && (y + 1 == ny || count(c + row) >= face_count);
+    f = f && (z == 0 || count(c - plane) >= face_count) && (z + 1 == nz || count(c + plane) >= face_count);
+    full[c] = f ? 1 : 0;
+  }
+};
+
 // presence, pass 1 (coarse fill, Yasuda et al. sec. 4.2.1): every voxel reads
 // its SPH cell's particle count and becomes `coarse` (just above the iso
 // value) or 0; this pass also initialises the volume. With spheres at
-// refine = 0 a voxel is a cell and "holds a particle" is exactly count >= 1
-// (full_count = 1). With finer voxels a cell's count no longer says which of
-// its voxels hold particles (nor, with ellipsoids, whether the particle's own
-// voxel is inside), so only cells at least `full_count` particles full
-// (liquid at rest fills a cell with (cell / dx)^3) are filled whole; pass 2
-// marks the occupied voxels of the others.
+// refine = 0 a voxel is a cell and "holds a particle" is exactly count >= 1.
+// With finer voxels a cell's count no longer says which of its voxels hold
+// particles (nor, with ellipsoids, whether the particle's own voxel is
+// inside), so only full cells (FullCellFlags) are filled whole, with
+// `full`, and pass 2 marks the occupied voxels of the others.
 struct CoarseFill {
   VolumeGeom vol;
   GridGeom grid;
   const uint32_t* offsets;
   float coarse;  // value of an occupied cell (!marked)
   float full;    // value of a full cell (marked)
-  uint32_t full_count;
+  const uint8_t* full_cells;  // FullCellFlags (marked)
   bool marked;   // FieldSetup::mark_occupied: pass 2 follows
   float* field;
 
   // One thread per run of 2^refine voxels along x that share a cell: one
-  // count read and one index computation for all of them.
+  // read and one index computation for all of them.
   SPHRAY_HD uint32_t num_items() const { return uint32_t(vol.num_voxels() >> vol.refine); }
 
   SPHRAY_HD void operator()(uint32_t t) const {
@@ -171,7 +206,7 @@ struct CoarseFill {
     const uint32_t jk = t / runs;
     const int j = int(jk % uint32_t(vol.ny)), k = int(jk / uint32_t(vol.ny));
     const uint32_t c = vol.cell_key(grid, i0, j, k);
-    const float value = offsets[c + 1] - offsets[c] >= full_count ? (marked ? full : coarse) : 0.0f;
+    const float value = marked ? (full_cells[c] ? full : 0.0f) : (offsets[c + 1] > offsets[c] ? coarse : 0.0f);
     float* out = field + vol.index(i0, j, k);
     for (int i = 0; i < w; ++i) out[i] = value;
   }
@@ -194,45 +229,40 @@ SPHRAY_HD SPHRAY_FORCEINLINE void side_box(const VolumeGeom& vol, Vec3f u, const
   voxel_span(u.z, reach(5u), reach(4u), vol.nz, z0, z1);
 }
 
-// The presence builder's full cells (CoarseFill: at least full_count
-// particles, filled with the clip value): cover() says whether every cell
-// under a voxel box is full, so that a splat over that box would find every
-// voxel saturated (false for an empty box, or full_count 0: full cells not
-// saturated). A box of at most 2 x 2 x 2 cells reads their counts together.
+// The presence builder's full cells (FullCellFlags, filled with the clip
+// value by CoarseFill): cover() says whether every cell under a voxel box is
+// full, so that a splat over that box would find every voxel saturated
+// (false for an empty box, or without flags: full cells not saturated). A
+// box of at most 2 x 2 x 2 cells reads their flags together.
 struct FullCells {
   VolumeGeom vol;
   GridGeom grid;
-  const uint32_t* offsets;
-  uint32_t full_count;
+  const uint8_t* flags;  // FullCellFlags, or null
   SPHRAY_HD SPHRAY_FORCEINLINE bool cover(int x0, int x1, int y0, int y1, int z0, int z1) const {
-    if (full_count == 0 || x0 > x1 || y0 > y1 || z0 > z1) return false;
+    if (!flags || x0 > x1 || y0 > y1 || z0 > z1) return false;
     const int s = vol.refine;
     const int cx0 = x0 >> s, cy0 = y0 >> s, cz0 = z0 >> s, cx1 = x1 >> s, cy1 = y1 >> s, cz1 = z1 >> s;
     if (cx1 - cx0 <= 1 && cy1 - cy0 <= 1 && cz1 - cz0 <= 1) {
-      // At most 2 x 2 x 2 cells (a deep particle's box): their counts read
+      // At most 2 x 2 x 2 cells (a deep particle's box): their flags read
       // together, not one round trip after another (a cell repeats where
       // the box spans one along an axis).
-      uint32_t first[8], end[8];
+      uint8_t f[8];
       SPHRAY_UNROLL
       for (int q = 0; q < 8; ++q) {
         const int cx = cx0 + (q & 1) < cx1 ? cx0 + (q & 1) : cx1;
         const int cy = cy0 + ((q >> 1) & 1) < cy1 ? cy0 + ((q >> 1) & 1) : cy1;
         const int cz = cz0 + (q >> 2) < cz1 ? cz0 + (q >> 2) : cz1;
-        const uint32_t c = vol.cell_key(grid, cx << s, cy << s, cz << s);
-        first[q] = offsets[c];
-        end[q] = offsets[c + 1];
+        f[q] = flags[vol.cell_key(grid, cx << s, cy << s, cz << s)];
       }
       bool full = true;
       SPHRAY_UNROLL
-      for (int q = 0; q < 8; ++q) full = full && end[q] - first[q] >= full_count;
+      for (int q = 0; q < 8; ++q) full = full && f[q] != 0;
       return full;
     }
     for (int cz = z0 >> s; cz <= z1 >> s; ++cz)
       for (int cy = y0 >> s; cy <= y1 >> s; ++cy)
-        for (int cx = x0 >> s; cx <= x1 >> s; ++cx) {
-          const uint32_t c = vol.cell_key(grid, cx << s, cy << s, cz << s);
-          if (offsets[c + 1] - offsets[c] < full_count) return false;
-        }
+        for (int cx = x0 >> s; cx <= x1 >> s; ++cx)
+          if (!flags[vol.cell_key(grid, cx << s, cy << s, cz << s)]) return false;
     return true;
   }
 };
@@ -272,7 +302,7 @@ struct MarkOccupied {
 // The ellipsoids' pass (anisotropy.h: ComputeAnisotropy or
 // AnisotropyFromSums), and for the presence builder pass 2 on the ellipsoid
 // it has just computed (mark: after the coarse fill), so that the marks do
-// not read the ellipsoids back in a pass of their own. With full.offsets set
+// not read the ellipsoids back in a pass of their own. With full.flags set
 // (the presence builder, where the pass sums each neighbourhood itself:
 // ComputeAnisotropy) it first leaves out the particles whose ellipsoid,
 // whatever it turns out to be (EllipsoidBound), has its splat box (pass 3:
@@ -285,13 +315,13 @@ struct EllipsoidPass {
   Ellipsoids make;
   float* mark;  // the volume, or null: no marks (naive)
   FieldShape shape;
-  FullCells full{};          // offsets null: no particle left out (naive)
+  FullCells full{};          // flags null: no particle left out (naive)
   const float* presence = nullptr;  // [6][n] or null: full extents
   EllipsoidBound bound{};
 
   // Item t of the pass (make's order: the particle make.particle(t) of the view).
   SPHRAY_HD SPHRAY_FORCEINLINE bool buried(uint32_t t) const {
-    if (!full.offsets || full.full_count == 0) return false;
+    if (!full.flags) return false;
     const uint32_t p = make.particle(t);
     int x0, x1, y0, y1, z0, z1;
     side_box(make.vol, make.vol.to_voxels(xyz(make.pos[t])),
@@ -335,13 +365,11 @@ struct PresenceSplat {
   CounterSink sink;
   // Full cells hold the clip value (CoarseFill): a splat box that lies in full
   // cells only would find every voxel saturated, so it is skipped after
-  // reading the (at most 8, shared and cached) cell counts instead of its voxels.
-  GridGeom grid;
-  const uint32_t* offsets;
-  uint32_t full_count;  // 0: full cells are not saturated, no cell test
+  // reading the (at most 8, shared and cached) cell flags instead of its voxels.
+  FullCells full;  // flags null: full cells are not saturated, no cell test
 
   SPHRAY_HD SPHRAY_FORCEINLINE bool all_full(int x0, int x1, int y0, int y1, int z0, int z1) const {
-    return FullCells{vol, grid, offsets, full_count}.cover(x0, x1, y0, y1, z0, z1);
+    return full.cover(x0, x1, y0, y1, z0, z1);
   }
 
   // A thread's voxels in batches of kBatch: the batch's reads are issued

@@ -45,7 +45,8 @@ class FieldBuilderImpl final : public FieldBuilder {
   const FieldCounts& last_counts() const override { return counts_; }
   const float* data() const override { return raw(field_); }
   size_t device_bytes() const override {
-    return field_.size() * sizeof(float) + counters_.size() * sizeof(uint32_t) + ellipsoids_.size() * sizeof(Float4) +
+    return field_.size() * sizeof(float) + counters_.size() * sizeof(uint32_t) + full_cells_.size() +
+           ellipsoids_.size() * sizeof(Float4) +
            (aniso_keys_.size() + aniso_order_.size() + aniso_offsets_.size()) * sizeof(uint32_t) +
            aniso_pos_.size() * sizeof(Float4);
   }
@@ -71,7 +72,6 @@ class FieldBuilderImpl final : public FieldBuilder {
       sink.counts = raw(counters_);
     }
     float* f = raw(field_);
-    const uint32_t full = saturated_full_count();
     const bool aniso = setup_.aniso.on;
     if (aniso && kind == FieldKind::Gather)
       throw std::invalid_argument("field builder: the gather builder splats spheres only (anisotropic kernels: naive or presence)");
@@ -79,13 +79,22 @@ class FieldBuilderImpl final : public FieldBuilder {
     const Float4* ell = nullptr;
     if (aniso && ellipsoids_.size() < 3 * size_t(pv.n)) ellipsoids_.resize(3 * size_t(pv.n));
     clock_.start();
-    // Presence: the coarse fill first, so that the ellipsoids' pass can mark
-    // the occupied voxels (pass 2) as it computes each ellipsoid.
+    // Presence: the full cells and the coarse fill first, so that the
+    // ellipsoids' pass can mark the occupied voxels (pass 2) as it computes
+    // each ellipsoid.
+    const uint8_t* full_cells = nullptr;
     if (kind == FieldKind::Presence) {
-      const CoarseFill fill{vol, pv.grid, pv.offsets, shape.coarse, setup_.full_fill, setup_.full_count,
-                            setup_.mark_occupied, f};
+      if (setup_.mark_occupied) {
+        if (full_cells_.size() < pv.grid.num_cells()) full_cells_.resize(pv.grid.num_cells());
+        const FullCellFlags flags{vol, pv.grid, pv.offsets, setup_.full_count, setup_.face_count, raw(full_cells_)};
+        parallel_for("field_full_cells", flags.num_items(), flags);
+        full_cells = raw(full_cells_);
+      }
+      const CoarseFill fill{vol, pv.grid, pv.offsets, shape.coarse, setup_.full_fill, full_cells, setup_.mark_occupied, f};
       parallel_for("field_fill", fill.num_items(), fill);
     }
+    // The full cells are saturated where the fill wrote the clip value into them.
+    const FullCells full{vol, pv.grid, setup_.full_fill >= shape.clip ? full_cells : nullptr};
     clock_.end_of("fill");
     if (aniso) {
       float* mark = kind == FieldKind::Presence && setup_.mark_occupied ? f : nullptr;
@@ -100,7 +109,7 @@ class FieldBuilderImpl final : public FieldBuilder {
         // leaves out the particles deep in full cells first (from the solver's
         // sums the ellipsoid costs less than that test: docs/field.md).
         const bool leave_out = kind == FieldKind::Presence && setup_.leave_out_buried;
-        const FullCells cells{vol, pv.grid, leave_out ? pv.offsets : nullptr, full};
+        const FullCells cells{vol, pv.grid, leave_out ? full.flags : nullptr};
         const GridGeom ag = sort_for_anisotropy(pv);
         parallel_for("field_anisotropy", pv.n,
                      EllipsoidPass<ComputeAnisotropy>{
@@ -123,7 +132,7 @@ class FieldBuilderImpl final : public FieldBuilder {
           parallel_for("field_mark_occupied", pv.n, MarkOccupied{vol, shape, pv.pos, pv.n, f});
         launch_variant("presence_splat", items, count, group, aniso, [&](auto c, auto g, auto a) {
           return PresenceSplat<decltype(c)::value, decltype(g)::value, decltype(a)::value>{
-              vol, shape, pv.pos, ell, pv.presence, pv.n, f, sink, pv.grid, pv.offsets, full};
+              vol, shape, pv.pos, ell, pv.presence, pv.n, f, sink, full};
         });
         break;
       case FieldKind::Gather:
@@ -189,15 +198,11 @@ class FieldBuilderImpl final : public FieldBuilder {
     return g;
   }
 
-  // Full cells are saturated when the coarse fill writes the clip value into them (mark_occupied).
-  uint32_t saturated_full_count() const {
-    return setup_.mark_occupied && setup_.full_fill >= setup_.shape.clip ? setup_.full_count : 0u;
-  }
-
   FieldSetup setup_;
   FieldKind kind_;
   Vector<float> field_;
   Vector<uint32_t> counters_;
+  Vector<uint8_t> full_cells_;  // FullCellFlags (presence, mark_occupied)
   Vector<Float4> ellipsoids_;  // [3][n] (anisotropic kernels)
   Vector<uint32_t> aniso_keys_, aniso_order_, aniso_offsets_;  // sort_for_anisotropy
   Vector<Float4> aniso_pos_;

@@ -438,6 +438,56 @@ TEST_CASE("an ellipsoid's splat box lies within its bound, whatever the settings
   }
 }
 
+TEST_CASE("a cell full by count under a surface is not filled whole: a dense pool classifies as naive", "[field]") {
+  // Layers 0.93 spacings apart (a compressed liquid): four of them fill a
+  // cell by count (64 >= full_count) with the cell's top voxel above the
+  // surface. The pool's top is put at several places within a cell; the
+  // presence builder without presence must classify every voxel as the naive
+  // one does, and the cells full by count under the surface must be among
+  // those it does not fill whole.
+  const Scene s = aniso_scene();
+  const FieldSetup fs = make_field_setup(resolve_scene(s));
+  REQUIRE(fs.mark_occupied);
+  REQUIRE(fs.full_count <= 64u);
+  const GridGeom grid = measure_scene(s).grid;
+  const double dx = s.sph.spacing, a = 0.93 * dx, cell = grid.cell_size;
+  std::mt19937 rng(31);
+  std::uniform_real_distribution<double> jit(-0.05 * dx, 0.05 * dx);
+  size_t surface_cells = 0, interior_cells = 0;
+  for (double top_in_cell : {0.55, 0.65, 0.72, 0.8, 0.9}) {
+    // The top layer at that fraction of the cell above the tank's floor's third cell.
+    const double z0 = grid.origin.z + 3 * cell + top_in_cell * cell;
+    std::vector<Vec3f> pts;
+    for (double z = z0; z > 0.5 * a; z -= a)
+      for (int j = 0; j < 20; ++j)
+        for (int i = 0; i < 40; ++i)
+          pts.push_back({float((i + 0.5) * dx + jit(rng)), float((j + 0.5) * dx + jit(rng)), float(z + jit(rng))});
+    const HostParticleSet ps(grid, pts);
+    const ParticleView v = ps.view();
+    std::vector<uint8_t> flags(grid.num_cells(), 0);
+    const FullCellFlags flag{fs.geom, grid, v.offsets, fs.full_count, fs.face_count, flags.data()};
+    for (uint32_t t = 0; t < flag.num_items(); ++t) flag(t);
+    for (uint32_t c = 0; c < grid.num_cells(); ++c) {
+      const bool by_count = v.offsets[c + 1] - v.offsets[c] >= fs.full_count;
+      surface_cells += by_count && !flags[c];
+      interior_cells += flags[c];
+    }
+    const std::vector<float> naive = test::cpu_field(fs, v, FieldKind::Naive);
+    const std::vector<float> pres = test::cpu_field(fs, v, FieldKind::Presence);
+    size_t differ = 0, inside = 0;
+    for (size_t q = 0; q < naive.size(); ++q) {
+      differ += (naive[q] >= fs.shape.iso) != (pres[q] >= fs.shape.iso);
+      inside += naive[q] >= fs.shape.iso;
+    }
+    INFO("top at " << top_in_cell << " of a cell: " << differ << " of " << inside << " inside voxels differ");
+    CHECK(inside > 5000);
+    CHECK(differ == 0);
+  }
+  INFO(surface_cells << " cells full by count and not filled, " << interior_cells << " filled");
+  CHECK(surface_cells > 0);   // the case arises
+  CHECK(interior_cells > 0);  // and full cells are still filled
+}
+
 TEST_CASE("the presence builder leaves out particles deep in full cells, and its field stays the same", "[field]") {
   // A clip no voxel outside the full cells reaches, so that the sums there
   // are compared, not clipped. (A bound a little too small would still pass
@@ -459,11 +509,15 @@ TEST_CASE("the presence builder leaves out particles deep in full cells, and its
 
   // Which particles the ellipsoids' pass leaves out (after the coarse fill, as in a build).
   std::vector<float> field(size_t(fs.geom.num_voxels()), 0.0f);
-  const uint32_t full = fs.full_fill >= fs.shape.clip ? fs.full_count : 0u;
-  REQUIRE(full > 0);
+  REQUIRE(fs.full_fill >= fs.shape.clip);
+  std::vector<uint8_t> flags(v.grid.num_cells(), 0);
+  const FullCellFlags flag{fs.geom, v.grid, v.offsets, fs.full_count, fs.face_count, flags.data()};
+  for (uint32_t t = 0; t < flag.num_items(); ++t) flag(t);
+  const CoarseFill fill{fs.geom, v.grid, v.offsets, fs.shape.coarse, fs.full_fill, flags.data(), true, field.data()};
+  for (uint32_t t = 0; t < fill.num_items(); ++t) fill(t);
   std::vector<Float4> ell(3 * size_t(v.n));
   const EllipsoidPass<ComputeAnisotropy> pass{{v.grid, v.fine_offsets, v.pos, nullptr, v.n, fs.geom, fs.aniso, ell.data()},
-                                              field.data(), fs.shape, FullCells{fs.geom, v.grid, v.offsets, full},
+                                              field.data(), fs.shape, FullCells{fs.geom, v.grid, flags.data()},
                                               v.presence, EllipsoidBound::of(fs.aniso, fs.geom)};
   uint32_t buried = 0;
   for (uint32_t p = 0; p < v.n; ++p) buried += pass.buried(p);
