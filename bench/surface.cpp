@@ -143,6 +143,8 @@ std::vector<BenchSurfaceRow> bench_surface(Backend b, const BenchSurfaceOptions&
       row.refine = refine;
       row.voxel_dx = fs.geom.voxel / dx;
       row.pool_particles = pool->num_fluid();
+      row.pool_cells = cells;
+      row.pool_layers = layers;
       row.sphere_particles = ball.size();
       row.sheet_particles = sheet.size();
       const ParticleView pv = pool->view();
@@ -199,6 +201,8 @@ nlohmann::json to_json(const std::vector<BenchSurfaceRow>& rows, Backend b, cons
                          {"refine", r.refine},
                          {"voxel_in_spacings", r.voxel_dx},
                          {"particles", {{"pool", r.pool_particles}, {"sphere", r.sphere_particles}, {"sheet", r.sheet_particles}}},
+                         {"pool_cells", r.pool_cells},
+                         {"pool_layers", r.pool_layers},
                          {"build_ms", r.build_ms},
                          {"anisotropy_ms", r.anisotropy_ms},
                          {"pool", err(r.pool)},

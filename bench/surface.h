@@ -33,6 +33,7 @@ struct BenchSurfaceRow {
   int refine = 0;
   double voxel_dx = 0;  // voxel edge in particle spacings
   size_t pool_particles = 0, sphere_particles = 0, sheet_particles = 0;
+  int pool_cells = 0, pool_layers = 0;  // the pool's width and depth in particles (the options resolved)
   double build_ms = 0, anisotropy_ms = 0;  // pool field, presence builder: median, and its covariance pass
   SurfaceError pool, sphere;               // distances in particle spacings
   // The pool against the plane half a spacing above its top layer of

@@ -614,6 +614,10 @@ TEST_CASE("anisotropic kernels make a flatter, truer pool surface and a truer ba
   }
   REQUIRE(iso);
   REQUIRE(an);
+  // The JSON says which pool it measured (the depth defaults to half the width).
+  const nlohmann::json j = to_json(rows, Backend::Cpu, opt);
+  CHECK(j["rows"][0]["pool_cells"] == 24);
+  CHECK(j["rows"][0]["pool_layers"] == 12);
   print_table(rows, log);
   INFO(log.str());
   CHECK(an->pool.rms_angle_deg < 0.5 * iso->pool.rms_angle_deg);
