@@ -145,8 +145,8 @@ struct NaiveSplat {
 // mark_occupied): which of the volume's SPH cells are full. A count of
 // full_count particles alone does not make a cell full: a cell of dense
 // (settled or compressed) liquid holds that many while its top voxels lie
-// above the surface, and filling those whole lifted the surface by a voxel
-// over such cells (a flat pool rendered in terraces, docs/field.md). So a
+// above the surface, and filling those whole would put the surface a voxel
+// above the liquid over such cells (a flat pool in terraces, docs/field.md). So a
 // cell is full when it holds full_count particles and each of its six face
 // neighbours holds face_count (liquid beyond every face: no free surface
 // crosses the cell); a face on the grid's edge counts as covered. One thread

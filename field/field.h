@@ -17,9 +17,10 @@ namespace sphray {
 struct FieldSetup {
   VolumeGeom geom;
   FieldShape shape;
-  uint32_t full_count = 1;  // coarse fill: a cell with at least this many particles is filled whole ...
-  uint32_t face_count = 1;  // ... when each face neighbour holds this many (FullCellFlags; mark_occupied)
-  float full_fill = 0;      // ... with this value (when mark_occupied)
+  // Where mark_occupied: a cell with at least full_count particles whose face
+  // neighbours each hold face_count is filled whole (FullCellFlags) with full_fill.
+  uint32_t full_count = 1, face_count = 1;
+  float full_fill = 0;
   // The presence builder marks the voxel of each particle after the coarse
   // fill (refine > 0, or anisotropic kernels); otherwise (refine 0, spheres)
   // any occupied cell is just inside (the paper's rule).

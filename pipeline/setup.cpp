@@ -684,7 +684,7 @@ FieldSetup make_field_setup(const ResolvedScene& r) {
   // is thinner than a voxel): only full cells are filled, and each particle's
   // voxel is marked only where its own kernel reaches the iso value there.
   out.mark_occupied = f.refine > 0 || an.on;
-  out.full_count = !out.mark_occupied ? 1u : uint32_t(std::max(1.0, std::ceil(f.full_fraction * per_cell - 1e-9)));
+  out.full_count = uint32_t(std::max(1.0, std::ceil(f.full_fraction * per_cell - 1e-9)));
   // Liquid beyond every face of a full cell: a quarter of a cell at rest,
   // whose surface then lies at least a voxel (at refine 2) beyond the face.
   out.face_count = uint32_t(std::max(1.0, std::ceil(0.25 * per_cell - 1e-9)));

@@ -455,7 +455,7 @@ TEST_CASE("a cell full by count under a surface is not filled whole: a dense poo
   std::uniform_real_distribution<double> jit(-0.05 * dx, 0.05 * dx);
   size_t surface_cells = 0, interior_cells = 0;
   for (double top_in_cell : {0.55, 0.65, 0.72, 0.8, 0.9}) {
-    // The top layer at that fraction of the cell above the tank's floor's third cell.
+    // The top layer at that fraction of the grid's fourth layer of cells.
     const double z0 = grid.origin.z + 3 * cell + top_in_cell * cell;
     std::vector<Vec3f> pts;
     for (double z = z0; z > 0.5 * a; z -= a)
