@@ -319,10 +319,9 @@ struct EllipsoidPass {
   const float* presence = nullptr;  // [6][n] or null: full extents
   EllipsoidBound bound{};
 
-  // Item t of the pass (make's order: the particle make.particle(t) of the view).
-  SPHRAY_HD SPHRAY_FORCEINLINE bool buried(uint32_t t) const {
+  // Item t of the pass (make's order), particle p = make.particle(t) of the view.
+  SPHRAY_HD SPHRAY_FORCEINLINE bool buried(uint32_t t, uint32_t p) const {
     if (!full.flags) return false;
-    const uint32_t p = make.particle(t);
     int x0, x1, y0, y1, z0, z1;
     side_box(make.vol, make.vol.to_voxels(xyz(make.pos[t])),
              [&](uint32_t d) { return bound.reach(side_extent(shape, presence, make.n, p, d)); }, x0, x1, y0, y1, z0,
@@ -332,7 +331,7 @@ struct EllipsoidPass {
 
   SPHRAY_HD void operator()(uint32_t t) const {
     const uint32_t p = make.particle(t);
-    if (buried(t)) {
+    if (buried(t, p)) {
       Ellipsoid::store_buried(make.out, p);
       return;
     }
@@ -368,10 +367,6 @@ struct PresenceSplat {
   // reading the (at most 8, shared and cached) cell flags instead of its voxels.
   FullCells full;  // flags null: full cells are not saturated, no cell test
 
-  SPHRAY_HD SPHRAY_FORCEINLINE bool all_full(int x0, int x1, int y0, int y1, int z0, int z1) const {
-    return full.cover(x0, x1, y0, y1, z0, z1);
-  }
-
   // A thread's voxels in batches of kBatch: the batch's reads are issued
   // together, then its adds, then its take-backs, so that the thread waits
   // for each kind of round trip once per batch instead of once per voxel.
@@ -397,7 +392,7 @@ struct PresenceSplat {
     side_box(vol, u, [&](uint32_t d) { return kn.reach(int(d / 2), side_extent(shape, presence, n, p, d)); }, x0, x1,
              y0, y1, z0, z1);
     uint32_t pairs = 0, touched = 0, atomics = 0, skipped = 0;
-    if (!all_full(x0, x1, y0, y1, z0, z1)) {
+    if (!full.cover(x0, x1, y0, y1, z0, z1)) {
       const VoxelBox box(x0, x1, y0, y1, z0, z1);
       for (uint32_t base = lane; base < box.count; base += uint32_t(G * kBatch)) {
         float* cell[kBatch];

@@ -438,6 +438,14 @@ TEST_CASE("an ellipsoid's splat box lies within its bound, whatever the settings
   }
 }
 
+// The presence builder's full-cell flags (FullCellFlags) of a view, on the host.
+static std::vector<uint8_t> full_cell_flags(const FieldSetup& fs, const ParticleView& v) {
+  std::vector<uint8_t> flags(v.grid.num_cells(), 0);
+  const FullCellFlags flag{fs.geom, v.grid, v.offsets, fs.full_count, fs.face_count, flags.data()};
+  for (uint32_t t = 0; t < flag.num_items(); ++t) flag(t);
+  return flags;
+}
+
 TEST_CASE("a cell full by count under a surface is not filled whole: a dense pool classifies as naive", "[field]") {
   // Layers 0.93 spacings apart (a compressed liquid): four of them fill a
   // cell by count (64 >= full_count) with the cell's top voxel above the
@@ -464,9 +472,7 @@ TEST_CASE("a cell full by count under a surface is not filled whole: a dense poo
           pts.push_back({float((i + 0.5) * dx + jit(rng)), float((j + 0.5) * dx + jit(rng)), float(z + jit(rng))});
     const HostParticleSet ps(grid, pts);
     const ParticleView v = ps.view();
-    std::vector<uint8_t> flags(grid.num_cells(), 0);
-    const FullCellFlags flag{fs.geom, grid, v.offsets, fs.full_count, fs.face_count, flags.data()};
-    for (uint32_t t = 0; t < flag.num_items(); ++t) flag(t);
+    const std::vector<uint8_t> flags = full_cell_flags(fs, v);
     for (uint32_t c = 0; c < grid.num_cells(); ++c) {
       const bool by_count = v.offsets[c + 1] - v.offsets[c] >= fs.full_count;
       surface_cells += by_count && !flags[c];
@@ -510,9 +516,7 @@ TEST_CASE("the presence builder leaves out particles deep in full cells, and its
   // Which particles the ellipsoids' pass leaves out (after the coarse fill, as in a build).
   std::vector<float> field(size_t(fs.geom.num_voxels()), 0.0f);
   REQUIRE(fs.full_fill >= fs.shape.clip);
-  std::vector<uint8_t> flags(v.grid.num_cells(), 0);
-  const FullCellFlags flag{fs.geom, v.grid, v.offsets, fs.full_count, fs.face_count, flags.data()};
-  for (uint32_t t = 0; t < flag.num_items(); ++t) flag(t);
+  const std::vector<uint8_t> flags = full_cell_flags(fs, v);
   const CoarseFill fill{fs.geom, v.grid, v.offsets, fs.shape.coarse, fs.full_fill, flags.data(), true, field.data()};
   for (uint32_t t = 0; t < fill.num_items(); ++t) fill(t);
   std::vector<Float4> ell(3 * size_t(v.n));
@@ -520,7 +524,7 @@ TEST_CASE("the presence builder leaves out particles deep in full cells, and its
                                               field.data(), fs.shape, FullCells{fs.geom, v.grid, flags.data()},
                                               v.presence, EllipsoidBound::of(fs.aniso, fs.geom)};
   uint32_t buried = 0;
-  for (uint32_t p = 0; p < v.n; ++p) buried += pass.buried(p);
+  for (uint32_t t = 0; t < v.n; ++t) buried += pass.buried(t, pass.make.particle(t));
   INFO(buried << " of " << v.n << " particles left out");
   CHECK(buried > v.n / 20);
   CHECK(buried < v.n / 2);
