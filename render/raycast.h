@@ -8,7 +8,7 @@
 //     jumping over bricks the surface cannot cross (occupancy below);
 //  2. at a sign change of f - iso, refine between the last two samples: linear
 //     interpolation, then secant (regula falsi) steps that keep the bracket;
-//  3. normal from the central-difference gradient of the trilinear field;
+//  3. normal from central differences of the field one voxel each way;
 //  4. split with Schlick's Fresnel (Schlick 1994) into a reflected and a
 //     refracted (Snell, index `ior`) branch; a ray that cannot leave (total
 //     internal reflection) is reflected whole. Without `reflections` the
@@ -61,11 +61,16 @@ struct TrilinearField {
   }
 };
 
-// Outward unit normal (toward lower field) at u: the central-difference
-// gradient of the field, half a voxel each way; zero where it is flat.
+// Outward unit normal (toward lower field) at u: central differences of the
+// field one voxel each way; zero where it is flat. On the trilinear field
+// that is the grid's central differences at the voxel centres, interpolated
+// trilinearly (the usual gradient of volume rendering): it varies smoothly
+// across voxel faces, where the trilinear field's own gradient (half a voxel
+// each way) jumps, which shows a coarse field's voxels in the shading
+// (docs/rendering.md, "Per ray").
 template <class Field>
 SPHRAY_HD SPHRAY_FORCEINLINE Vec3f field_normal(const Field& field, Vec3f u) {
-  const float h = 0.5f;
+  const float h = 1.0f;
   const Vec3f gr{field(u + Vec3f{h, 0, 0}) - field(u - Vec3f{h, 0, 0}),
                  field(u + Vec3f{0, h, 0}) - field(u - Vec3f{0, h, 0}),
                  field(u + Vec3f{0, 0, h}) - field(u - Vec3f{0, 0, h})};

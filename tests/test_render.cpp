@@ -497,10 +497,13 @@ TEST_CASE("the weights of one pixel sum to 1: absorbed shares, reflections and b
   }
 }
 
-TEST_CASE("reflections: the budget converges to every branch, the slots do not limit it", "[render]") {
+TEST_CASE("reflections: the budget converges to every branch; 16 slots hold every branch at budgets up to 16", "[render]") {
   // Every branch to 8 interfaces (at most 255 per pixel) with the renderer's
-  // 16 waiting slots against 256 slots (never full): the same pixel. And the
-  // error against it falls as the budget grows.
+  // 16 waiting slots against 256 slots (never full). At the default budget
+  // (8) and at 16 the slots never fill: the same pixel. On the whole tree
+  // they may (when full, the weakest branch takes the environment): here 2
+  // of 600 rays, of 98 and 120 interfaces, change by 1.3 levels of 255 and
+  // less. And the error against the whole tree falls as the budget grows.
   const Clusters cl;
   TraceSettings full{cl.fs.shape.iso, 0.5f, 8, 1.33f, Rgb{0.02f, 0.01f, 0.005f}, 3};
   full.reflections = true;
@@ -508,21 +511,37 @@ TEST_CASE("reflections: the budget converges to every branch, the slots do not l
   full.tint = Rgb{0.1f, 0.3f, 0.4f};
   const auto reference = cl.tracer<256>(full);
   const auto renderer_slots = cl.tracer(full);
+  auto difference = [](Rgb a, Rgb b) {
+    return std::max({double(std::abs(a.r - b.r)), double(std::abs(a.g - b.g)), double(std::abs(a.b - b.b))});
+  };
   std::mt19937 rng(11);
   std::vector<Vec3f> os, ds;
   std::vector<Rgb> ref;
   double slots_error = 0;
+  int slots_differ = 0;
   for (int r = 0; r < 600; ++r) {
     Vec3f o, d;
     cl.random_ray(rng, o, d);
     os.push_back(o);
     ds.push_back(d);
     ref.push_back(reference.trace(o, d));
-    const Rgb c = renderer_slots.trace(o, d);
-    slots_error = std::max({slots_error, double(std::abs(c.r - ref.back().r)), double(std::abs(c.g - ref.back().g)),
-                            double(std::abs(c.b - ref.back().b))});
+    const double e = difference(renderer_slots.trace(o, d), ref.back());
+    slots_error = std::max(slots_error, e);
+    slots_differ += e >= 1e-4;
   }
-  CHECK(slots_error < 1e-4);
+  INFO("whole tree: " << slots_differ << " of 600 pixels differ with 16 slots, by at most " << slots_error);
+  CHECK(slots_differ <= 6);
+  CHECK(slots_error < 2.0 / 255);
+  for (int budget : {8, 16}) {
+    TraceSettings ts = full;
+    ts.budget = budget;
+    const auto wide = cl.tracer<256>(ts);
+    const auto slots = cl.tracer(ts);
+    double worst = 0;
+    for (size_t r = 0; r < os.size(); ++r) worst = std::max(worst, difference(slots.trace(os[r], ds[r]), wide.trace(os[r], ds[r])));
+    INFO("budget " << budget << ": 16 slots against 256, largest difference " << worst);
+    CHECK(worst < 1e-4);
+  }
   std::vector<double> errors;
   for (int budget : {0, 2, 4, 8, 16, 64}) {
     TraceSettings ts = full;
@@ -540,7 +559,8 @@ TEST_CASE("reflections: the budget converges to every branch, the slots do not l
     CHECK(std::isfinite(errors.back()));
     if (errors.size() > 1) CHECK(errors.back() <= errors[errors.size() - 2] + 1e-6);
   }
-  // (measured: 0.0066 without reflections, 0.0023, 0.0008, 0.00016 at budgets 2, 4, 8; the floor is min_weight's)
+  // (measured: 0.0060 without reflections, 0.0025, 0.0014, 0.0008, 0.0003, 0.0001 at budgets 2, 4, 8, 16, 64;
+  // the floor is min_weight's)
   CHECK(errors.back() < 0.05 * errors.front());
 }
 
