@@ -189,10 +189,11 @@ struct CoarseFill {
   VolumeGeom vol;
   GridGeom grid;
   const uint32_t* offsets;
-  float coarse;  // value of an occupied cell (!marked)
-  float full;    // value of a full cell (marked)
-  const uint8_t* full_cells;  // FullCellFlags (marked)
-  bool marked;   // FieldSetup::mark_occupied: pass 2 follows
+  float coarse;  // value of an occupied cell (no flags)
+  float full;    // value of a full cell (flags)
+  // FullCellFlags where FieldSetup::mark_occupied (pass 2 follows), else null:
+  // every occupied cell is `coarse`.
+  const uint8_t* full_cells;
   float* field;
 
   // One thread per run of 2^refine voxels along x that share a cell: one
@@ -206,7 +207,7 @@ struct CoarseFill {
     const uint32_t jk = t / runs;
     const int j = int(jk % uint32_t(vol.ny)), k = int(jk / uint32_t(vol.ny));
     const uint32_t c = vol.cell_key(grid, i0, j, k);
-    const float value = marked ? (full_cells[c] ? full : 0.0f) : (offsets[c + 1] > offsets[c] ? coarse : 0.0f);
+    const float value = full_cells ? (full_cells[c] ? full : 0.0f) : (offsets[c + 1] > offsets[c] ? coarse : 0.0f);
     float* out = field + vol.index(i0, j, k);
     for (int i = 0; i < w; ++i) out[i] = value;
   }

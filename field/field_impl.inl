@@ -90,7 +90,7 @@ class FieldBuilderImpl final : public FieldBuilder {
         parallel_for("field_full_cells", flags.num_items(), flags);
         full_cells = raw(full_cells_);
       }
-      const CoarseFill fill{vol, pv.grid, pv.offsets, shape.coarse, setup_.full_fill, full_cells, setup_.mark_occupied, f};
+      const CoarseFill fill{vol, pv.grid, pv.offsets, shape.coarse, setup_.full_fill, full_cells, f};
       parallel_for("field_fill", fill.num_items(), fill);
     }
     // The full cells are saturated where the fill wrote the clip value into them.

@@ -517,7 +517,7 @@ TEST_CASE("the presence builder leaves out particles deep in full cells, and its
   std::vector<float> field(size_t(fs.geom.num_voxels()), 0.0f);
   REQUIRE(fs.full_fill >= fs.shape.clip);
   const std::vector<uint8_t> flags = full_cell_flags(fs, v);
-  const CoarseFill fill{fs.geom, v.grid, v.offsets, fs.shape.coarse, fs.full_fill, flags.data(), true, field.data()};
+  const CoarseFill fill{fs.geom, v.grid, v.offsets, fs.shape.coarse, fs.full_fill, flags.data(), field.data()};
   for (uint32_t t = 0; t < fill.num_items(); ++t) fill(t);
   std::vector<Float4> ell(3 * size_t(v.n));
   const EllipsoidPass<ComputeAnisotropy> pass{{v.grid, v.fine_offsets, v.pos, nullptr, v.n, fs.geom, fs.aniso, ell.data()},
