@@ -106,6 +106,7 @@ std::vector<BenchFieldRow> bench_field(Backend b, const BenchFieldOptions& opt, 
     for (const Variant& v : variants) {
       if (b == Backend::Cpu && v.gpu_layout) continue;
       if (setup.aniso.on && v.kind == FieldKind::Gather) continue;  // spheres only
+      if (setup.zhu_bridson.on && v.kind != FieldKind::Gather) continue;  // built by the gather builder only
       ParticleView view = pv;
       if (!v.presence) view.presence = nullptr;
       std::unique_ptr<FieldBuilder>& builder = builders[int(v.kind)];

@@ -131,15 +131,16 @@ std::vector<BenchSurfaceRow> bench_surface(Backend b, const BenchSurfaceOptions&
   sheet_solver->step(1e-4);
 
   std::vector<BenchSurfaceRow> rows;
-  for (FieldKernel kernel : {FieldKernel::Isotropic, FieldKernel::Anisotropic})
+  for (FieldKernel kernel : {FieldKernel::Isotropic, FieldKernel::Anisotropic, FieldKernel::ZhuBridson})
     for (int refine : {0, 1, 2}) {
       ResolvedScene r = rs;
       r.scene.field.refine = refine;
       r.scene.field.kernel = kernel;
       const FieldSetup fs = make_field_setup(r);
-      auto builder = make_field_builder(b, fs, FieldKind::Presence);
+      // Zhu & Bridson's surface has the gather builder alone.
+      auto builder = make_field_builder(b, fs, fs.zhu_bridson.on ? FieldKind::Gather : FieldKind::Presence);
       BenchSurfaceRow row;
-      row.kernel = kernel == FieldKernel::Anisotropic ? "anisotropic" : "isotropic";
+      row.kernel = field_kernel_name(kernel);
       row.refine = refine;
       row.voxel_dx = fs.geom.voxel / dx;
       row.pool_particles = pool->num_fluid();
@@ -175,7 +176,7 @@ std::vector<BenchSurfaceRow> bench_surface(Backend b, const BenchSurfaceOptions&
       const double in = (edge + 4) * dx;
       row.sheet = sheet_holes(builder->download(), fs.geom, iso, {in, in, c.z - 4 * dx}, {L - in, L - in, c.z + 4 * dx},
                               0.25 * dx);
-      log << "    " << std::setw(11) << row.kernel << " refine " << refine << ": " << std::fixed << std::setprecision(3)
+      log << "    " << std::setw(12) << row.kernel << " refine " << refine << ": " << std::fixed << std::setprecision(3)
           << row.build_ms << " ms\n" << std::defaultfloat;
       log.flush();
       rows.push_back(row);
@@ -214,12 +215,12 @@ nlohmann::json to_json(const std::vector<BenchSurfaceRow>& rows, Backend b, cons
 }
 
 void print_table(const std::vector<BenchSurfaceRow>& rows, std::ostream& out) {
-  out << std::setw(12) << "kernel" << std::setw(7) << "refine" << std::setw(7) << "voxel" << std::setw(9) << "ms"
+  out << std::setw(13) << "kernel" << std::setw(7) << "refine" << std::setw(7) << "voxel" << std::setw(9) << "ms"
       << std::setw(10) << "pool h" << std::setw(9) << "(mean)" << std::setw(9) << "layer h" << std::setw(9) << "(mean)"
       << std::setw(9) << "tilt" << std::setw(10) << "ball r"
       << std::setw(9) << "(mean)" << std::setw(9) << "normal" << std::setw(9) << "holes%" << "\n";
   for (const auto& r : rows)
-    out << std::setw(12) << r.kernel << std::setw(7) << r.refine << std::fixed << std::setprecision(2) << std::setw(7)
+    out << std::setw(13) << r.kernel << std::setw(7) << r.refine << std::fixed << std::setprecision(2) << std::setw(7)
         << r.voxel_dx << std::setprecision(3) << std::setw(9) << r.build_ms << std::setw(10) << r.pool.rms_distance
         << std::setw(9) << r.pool.mean_distance << std::setw(9) << r.pool_layer.rms_distance << std::setw(9)
         << r.pool_layer.mean_distance << std::setprecision(2) << std::setw(9) << r.pool.rms_angle_deg
@@ -229,7 +230,8 @@ void print_table(const std::vector<BenchSurfaceRow>& rows, std::ostream& out) {
   out << "  (voxel edge, pool height and ball radius errors in particle spacings, RMS and mean (+: outside); layer h:\n"
          "   the pool against the plane half a spacing above its top layer of particles; tilt\n"
          "   and normal: RMS angle from the true normal [degrees]; holes: share of rays through the two-particle sheet\n"
-         "   that meet no liquid; ms: median presence-builder time on the pool, covariance pass included)\n";
+         "   that meet no liquid; ms: median build time on the pool, by the presence builder with the covariance pass\n"
+         "   included, zhu_bridson by the gather builder)\n";
 }
 
 }  // namespace sphray

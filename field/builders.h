@@ -445,6 +445,29 @@ struct PresenceSplat {
   }
 };
 
+// The particles q of the SPH cells that the cube of half-width R around the
+// centre (cx, cy, cz) of a voxel overlaps, each row of cells one contiguous
+// range of the sort (in voxel units): fn(q) for each.
+template <class Fn>
+SPHRAY_HD SPHRAY_FORCEINLINE void for_each_particle_near(const VolumeGeom& vol, const GridGeom& grid,
+                                                         const uint32_t* offsets, float cx, float cy, float cz, float R,
+                                                         Fn&& fn) {
+  const float per = float(1 << vol.refine);
+  auto cell_of = [&](float c, int axis) { return vol.cell0[axis] + int(std::floor(c / per)); };
+  const int gx0 = cell_of(cx - R, 0) < 0 ? 0 : cell_of(cx - R, 0);
+  const int gx1 = cell_of(cx + R, 0) >= grid.nx ? grid.nx - 1 : cell_of(cx + R, 0);
+  const int gy0 = cell_of(cy - R, 1) < 0 ? 0 : cell_of(cy - R, 1);
+  const int gy1 = cell_of(cy + R, 1) >= grid.ny ? grid.ny - 1 : cell_of(cy + R, 1);
+  const int gz0 = cell_of(cz - R, 2) < 0 ? 0 : cell_of(cz - R, 2);
+  const int gz1 = cell_of(cz + R, 2) >= grid.nz ? grid.nz - 1 : cell_of(cz + R, 2);
+  for (int z = gz0; z <= gz1; ++z)
+    for (int y = gy0; y <= gy1; ++y) {
+      const uint32_t row = (uint32_t(z) * uint32_t(grid.ny) + uint32_t(y)) * uint32_t(grid.nx);
+      const uint32_t end = offsets[row + uint32_t(gx1) + 1u];
+      for (uint32_t q = offsets[row + uint32_t(gx0)]; q < end; ++q) fn(q);
+    }
+}
+
 // gather: one thread per voxel sums the falloff of the particles stored in the
 // SPH cells that its sphere of radius R overlaps; plain stores, no atomics,
 // no zeroing. It computes the naive field (up to summation order).
@@ -461,32 +484,70 @@ struct GatherField {
   SPHRAY_HD void operator()(uint32_t v) const {
     int i, j, k;
     voxel_coords(vol, v, i, j, k);
-    const float R = shape.radius;
-    // Cells overlapped by the cube [centre - R, centre + R] (in voxels, then cells).
     const float cx = float(i) + 0.5f, cy = float(j) + 0.5f, cz = float(k) + 0.5f;
-    const float per = float(1 << vol.refine);
-    auto cell_of = [&](float c, int axis) { return vol.cell0[axis] + int(std::floor(c / per)); };
-    const int gx0 = cell_of(cx - R, 0) < 0 ? 0 : cell_of(cx - R, 0);
-    const int gx1 = cell_of(cx + R, 0) >= grid.nx ? grid.nx - 1 : cell_of(cx + R, 0);
-    const int gy0 = cell_of(cy - R, 1) < 0 ? 0 : cell_of(cy - R, 1);
-    const int gy1 = cell_of(cy + R, 1) >= grid.ny ? grid.ny - 1 : cell_of(cy + R, 1);
-    const int gz0 = cell_of(cz - R, 2) < 0 ? 0 : cell_of(cz - R, 2);
-    const int gz1 = cell_of(cz + R, 2) >= grid.nz ? grid.nz - 1 : cell_of(cz + R, 2);
     float sum = 0.0f;
     uint32_t pairs = 0;
-    for (int z = gz0; z <= gz1; ++z)
-      for (int y = gy0; y <= gy1; ++y) {
-        const uint32_t row = (uint32_t(z) * uint32_t(grid.ny) + uint32_t(y)) * uint32_t(grid.nx);
-        const uint32_t end = offsets[row + uint32_t(gx1) + 1u];
-        for (uint32_t q = offsets[row + uint32_t(gx0)]; q < end; ++q) {
-          const Vec3f u = vol.to_voxels(xyz(pos[q]));
-          const float dx = cx - u.x, dy = cy - u.y, dz = cz - u.z;
-          const float r2 = dx * dx + dy * dy + dz * dz;
-          if (Count) ++pairs;
-          sum += shape.falloff(r2);
-        }
-      }
+    for_each_particle_near(vol, grid, offsets, cx, cy, cz, shape.radius, [&](uint32_t q) {
+      const Vec3f u = vol.to_voxels(xyz(pos[q]));
+      const float dx = cx - u.x, dy = cy - u.y, dz = cz - u.z;
+      if (Count) ++pairs;
+      sum += shape.falloff(dx * dx + dy * dy + dz * dz);
+    });
     field[v] = sum;
+    if (Count) sink.put(v, pairs, 1, 0, 0);
+  }
+};
+
+// Zhu & Bridson's surface ("Animating Sand as a Fluid", 2005), built by the
+// gather builder: at each voxel centre x the particles within R give their
+// weighted mean position m = sum_i k_i x_i / sum_i k_i, k_i = (1 - |x -
+// x_i|^2 / R^2)^3, and phi(x) = |x - m| - r, negative inside. A lone
+// particle is a ball of radius r; over a flat surface m follows the top
+// layers, so phi moves with them continuously, and with slope about 1 it is
+// resolved at any place of the surface within its voxel (a sum of
+// metaballs steps from saturated to empty within a voxel there: docs/field.md).
+// Stored as iso (1 - phi / (R - r)), clamped to [0, clip]: the surface is at
+// iso, and the value falls to 0 where a lone particle's support ends, so the
+// field is continuous as particles enter and leave a voxel's reach
+// (ZhuBridsonParams: volume.h).
+template <bool Count>
+struct ZhuBridsonGather {
+  VolumeGeom vol;
+  GridGeom grid;
+  FieldShape shape;
+  ZhuBridsonParams zb;
+  const uint32_t* offsets;
+  const Float4* pos;
+  float* field;
+  CounterSink sink;
+
+  SPHRAY_HD void operator()(uint32_t v) const {
+    int i, j, k;
+    voxel_coords(vol, v, i, j, k);
+    const float cx = float(i) + 0.5f, cy = float(j) + 0.5f, cz = float(k) + 0.5f;
+    const float R = zb.radius, inv_R2 = 1.0f / (R * R);
+    // Offsets from the voxel centre: the mean offset is |x - m|.
+    float w = 0.0f, mx = 0.0f, my = 0.0f, mz = 0.0f;
+    uint32_t pairs = 0;
+    for_each_particle_near(vol, grid, offsets, cx, cy, cz, R, [&](uint32_t q) {
+      const Vec3f u = vol.to_voxels(xyz(pos[q]));
+      const float dx = u.x - cx, dy = u.y - cy, dz = u.z - cz;
+      if (Count) ++pairs;
+      const float s = 1.0f - (dx * dx + dy * dy + dz * dz) * inv_R2;
+      if (s <= 0.0f) return;
+      const float kq = s * s * s;
+      w += kq;
+      mx += kq * dx;
+      my += kq * dy;
+      mz += kq * dz;
+    });
+    float f = 0.0f;
+    if (w > 0.0f) {
+      const float phi = std::sqrt(mx * mx + my * my + mz * mz) / w - zb.particle_radius;
+      f = shape.iso * (1.0f - phi / (R - zb.particle_radius));
+      f = f < 0.0f ? 0.0f : (f > shape.clip ? shape.clip : f);
+    }
+    field[v] = f;
     if (Count) sink.put(v, pairs, 1, 0, 0);
   }
 };

@@ -20,9 +20,18 @@ FieldKind parse_field_kind(const std::string& name) {
   throw std::invalid_argument("unknown field builder '" + name + "' (naive, presence or gather)");
 }
 
+const char* field_kernel_name(FieldKernel k) {
+  switch (k) {
+    case FieldKernel::Isotropic: return "isotropic";
+    case FieldKernel::Anisotropic: return "anisotropic";
+    case FieldKernel::ZhuBridson: return "zhu_bridson";
+  }
+  return "?";
+}
+
 FieldConfig read_field_config(const ConfigReader& r) {
   r.only({"builder", "refine", "radius", "core", "clip", "min_extent", "shrink_from", "full_fraction", "full_value",
-          "kernel", "anisotropy", "every_frame"});
+          "kernel", "anisotropy", "zhu_bridson", "every_frame"});
   FieldConfig c;
   c.builder = parse_field_kind(r.string("builder", field_kind_name(c.builder), {"naive", "presence", "gather"}));
   const double refine = r.number("refine", c.refine, 0, 2);
@@ -37,12 +46,33 @@ FieldConfig read_field_config(const ConfigReader& r) {
   c.full_fraction = r.number("full_fraction", c.full_fraction, 0.1, 2.0);
   c.full_value_clip = r.string("full_value", c.full_value_clip ? "clip" : "coarse", {"clip", "coarse"}) == "clip";
   c.every_frame = r.boolean("every_frame", true);  // the section's own; io/scene.cpp: false without one
-  c.kernel = r.string("kernel", "isotropic", {"isotropic", "anisotropic"}) == "anisotropic" ? FieldKernel::Anisotropic
-                                                                                          : FieldKernel::Isotropic;
+  const std::string kernel = r.string("kernel", "isotropic", {"isotropic", "anisotropic", "zhu_bridson"});
+  c.kernel = kernel == "anisotropic" ? FieldKernel::Anisotropic
+             : kernel == "zhu_bridson" ? FieldKernel::ZhuBridson
+                                       : FieldKernel::Isotropic;
   if (c.kernel == FieldKernel::Anisotropic && c.builder == FieldKind::Gather)
     r.fail("kernel", r.at("kernel"), "the gather builder splats spheres only: use builder naive or presence");
+  // Zhu & Bridson's surface is a per-voxel mean of the particles around it:
+  // the gather builder's pass, and its default builder.
+  if (c.kernel == FieldKernel::ZhuBridson) {
+    if (r.has("builder") && c.builder != FieldKind::Gather)
+      r.fail("builder", r.at("builder"), "the zhu_bridson kernel is built by the gather builder only");
+    c.builder = FieldKind::Gather;
+  }
   if (r.has("anisotropy") && c.kernel != FieldKernel::Anisotropic)
     r.fail("anisotropy", r.at("anisotropy"), "is read only with \"kernel\": \"anisotropic\"");
+  if (r.has("zhu_bridson") && c.kernel != FieldKernel::ZhuBridson)
+    r.fail("zhu_bridson", r.at("zhu_bridson"), "is read only with \"kernel\": \"zhu_bridson\"");
+  const ConfigReader zb = r.child("zhu_bridson");
+  zb.only({"radius", "particle_radius"});
+  ZhuBridsonConfig& z = c.zhu_bridson;
+  z.radius = zb.number("radius", z.radius, 1.0, 8.0);
+  z.particle_radius = zb.number("particle_radius", z.particle_radius, 0.05, 8.0);
+  if (z.particle_radius > z.radius - 0.5) {
+    const std::string why = "the field falls to zero over radius - particle_radius, at least half a voxel";
+    if (zb.has("particle_radius")) zb.fail("particle_radius", zb.at("particle_radius"), "must be at most radius - 0.5: " + why);
+    zb.fail("radius", zb.at("radius"), "must be at least particle_radius + 0.5: " + why);
+  }
   const ConfigReader a = r.child("anisotropy");
   a.only({"radius", "stretch", "smoothing", "min_neighbours"});
   AnisotropyConfig& an = c.anisotropy;

@@ -14,14 +14,22 @@ const char* field_kind_name(FieldKind k);
 FieldKind parse_field_kind(const std::string& name);  // throws std::invalid_argument
 
 // Each particle's kernel: a sphere, or an ellipsoid stretched along the
-// local surface (Yu & Turk 2013; field/anisotropy.h, docs/field.md).
-enum class FieldKernel { Isotropic, Anisotropic };
+// local surface (Yu & Turk 2013; field/anisotropy.h, docs/field.md); or no
+// sum of kernels but the distance to the neighbours' weighted mean position
+// less a particle radius (Zhu & Bridson 2005; field/builders.h, ZhuBridsonGather).
+enum class FieldKernel { Isotropic, Anisotropic, ZhuBridson };
+const char* field_kernel_name(FieldKernel k);
 
 struct AnisotropyConfig {
   double radius = 3.0;     // neighbourhood of the covariance [particle spacings]
   double stretch = 4.0;    // largest over smallest axis, at most (>= 1; 1: spheres)
   double smoothing = 0.9;  // kernel centre moved this share of the way to the neighbours' weighted mean (0..1)
   int min_neighbours = 8;  // fewer neighbours than this: a sphere (spray, lone particles)
+};
+
+struct ZhuBridsonConfig {
+  double radius = 3.0;            // R: the neighbours' reach [voxels]
+  double particle_radius = 0.95;  // r: the surface lies r from their weighted mean [voxels]
 };
 
 struct FieldConfig {
@@ -40,6 +48,7 @@ struct FieldConfig {
   bool full_value_clip = true;            // ... and the value it gets: saturated ("clip") or just inside ("coarse")
   FieldKernel kernel = FieldKernel::Isotropic;
   AnisotropyConfig anisotropy;
+  ZhuBridsonConfig zhu_bridson;
 };
 
 FieldConfig read_field_config(const ConfigReader& r);

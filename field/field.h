@@ -26,11 +26,17 @@ struct FieldSetup {
   // any occupied cell is just inside (the paper's rule).
   bool mark_occupied = false;
   AnisotropyParams aniso;   // aniso.on: ellipsoids (field/anisotropy.h)
+  ZhuBridsonParams zhu_bridson;  // on: Zhu & Bridson's surface, gather builder only (builders.h, ZhuBridsonGather)
   // The presence builder with ellipsoids leaves out the particles whose splat
   // box lies in full cells whatever their ellipsoid (EllipsoidPass): on by
   // default; off only to compare against.
   bool leave_out_buried = true;
 };
+
+// The kernel a setup builds with.
+inline FieldKernel field_kernel_of(const FieldSetup& s) {
+  return s.aniso.on ? FieldKernel::Anisotropic : s.zhu_bridson.on ? FieldKernel::ZhuBridson : FieldKernel::Isotropic;
+}
 
 // What a build did (counted only when asked; see docs/field.md).
 struct FieldCounts {

@@ -73,6 +73,8 @@ class FieldBuilderImpl final : public FieldBuilder {
     }
     float* f = raw(field_);
     const bool aniso = setup_.aniso.on;
+    if (setup_.zhu_bridson.on && kind != FieldKind::Gather)
+      throw std::invalid_argument("field builder: Zhu & Bridson's surface is built by the gather builder only");
     if (aniso && kind == FieldKind::Gather)
       throw std::invalid_argument("field builder: the gather builder splats spheres only (anisotropic kernels: naive or presence)");
     if (aniso && !pv.fine_offsets) throw std::invalid_argument("field builder: anisotropic kernels need the grid's slab table");
@@ -136,9 +138,14 @@ class FieldBuilderImpl final : public FieldBuilder {
         });
         break;
       case FieldKind::Gather:
-        launch_variant("gather_field", items, count, 1, false, [&](auto c, auto, auto) {
-          return GatherField<decltype(c)::value>{vol, pv.grid, shape, pv.offsets, pv.pos, f, sink};
-        });
+        if (setup_.zhu_bridson.on)
+          launch_variant("zhu_bridson_field", items, count, 1, false, [&](auto c, auto, auto) {
+            return ZhuBridsonGather<decltype(c)::value>{vol, pv.grid, shape, setup_.zhu_bridson, pv.offsets, pv.pos, f, sink};
+          });
+        else
+          launch_variant("gather_field", items, count, 1, false, [&](auto c, auto, auto) {
+            return GatherField<decltype(c)::value>{vol, pv.grid, shape, pv.offsets, pv.pos, f, sink};
+          });
         break;
     }
     clock_.end_of("field");

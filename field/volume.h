@@ -43,6 +43,14 @@ struct FieldShape {
   }
 };
 
+// Zhu & Bridson's surface instead of a sum of falloffs (FieldKernel::ZhuBridson;
+// builders.h, ZhuBridsonGather).
+struct ZhuBridsonParams {
+  bool on = false;
+  float radius = 0;           // R: the neighbours' reach [voxels]
+  float particle_radius = 0;  // r: the surface's distance from their weighted mean [voxels]
+};
+
 struct VolumeGeom {
   Vec3f origin;   // world position of voxel (0,0,0)'s min corner [m]
   float voxel;    // edge [m] = grid cell / 2^refine

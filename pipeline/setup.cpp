@@ -680,6 +680,9 @@ FieldSetup make_field_setup(const ResolvedScene& r) {
   an.stretch = float(f.anisotropy.stretch);
   an.smoothing = float(f.anisotropy.smoothing);
   an.min_neighbours = uint32_t(f.anisotropy.min_neighbours);
+  out.zhu_bridson.on = f.kernel == FieldKernel::ZhuBridson;
+  out.zhu_bridson.radius = float(f.zhu_bridson.radius);
+  out.zhu_bridson.particle_radius = float(f.zhu_bridson.particle_radius);
   // With ellipsoids a particle's own voxel need not be inside (a flat kernel
   // is thinner than a voxel): only full cells are filled, and each particle's
   // voxel is marked only where its own kernel reaches the iso value there.

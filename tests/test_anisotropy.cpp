@@ -609,15 +609,16 @@ TEST_CASE("anisotropic kernels make a flatter, truer pool surface and a truer ba
   opt.frames = 1;
   std::ostringstream log;
   const std::vector<BenchSurfaceRow> rows = bench_surface(Backend::Cpu, opt, log);
-  REQUIRE(rows.size() == 6);
-  const BenchSurfaceRow *iso = nullptr, *an = nullptr;
+  REQUIRE(rows.size() == 9);
+  const BenchSurfaceRow *iso = nullptr, *an = nullptr, *zb = nullptr;
   for (const auto& r : rows) {
-    if (r.refine == 2) (r.kernel == "anisotropic" ? an : iso) = &r;
+    if (r.refine == 2) (r.kernel == "anisotropic" ? an : r.kernel == "zhu_bridson" ? zb : iso) = &r;
     CHECK(r.pool.missed == 0);
     CHECK(r.sphere.missed == 0);
   }
   REQUIRE(iso);
   REQUIRE(an);
+  REQUIRE(zb);
   // The JSON says which pool it measured (the depth defaults to half the width).
   const nlohmann::json j = to_json(rows, Backend::Cpu, opt);
   CHECK(j["rows"][0]["pool_cells"] == 24);
@@ -637,6 +638,15 @@ TEST_CASE("anisotropic kernels make a flatter, truer pool surface and a truer ba
   CHECK(an->top_layer_dx > 0.1);
   CHECK(an->top_layer_dx < 0.5);
   CHECK(std::fabs(an->pool_layer.mean_distance) < std::fabs(an->pool.mean_distance));
+  // Zhu & Bridson's surface, flat, at the settled pool's volume height
+  // (measured +0.07 here: its r is set for that), a third of a spacing
+  // above the top layer's plane (+0.33), and near the ball's (+0.18).
+  CHECK(zb->pool.rms_distance < 0.15);
+  CHECK(zb->pool_layer.mean_distance > 0.2);
+  CHECK(zb->pool_layer.mean_distance < 0.45);
+  CHECK(zb->pool.rms_angle_deg < 1.0);
+  CHECK(zb->sphere.rms_distance < 0.25);
+  CHECK(zb->sheet.holes == 0);
 }
 
 TEST_CASE("a pool's top layer: the highest particle of each column, averaged", "[field]") {

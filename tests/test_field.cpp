@@ -2,8 +2,9 @@
 // falloff and iso value in double, the naive field against a double brute-force
 // sum, gather against naive, the presence builder's guarantees (never past the
 // clip value; exactly naive's classification without presence; within 1% of
-// naive's surface voxels on a dam break after its collapse), and the error
-// metric itself on analytic spheres.
+// naive's surface voxels on a dam break after its collapse), the error
+// metric itself on analytic spheres, and Zhu & Bridson's surface against its
+// definition in double, a lone particle's ball and a lattice's flat top.
 #include <algorithm>
 #include <cmath>
 #include <random>
@@ -17,6 +18,7 @@
 #include "host_particles.h"
 #include "field/field.h"
 #include "io/metrics.h"
+#include "io/surface_error.h"
 
 using namespace sphray;
 
@@ -119,6 +121,144 @@ TEST_CASE("naive and gather fields equal a double brute-force sum", "[field]") {
   INFO("worst relative error: naive " << worst_naive << ", gather " << worst_gather);
   CHECK(worst_naive < 1e-5);
   CHECK(worst_gather < 1e-5);
+}
+
+namespace {
+
+// Zhu & Bridson's field at a voxel centre in double: the definition in
+// builders.h (ZhuBridsonGather); `weight` returns the sum of the weights.
+double zhu_bridson_ref(const FieldSetup& fs, const std::vector<Vec3f>& pts, int i, int j, int k, double& weight) {
+  const double R = fs.zhu_bridson.radius, r = fs.zhu_bridson.particle_radius;
+  double w = 0, m[3] = {0, 0, 0};
+  for (const Vec3f& p : pts) {
+    const double d[3] = {(double(p.x) - fs.geom.origin.x) / fs.geom.voxel - (i + 0.5),
+                         (double(p.y) - fs.geom.origin.y) / fs.geom.voxel - (j + 0.5),
+                         (double(p.z) - fs.geom.origin.z) / fs.geom.voxel - (k + 0.5)};
+    const double s = 1.0 - (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]) / (R * R);
+    if (s <= 0) continue;
+    w += s * s * s;
+    for (int a = 0; a < 3; ++a) m[a] += s * s * s * d[a];
+  }
+  weight = w;
+  if (w == 0) return 0;
+  const double phi = std::sqrt(m[0] * m[0] + m[1] * m[1] + m[2] * m[2]) / w - r;
+  return std::clamp(fs.shape.iso * (1.0 - phi / (R - r)), 0.0, double(fs.shape.clip));
+}
+
+// A block of lattice points of spacing dx (a voxel at small_scene's refine 2),
+// 36 x 16 across and `layers` deep, raised by `lift` spacings.
+std::vector<Vec3f> lattice_pool(double dx, int layers, double lift) {
+  std::vector<Vec3f> pts;
+  for (int k = 0; k < layers; ++k)
+    for (int j = 0; j < 16; ++j)
+      for (int i = 0; i < 36; ++i)
+        pts.push_back({float((i + 2.5) * dx), float((j + 2.5) * dx), float((k + 0.5 + lift) * dx)});
+  return pts;
+}
+
+}  // namespace
+
+TEST_CASE("zhu_bridson: the field is |x - weighted mean| - r in double, mapped to the iso value", "[field]") {
+  const Scene s = small_scene({"field.kernel=zhu_bridson"});
+  CHECK(s.field.builder == FieldKind::Gather);  // its builder when none is named
+  const FieldSetup fs = make_field_setup(resolve_scene(s));
+  REQUIRE(fs.zhu_bridson.on);
+  // Dense enough that most voxels see several particles, sparse enough for lone ones.
+  const std::vector<Vec3f> pts = random_points(s, 6000, 5);
+  const HostParticleSet ps(measure_scene(s).grid, pts);
+  const std::vector<float> f = test::cpu_field(fs, ps.view(), FieldKind::Gather);
+  double worst = 0;
+  int inside = 0, outside = 0, empty = 0;
+  std::mt19937 rng(6);
+  for (int t = 0; t < 3000; ++t) {
+    const int i = int(rng() % fs.geom.nx), j = int(rng() % fs.geom.ny), k = int(rng() % fs.geom.nz);
+    double w = 0;
+    const double ref = zhu_bridson_ref(fs, pts, i, j, k, w);
+    const float got = f[fs.geom.index(i, j, k)];
+    if (w == 0) {
+      CHECK(got == 0.0f);
+      ++empty;
+      continue;
+    }
+    // A weight near zero leaves the mean to a particle at the support's edge,
+    // where the value is 0 anyway; elsewhere float against double.
+    if (w > 1e-4) worst = std::max(worst, std::abs(got - ref) / fs.shape.iso);
+    (ref >= fs.shape.iso ? inside : outside) += 1;
+  }
+  INFO("worst difference " << worst << " iso; " << inside << " inside, " << outside << " outside, " << empty << " empty");
+  CHECK(worst < 1e-4);
+  CHECK(inside > 100);
+  CHECK(outside > 100);
+  CHECK(empty > 100);
+  // The other builders do not build it.
+  CHECK_THROWS_AS(test::cpu_field(fs, ps.view(), FieldKind::Naive), std::invalid_argument);
+}
+
+TEST_CASE("zhu_bridson: a lone particle is a ball of radius r", "[field]") {
+  const Scene s = small_scene({"field.kernel=zhu_bridson"});
+  const FieldSetup fs = make_field_setup(resolve_scene(s));
+  const double vox = fs.geom.voxel, r = fs.zhu_bridson.particle_radius * vox;
+  std::mt19937 rng(8);
+  std::uniform_real_distribution<double> u(0.0, 1.0);
+  for (int trial = 0; trial < 5; ++trial) {
+    const Vec3d c{0.2 + u(rng) * vox, 0.1 + u(rng) * vox, 0.15 + u(rng) * vox};
+    const HostParticleSet ps(measure_scene(s).grid, {Vec3f{float(c.x), float(c.y), float(c.z)}});
+    const std::vector<float> f = test::cpu_field(fs, ps.view(), FieldKind::Gather);
+    const SurfaceError e = sphere_surface_error(f, fs.geom, fs.shape.iso, c, r, 500, 3 * vox);
+    INFO("particle at " << c.x << ", " << c.y << ", " << c.z << ": radius error RMS " << e.rms_distance / vox
+                        << " voxel, mean " << e.mean_distance / vox << ", normal " << e.rms_angle_deg << " deg");
+    CHECK(e.missed == 0);  // r >= sqrt(3)/2: the voxel that holds it is inside
+    // Trilinear samples of |x - p|, a cone about the particle, lie above the
+    // cone: the ball can only shrink, here by a quarter voxel (measured
+    // 0.24-0.25 on average).
+    CHECK(e.mean_distance < 0.0);
+    CHECK(e.rms_distance < 0.35 * vox);
+  }
+}
+
+TEST_CASE("zhu_bridson: a flat lattice's surface keeps its place at every place within a voxel", "[field]") {
+  // The lattice's own surface lies half a spacing above its top layer.
+  // Lifted by tenths of a voxel, the surface of Zhu & Bridson's field keeps
+  // the same distance above it within 0.05 spacing, flat; the sum of spheres
+  // (the naive field, same rays) keeps nearer its place in the voxel grid,
+  // its distance moving with the lift. (At the default r that distance is
+  // about a quarter spacing: a settled pool packs denser than the lattice,
+  // and r puts it at its volume's height, docs/field.md.)
+  const Scene s = small_scene({"field.kernel=zhu_bridson"});
+  const FieldSetup fs = make_field_setup(resolve_scene(s));
+  const FieldSetup spheres = make_field_setup(resolve_scene(small_scene()));
+  const double dx = s.sph.spacing;
+  REQUIRE(fs.geom.voxel == Approx(dx));
+  const int layers = 8;
+  double lo = 1e9, hi = -1e9, sphere_lo = 1e9, sphere_hi = -1e9;
+  for (int step = 0; step < 10; ++step) {
+    const double lift = 0.1 * step;
+    const std::vector<Vec3f> pts = lattice_pool(dx, layers, lift);
+    const HostParticleSet ps(measure_scene(s).grid, pts);
+    const double top = (layers + lift) * dx;  // the top layer + half a spacing
+    // Away from the block's sides, by more than the reach: a flat surface.
+    auto error = [&](const FieldSetup& setup, FieldKind kind) {
+      const std::vector<float> f = test::cpu_field(setup, ps.view(), kind);
+      return plane_surface_error(f, setup.geom, setup.shape.iso, {10 * dx, 6 * dx, 0.0}, {30 * dx, 12 * dx, 0.2},
+                                 top, 0.5 * dx);
+    };
+    const SurfaceError zb = error(fs, FieldKind::Gather), sp = error(spheres, FieldKind::Naive);
+    const double spread = std::sqrt(std::max(0.0, zb.rms_distance * zb.rms_distance - zb.mean_distance * zb.mean_distance));
+    INFO("lift " << lift << ": zhu_bridson " << zb.mean_distance / dx << " (about it " << spread / dx << ", tilt "
+                 << zb.rms_angle_deg << " deg), spheres " << sp.mean_distance / dx);
+    CHECK(zb.missed == 0);
+    CHECK(spread < 0.02 * dx);  // flat over the columns
+    CHECK(zb.rms_angle_deg < 0.5);
+    CHECK(zb.mean_distance > 0.0);
+    CHECK(zb.mean_distance < 0.5 * dx);
+    lo = std::min(lo, zb.mean_distance / dx);
+    hi = std::max(hi, zb.mean_distance / dx);
+    sphere_lo = std::min(sphere_lo, sp.mean_distance / dx);
+    sphere_hi = std::max(sphere_hi, sp.mean_distance / dx);
+  }
+  INFO("over the lifts: zhu_bridson " << lo << " .. " << hi << ", spheres " << sphere_lo << " .. " << sphere_hi);
+  CHECK(hi - lo < 0.05);
+  CHECK(sphere_hi - sphere_lo > 4 * (hi - lo));
 }
 
 TEST_CASE("presence builder without presence classifies exactly as naive, and never passes the clip value", "[field]") {
@@ -332,4 +472,25 @@ TEST_CASE("field scene values are validated", "[field][scene]") {
   names("field.clip=1", "field.clip");
   names("field.colour=1", "unknown key");
   names("field.every_frame=2", "field.every_frame");
+  names("field.zhu_bridson.particle_radius=0.5", "field.zhu_bridson");  // without the kernel
+  auto zb = [&](const std::string& set, const std::string& part) {
+    const std::string text = R"({"tank": {"min": [0,0,0], "max": [0.4,0.2,0.3]},
+      "fluid": [{"min": [0,0,0], "max": [0.12,0.2,0.2]}],
+      "sph": {"spacing": 0.01}, "field": {"kernel": "zhu_bridson"}, "run": {"end_time": 1}})";
+    std::string e;
+    try {
+      parse_scene(text, "field.json", {set});
+    } catch (const SceneError& err) {
+      e = err.what();
+    }
+    INFO(set << " -> " << e);
+    CHECK(e.find(part) != std::string::npos);
+  };
+  zb("field.builder=presence", "field.builder");
+  zb("field.builder=naive", "gather builder");
+  zb("field.zhu_bridson.particle_radius=0", "field.zhu_bridson.particle_radius");
+  zb("field.zhu_bridson.particle_radius=2.7", "field.zhu_bridson.particle_radius");  // R = 3: no room to fall to zero
+  zb("field.zhu_bridson.radius=1.4", "field.zhu_bridson.radius");  // the default r = 0.95 needs R >= 1.45
+  zb("field.zhu_bridson.radius=0.5", "field.zhu_bridson.radius");
+  zb("field.zhu_bridson.core=1", "unknown key");
 }

@@ -19,18 +19,21 @@ def main(src, dst):
                 ("pool", "rms_angle_deg", "pool normal tilt, RMS [deg]"),
                 ("sphere", "rms", "ball radius, RMS [spacings]")]
     for ax, (shape, key, label) in zip(axes, measures):
-        for kernel, style in (("isotropic", "o-"), ("anisotropic", "s-")):
+        for kernel, style in (("isotropic", "o-"), ("anisotropic", "s-"), ("zhu_bridson", "^-")):
             rows = sorted((r for r in j["rows"] if r["kernel"] == kernel), key=lambda r: r["refine"])
+            if not rows:
+                continue
             ax.plot([r["build_ms"] for r in rows], [r[shape][key] for r in rows], style, label=kernel)
             for r in rows:
                 ax.annotate(f"refine {r['refine']}", (r["build_ms"], r[shape][key]), fontsize=7,
                             textcoords="offset points", xytext=(4, 4))
-        ax.set_xlabel("field build [ms] (presence builder, %s pool particles)" % rows[0]["particles"]["pool"])
+        ax.set_xlabel("field build [ms], pool of %s particles" % j["rows"][0]["particles"]["pool"])
         ax.set_ylabel(label)
         ax.set_yscale("symlog", linthresh=0.1)
         ax.grid(True, alpha=0.3)
         ax.legend()
-    fig.suptitle("Surface error against build time, %s (sphray bench surface)" % j.get("device", j.get("backend", "")))
+    fig.suptitle("Surface error against build time, %s (sphray bench surface; presence builder, zhu_bridson: gather)"
+                 % j.get("device", j.get("backend", "")))
     fig.tight_layout()
     fig.savefig(dst, dpi=110)
 

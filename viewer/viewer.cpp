@@ -261,7 +261,7 @@ struct PanelState {
   bool realtime = true;  // real-time playback, or `substeps` steps per frame
   int substeps = 2, builder_index = 1;
   FieldKind kind = FieldKind::Presence;
-  bool anisotropic = false;  // the field's kernels: ellipsoids or spheres
+  FieldKernel kernel = FieldKernel::Isotropic;  // spheres, ellipsoids or Zhu & Bridson's surface
   bool draws_field = true;   // the render method draws the field (screen_space draws the particles)
   double sim_ms = 0, field_ms = 0, render_ms = 0, fps = 0;
   int steps = 0;                  // SPH steps in the last frame
@@ -304,7 +304,9 @@ void draw_panel(PanelState& s, RenderSettings& rs, const Solver& solver, Backend
     const char* builders[] = {"naive", "presence", "gather"};
     if (ImGui::Combo("field builder", &s.builder_index, builders, 3))
       s.kind = parse_field_kind(builders[s.builder_index]);
-    ImGui::Checkbox("anisotropic kernels", &s.anisotropic);
+    const char* kernels[] = {"isotropic", "anisotropic", "zhu_bridson"};
+    int kernel = int(s.kernel);
+    if (ImGui::Combo("field kernel", &kernel, kernels, 3)) s.kernel = FieldKernel(kernel);
     if (rs.method == RenderMethod::Slices) ImGui::SliderInt("slices", &rs.slices, 8, 4096);
     ImGui::SliderInt("interfaces", &rs.interfaces, 1, 8);
     ImGui::Checkbox("reflections traced", &rs.reflections);
@@ -326,20 +328,25 @@ std::unique_ptr<FieldBuilder> switch_field(const ResolvedScene& rscene, Backend 
                                            PanelState& s) {
   const FieldSetup* setup = &current.setup();
   FieldSetup other;
-  if (current.setup().aniso.on != s.anisotropic) {
+  if (field_kernel_of(current.setup()) != s.kernel) {
     ResolvedScene r = rscene;
-    r.scene.field.kernel = s.anisotropic ? FieldKernel::Anisotropic : FieldKernel::Isotropic;
+    r.scene.field.kernel = s.kernel;
     try {
       other = make_field_setup(r);
       setup = &other;
     } catch (const std::exception& e) {
-      s.anisotropic = current.setup().aniso.on;
+      s.kernel = field_kernel_of(current.setup());
       s.status = e.what();
     }
   }
   if (setup->aniso.on && s.kind == FieldKind::Gather) {
     s.status = "the gather builder takes no ellipsoids: presence instead";
     s.kind = FieldKind::Presence;
+    s.builder_index = int(s.kind);
+  }
+  if (setup->zhu_bridson.on && s.kind != FieldKind::Gather) {
+    s.status = "Zhu & Bridson's surface is built by the gather builder";
+    s.kind = FieldKind::Gather;
     s.builder_index = int(s.kind);
   }
   return make_field_builder(b, *setup, s.kind);
@@ -354,7 +361,7 @@ void simulate(const Scene& scene, Solver& solver, PanelState& s, Controls& ctl, 
   s.steps = 0;
   s.sim_advance_s = 0;
   if ((ctl.paused && !ctl.step_once) || solver.time() >= end_time) return;
-  const bool presence = s.draws_field && field_needs_presence_step(scene, s.kind, s.anisotropic);
+  const bool presence = s.draws_field && field_needs_presence_step(scene, s.kind, s.kernel == FieldKernel::Anisotropic);
   const double t0 = solver.time();
   try {
     if (s.realtime && !ctl.step_once) {
@@ -411,7 +418,7 @@ int run_viewer(const ViewOptions& opt, std::ostream& log) {
   s.substeps = opt.substeps > 0 ? opt.substeps : 2;
   s.kind = scene.field.builder;
   s.builder_index = int(s.kind);
-  s.anisotropic = scene.field.kernel == FieldKernel::Anisotropic;
+  s.kernel = scene.field.kernel;
   const StageNeeds needs{PresenceMode::Off, true};
   auto new_solver = [&] { return opt.make_solver ? opt.make_solver(rscene, b) : make_solver(rscene, b, needs); };
   std::unique_ptr<Solver> solver = new_solver();
@@ -448,7 +455,7 @@ int run_viewer(const ViewOptions& opt, std::ostream& log) {
     if (gather || s.steps > 0) solver->gather_frame();
     gather = false;
     const ParticleView pv = solver->view();
-    if (field->kind() != s.kind || field->setup().aniso.on != s.anisotropic)  // switched in the panel
+    if (field->kind() != s.kind || field_kernel_of(field->setup()) != s.kernel)  // switched in the panel
       field = switch_field(rscene, b, *field, s);
     if (s.draws_field) field->build(pv);
     s.field_ms = s.draws_field ? field->last_ms() : 0.0;
