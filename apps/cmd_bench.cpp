@@ -167,7 +167,7 @@ void add_frame(CLI::App* bench, int& exit_code) {
   f->add_option("--substeps", o.substeps, "SPH steps per frame")->check(CLI::Range(1, 1000));
   f->add_flag("--realtime", o.realtime,
               "real-time playback: each frame advances by the previous frame's wall time (at most 1/30 s)");
-  f->add_option("--builder", o.builder, "naive | presence | gather");
+  f->add_option("--builder", o.builder, "naive | presence | gather (default: the scene's, presence; gather for zhu_bridson)");
   f->add_option("--warmup", o.warmup, "warm-up frames")->check(CLI::Range(0, 10000));
   f->add_option("--frames", o.frames, "measured frames")->check(CLI::Range(1, 100000));
   f->add_option("--collapse", o.collapse, "start at T = t sqrt(2g/a)")->check(CLI::Range(0.0, 100.0));
@@ -176,7 +176,7 @@ void add_frame(CLI::App* bench, int& exit_code) {
   f->callback([a, &exit_code] {
     run_bench(a->c, [&](Backend b) {
       a->opt.sizes = parse_sizes(!a->c.sizes.empty() ? a->c.sizes : b == Backend::Cuda ? "125k,1M" : "8k");
-      parse_field_kind(a->opt.builder);  // a bad name fails before the simulation
+      if (!a->opt.builder.empty()) parse_field_kind(a->opt.builder);  // a bad name fails before the simulation
       const auto rows = bench_frame(b, a->opt, std::cout);
       print_table(rows, std::cout);
       return to_json(rows, b, a->opt);

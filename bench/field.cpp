@@ -192,7 +192,10 @@ void print_table(const std::vector<BenchFieldRow>& rows, std::ostream& out) {
       if (q.particles == r.particles && q.builder.rfind("naive", 0) == 0) naive_ms = std::min(naive_ms, q.median_ms);
     out << std::setw(9) << r.particles << std::setw(8) << (std::to_string(r.nx) + "^3").substr(0, 7) << std::setw(15)
         << r.builder << std::fixed << std::setprecision(3) << std::setw(10) << r.median_ms << std::setprecision(2)
-        << std::setw(9) << (r.median_ms > 0 ? naive_ms / r.median_ms : 0.0) << std::setw(12) << r.counts.touched
+        << std::setw(9);
+    if (naive_ms < 1e300 && r.median_ms > 0) out << naive_ms / r.median_ms;
+    else out << "-";  // no naive build to compare with (Zhu & Bridson's surface: gather only)
+    out << std::setw(12) << r.counts.touched
         << std::setw(12) << r.counts.atomics << std::setw(12) << r.counts.skipped << std::setw(10) << r.counts.working
         << std::setw(8) << r.counts.longest << std::setprecision(3)
         << std::setw(10) << 100.0 * r.error.misclassified_share() << std::setw(9) << r.error.misclassified_other

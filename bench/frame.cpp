@@ -36,10 +36,10 @@ std::string png_path(const std::string& dir, const std::string& name) {
 
 std::vector<BenchFrameRow> bench_frame(Backend b, const BenchFrameOptions& opt, std::ostream& log) {
   std::vector<BenchFrameRow> rows;
-  const FieldKind kind = parse_field_kind(opt.builder);
   for (size_t target : opt.sizes) {
     const ResolvedScene rs = resolve_scene(frame_scene(target, opt.width, opt.height, opt.interfaces, opt.overrides));
     const Scene& s = rs.scene;
+    const FieldKind kind = opt.builder.empty() ? s.field.builder : parse_field_kind(opt.builder);
     const bool with_field = method_needs_field(s.render.method);  // screen_space draws the particles
     const bool presence = with_field && field_needs_presence_step(s, kind, s.field.kernel == FieldKernel::Anisotropic);
     const StageNeeds needs{presence ? PresenceMode::AtUntil : PresenceMode::Off, true};
@@ -84,7 +84,7 @@ std::vector<BenchFrameRow> bench_frame(Backend b, const BenchFrameOptions& opt, 
     r.particles = solver->num_fluid();
     r.nx = fs.geom.nx; r.ny = fs.geom.ny; r.nz = fs.geom.nz;
     r.width = opt.width; r.height = opt.height; r.interfaces = opt.interfaces; r.substeps = opt.substeps;
-    r.builder = opt.builder;
+    r.builder = field_kind_name(kind);
     r.sim_ms = median(sim); r.field_ms = median(fld); r.render_ms = median(ren);
     r.total_ms = median(tot); r.wall_ms = median(wall);
     r.fps = r.wall_ms > 0 ? 1000.0 / r.wall_ms : 0;

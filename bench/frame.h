@@ -31,7 +31,7 @@ struct BenchFrameOptions {
   // in steps taking at most that much wall time.
   bool realtime = false;
   double max_sim_per_frame = 1.0 / 30.0;
-  std::string builder = "presence";
+  std::string builder;         // naive, presence or gather; empty: the scene's (presence; gather for zhu_bridson)
   int warmup = 5;
   int frames = 30;
   double collapse = 2.5;      // frames start at T = t sqrt(2g/a) = collapse
