@@ -445,13 +445,12 @@ struct PresenceSplat {
   }
 };
 
-// The particles q of the SPH cells that the cube of half-width R around the
-// centre (cx, cy, cz) of a voxel overlaps, each row of cells one contiguous
-// range of the sort (in voxel units): fn(q) for each.
+// The SPH cells that the cube of half-width R around the centre (cx, cy, cz)
+// of a voxel overlaps, row by row (in voxel units): fn(row, x0, x1), each
+// row's cells x0..x1 one contiguous range of the sort.
 template <class Fn>
-SPHRAY_HD SPHRAY_FORCEINLINE void for_each_particle_near(const VolumeGeom& vol, const GridGeom& grid,
-                                                         const uint32_t* offsets, float cx, float cy, float cz, float R,
-                                                         Fn&& fn) {
+SPHRAY_HD SPHRAY_FORCEINLINE void for_each_row_near(const VolumeGeom& vol, const GridGeom& grid, float cx, float cy,
+                                                    float cz, float R, Fn&& fn) {
   const float per = float(1 << vol.refine);
   auto cell_of = [&](float c, int axis) { return vol.cell0[axis] + int(std::floor(c / per)); };
   const int gx0 = cell_of(cx - R, 0) < 0 ? 0 : cell_of(cx - R, 0);
@@ -461,11 +460,8 @@ SPHRAY_HD SPHRAY_FORCEINLINE void for_each_particle_near(const VolumeGeom& vol, 
   const int gz0 = cell_of(cz - R, 2) < 0 ? 0 : cell_of(cz - R, 2);
   const int gz1 = cell_of(cz + R, 2) >= grid.nz ? grid.nz - 1 : cell_of(cz + R, 2);
   for (int z = gz0; z <= gz1; ++z)
-    for (int y = gy0; y <= gy1; ++y) {
-      const uint32_t row = (uint32_t(z) * uint32_t(grid.ny) + uint32_t(y)) * uint32_t(grid.nx);
-      const uint32_t end = offsets[row + uint32_t(gx1) + 1u];
-      for (uint32_t q = offsets[row + uint32_t(gx0)]; q < end; ++q) fn(q);
-    }
+    for (int y = gy0; y <= gy1; ++y)
+      fn((uint32_t(z) * uint32_t(grid.ny) + uint32_t(y)) * uint32_t(grid.nx), uint32_t(gx0), uint32_t(gx1));
 }
 
 // gather: one thread per voxel sums the falloff of the particles stored in the
@@ -487,11 +483,14 @@ struct GatherField {
     const float cx = float(i) + 0.5f, cy = float(j) + 0.5f, cz = float(k) + 0.5f;
     float sum = 0.0f;
     uint32_t pairs = 0;
-    for_each_particle_near(vol, grid, offsets, cx, cy, cz, shape.radius, [&](uint32_t q) {
-      const Vec3f u = vol.to_voxels(xyz(pos[q]));
-      const float dx = cx - u.x, dy = cy - u.y, dz = cz - u.z;
-      if (Count) ++pairs;
-      sum += shape.falloff(dx * dx + dy * dy + dz * dz);
+    for_each_row_near(vol, grid, cx, cy, cz, shape.radius, [&](uint32_t row, uint32_t x0, uint32_t x1) {
+      const uint32_t end = offsets[row + x1 + 1u];
+      for (uint32_t q = offsets[row + x0]; q < end; ++q) {
+        const Vec3f u = vol.to_voxels(xyz(pos[q]));
+        const float dx = cx - u.x, dy = cy - u.y, dz = cz - u.z;
+        if (Count) ++pairs;
+        sum += shape.falloff(dx * dx + dy * dy + dz * dz);
+      }
     });
     field[v] = sum;
     if (Count) sink.put(v, pairs, 1, 0, 0);
@@ -509,41 +508,64 @@ struct GatherField {
 // Stored as iso (1 - phi / (R - r)), clamped to [0, clip]: the surface is at
 // iso, and the value falls to 0 where a lone particle's support ends, so the
 // field is continuous as particles enter and leave a voxel's reach
-// (ZhuBridsonParams: volume.h).
+// (ZhuBridsonParams: volume.h). One thread per voxel over the particles
+// sorted by a grid of cells of at least R / 2 (anisotropy_grid, as the
+// ellipsoids' pass): its 25 rows around the voxel centre, culled to R;
+// first, from the view grid's cell table, whether any particle lies in
+// the SPH cells the voxel's reach overlaps (most voxels are far from the
+// liquid: the 25 rows' table reads would cost them more than their
+// particles cost the voxels near it).
 template <bool Count>
 struct ZhuBridsonGather {
+  static constexpr int kSpan = 2;
   VolumeGeom vol;
-  GridGeom grid;
+  GridGeom view;                 // the SPH grid
+  const uint32_t* view_offsets;  // its cell table
+  GridGeom grid;                 // cells of at least R / 2
+  const uint32_t* fine_offsets;  // its slab table
+  const Float4* pos;             // sorted by it
   FieldShape shape;
   ZhuBridsonParams zb;
-  const uint32_t* offsets;
-  const Float4* pos;
   float* field;
   CounterSink sink;
 
   SPHRAY_HD void operator()(uint32_t v) const {
     int i, j, k;
     voxel_coords(vol, v, i, j, k);
-    const float cx = float(i) + 0.5f, cy = float(j) + 0.5f, cz = float(k) + 0.5f;
-    const float R = zb.radius, inv_R2 = 1.0f / (R * R);
-    // Offsets from the voxel centre: the mean offset is |x - m|.
+    bool any = false;
+    for_each_row_near(vol, view, float(i) + 0.5f, float(j) + 0.5f, float(k) + 0.5f, zb.radius,
+                      [&](uint32_t row, uint32_t x0, uint32_t x1) { any |= view_offsets[row + x1 + 1u] > view_offsets[row + x0]; });
+    if (!any) {
+      field[v] = 0.0f;
+      if (Count) sink.put(v, 0, 1, 0, 0);
+      return;
+    }
+    const float h = vol.voxel;
+    const Vec3f x{vol.origin.x + (float(i) + 0.5f) * h, vol.origin.y + (float(j) + 0.5f) * h,
+                  vol.origin.z + (float(k) + 0.5f) * h};
+    const float R = zb.radius, inv_Rw = 1.0f / (R * h);
+    // Offsets of the particles from x in units of R: their weighted mean is (m - x) / R.
     float w = 0.0f, mx = 0.0f, my = 0.0f, mz = 0.0f;
     uint32_t pairs = 0;
-    for_each_particle_near(vol, grid, offsets, cx, cy, cz, R, [&](uint32_t q) {
-      const Vec3f u = vol.to_voxels(xyz(pos[q]));
-      const float dx = u.x - cx, dy = u.y - cy, dz = u.z - cz;
-      if (Count) ++pairs;
-      const float s = 1.0f - (dx * dx + dy * dy + dz * dz) * inv_R2;
-      if (s <= 0.0f) return;
-      const float kq = s * s * s;
-      w += kq;
-      mx += kq * dx;
-      my += kq * dy;
-      mz += kq * dz;
-    });
+    for (int row = 0; row < candidate_rows<kSpan>(); ++row) {
+      uint32_t begin = 0, end = 0;
+      if (!candidate_row<kSpan>(grid, fine_offsets, x, row, begin, end, R * h)) continue;
+      for (uint32_t q = begin; q < end; ++q) {
+        const Vec3f p = xyz(pos[q]);
+        const float dx = (p.x - x.x) * inv_Rw, dy = (p.y - x.y) * inv_Rw, dz = (p.z - x.z) * inv_Rw;
+        if (Count) ++pairs;
+        const float s = 1.0f - (dx * dx + dy * dy + dz * dz);
+        if (s <= 0.0f) continue;
+        const float kq = s * s * s;
+        w += kq;
+        mx += kq * dx;
+        my += kq * dy;
+        mz += kq * dz;
+      }
+    }
     float f = 0.0f;
     if (w > 0.0f) {
-      const float phi = std::sqrt(mx * mx + my * my + mz * mz) / w - zb.particle_radius;
+      const float phi = R * std::sqrt(mx * mx + my * my + mz * mz) / w - zb.particle_radius;
       f = shape.iso * (1.0f - phi / (R - zb.particle_radius));
       f = f < 0.0f ? 0.0f : (f > shape.clip ? shape.clip : f);
     }

@@ -112,7 +112,7 @@ class FieldBuilderImpl final : public FieldBuilder {
         // sums the ellipsoid costs less than that test: docs/field.md).
         const bool leave_out = kind == FieldKind::Presence && setup_.leave_out_buried;
         const FullCells cells{vol, pv.grid, leave_out ? full.flags : nullptr};
-        const GridGeom ag = sort_for_anisotropy(pv);
+        const GridGeom ag = sort_by_radius(pv, setup_.aniso.radius);
         parallel_for("field_anisotropy", pv.n,
                      EllipsoidPass<ComputeAnisotropy>{
                          {ag, raw(aniso_offsets_), raw(aniso_pos_), raw(aniso_order_), pv.n, vol, setup_.aniso,
@@ -138,11 +138,13 @@ class FieldBuilderImpl final : public FieldBuilder {
         });
         break;
       case FieldKind::Gather:
-        if (setup_.zhu_bridson.on)
+        if (setup_.zhu_bridson.on) {
+          const GridGeom zg = sort_by_radius(pv, setup_.zhu_bridson.radius * vol.voxel);
           launch_variant("zhu_bridson_field", items, count, 1, false, [&](auto c, auto, auto) {
-            return ZhuBridsonGather<decltype(c)::value>{vol, pv.grid, shape, setup_.zhu_bridson, pv.offsets, pv.pos, f, sink};
+            return ZhuBridsonGather<decltype(c)::value>{
+                vol, pv.grid, pv.offsets, zg, raw(aniso_offsets_), raw(aniso_pos_), shape, setup_.zhu_bridson, f, sink};
           });
-        else
+        } else
           launch_variant("gather_field", items, count, 1, false, [&](auto c, auto, auto) {
             return GatherField<decltype(c)::value>{vol, pv.grid, shape, pv.offsets, pv.pos, f, sink};
           });
@@ -186,14 +188,16 @@ class FieldBuilderImpl final : public FieldBuilder {
     return uint64_t(n) * 4u <= 2ull * resident_threads() ? 4 : 1;
   }
 
-  // The view's particles sorted by the anisotropy pass's grid (anisotropy.h:
-  // cells of half the radius over the view grid's extent): their positions
-  // in that order, the order, and the grid's slab table.
-  GridGeom sort_for_anisotropy(const ParticleView& pv) {
-    const GridGeom g = anisotropy_grid(pv.grid, setup_.aniso.radius);
+  // The view's particles sorted by a grid of cells of half `radius` [m] over
+  // the view grid's extent (anisotropy.h, anisotropy_grid), for the passes
+  // that read every particle within `radius` of a point (the ellipsoids'
+  // covariance, Zhu & Bridson's surface): their positions in that order, the
+  // order, and the grid's slab table.
+  GridGeom sort_by_radius(const ParticleView& pv, float radius) {
+    const GridGeom g = anisotropy_grid(pv.grid, radius);
     if (!g.fine_cells_indexable())
-      throw std::invalid_argument("field builder: the anisotropic kernels' grid has more than 2^32 slabs (raise "
-                                  "sph.spacing or field.anisotropy.radius)");
+      throw std::invalid_argument("field builder: the grid of half the field's reach has more than 2^32 slabs (raise "
+                                  "sph.spacing, field.anisotropy.radius or field.zhu_bridson.radius)");
     const uint32_t n = pv.n;
     aniso_keys_.resize(n);
     aniso_order_.resize(n);
@@ -211,7 +215,7 @@ class FieldBuilderImpl final : public FieldBuilder {
   Vector<uint32_t> counters_;
   Vector<uint8_t> full_cells_;  // FullCellFlags (presence, mark_occupied)
   Vector<Float4> ellipsoids_;  // [3][n] (anisotropic kernels)
-  Vector<uint32_t> aniso_keys_, aniso_order_, aniso_offsets_;  // sort_for_anisotropy
+  Vector<uint32_t> aniso_keys_, aniso_order_, aniso_offsets_;  // sort_by_radius
   Vector<Float4> aniso_pos_;
   StageClock clock_;
   double ms_ = 0, aniso_ms_ = 0;

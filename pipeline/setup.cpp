@@ -415,16 +415,20 @@ void check_fits(const ResolvedScene& r, Backend backend, bool field, const RankS
   if (field) {
     const FieldSetup fs = make_field_setup(r);
     bytes += size_t(fs.geom.num_voxels()) * sizeof(float);
-    if (fs.aniso.on) {
-      // The ellipsoids, and the anisotropy pass's sort: keys, order, positions and its grid's slab table.
-      const GridGeom ag = anisotropy_grid(z.grid, fs.aniso.radius);
+    if (fs.aniso.on || fs.zhu_bridson.on) {
+      // The ellipsoids, and the sort of the pass that reads a radius around
+      // each particle or voxel: keys, order, positions and its grid's slab table.
+      const bool zb = fs.zhu_bridson.on;
+      const GridGeom ag = anisotropy_grid(z.grid, zb ? fs.zhu_bridson.radius * fs.geom.voxel : fs.aniso.radius);
       if (!ag.fine_cells_indexable()) {
-        os << s.file << ": sph.spacing = " << s.sph.spacing << " with field.anisotropy.radius = "
-           << s.field.anisotropy.radius << " spacings gives the anisotropic kernels' grid more slabs than sphray "
-           << "can index (2^32). Raise sph.spacing or field.anisotropy.radius.";
+        os << s.file << ": sph.spacing = " << s.sph.spacing << " with "
+           << (zb ? "field.zhu_bridson.radius = " : "field.anisotropy.radius = ")
+           << (zb ? s.field.zhu_bridson.radius : s.field.anisotropy.radius) << (zb ? " voxels" : " spacings")
+           << " gives the field's grid of half that reach more slabs than sphray can index (2^32). Raise "
+           << "sph.spacing or " << (zb ? "field.zhu_bridson.radius." : "field.anisotropy.radius.");
         throw SceneError(os.str());
       }
-      bytes += z.fluid * (3 * sizeof(Float4) + 2 * sizeof(uint32_t) + sizeof(Float4)) +
+      bytes += z.fluid * ((zb ? 0 : 3 * sizeof(Float4)) + 2 * sizeof(uint32_t) + sizeof(Float4)) +
                (size_t(ag.num_fine_cells()) + 1) * sizeof(uint32_t);
     }
   }
