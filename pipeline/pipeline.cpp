@@ -126,7 +126,7 @@ void finish_summary(RunSummary& r, const Solver& solver, const StepTally& tally,
   if (!tally.free_steps) r.min_dt = r.mean_dt;
   if (field) {
     r.field_builder = field_kind_name(field->kind());
-    r.field_kernel = field->setup().aniso.on ? "anisotropic" : "isotropic";
+    r.field_kernel = field_kernel_name(field_kernel_of(field->setup()));
     r.field_ms_mean = r.field_builds ? field_ms / double(r.field_builds) : 0.0;
     const VolumeGeom& g = field->setup().geom;
     r.field_dims[0] = g.nx; r.field_dims[1] = g.ny; r.field_dims[2] = g.nz;
@@ -299,7 +299,8 @@ void print_summary(const RunSummary& r, std::ostream& log) {
   if (r.mean_stage_ms.exchange > 0) log << ", exchange with the other ranks " << r.mean_stage_ms.exchange;
   log << "\n";
   if (r.field_builds)
-    log << "  field          " << r.field_builder << " builder, " << r.field_kernel << " kernels, " << r.field_dims[0]
+    log << "  field          " << r.field_builder << " builder, " << r.field_kernel
+        << (r.field_kernel == "zhu_bridson" ? " surface, " : " kernels, ") << r.field_dims[0]
         << "x" << r.field_dims[1] << "x" << r.field_dims[2] << " voxels, " << r.field_builds << " builds, " << r.field_ms_mean << " ms per build"
         << (r.field_without_presence ? " (" + std::to_string(r.field_without_presence) +
                                            " without presence, e.g. at t = 0: full extents)"

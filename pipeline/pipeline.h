@@ -131,7 +131,7 @@ struct RunSummary {
   uint64_t field_builds = 0, field_without_presence = 0;  // presence builds that fell back to full extents
   double field_ms_mean = 0;
   std::string field_builder;
-  std::string field_kernel;  // isotropic (spheres) or anisotropic (ellipsoids)
+  std::string field_kernel;  // isotropic (spheres), anisotropic (ellipsoids) or zhu_bridson (field_kernel_name)
   int field_dims[3] = {0, 0, 0};
 };
 

@@ -200,6 +200,15 @@ TEST_CASE("sphray run builds the field at every frame when the scene has one", "
   CHECK(a.code == 0);
   CHECK(has(a.output, "presence builder, anisotropic kernels"));
   CHECK(has(slurp(tmp + "/sphray_field_summary_aniso.json"), "\"kernel\": \"anisotropic\""));
+  // Zhu & Bridson's surface: the gather builder, named so.
+  const Result z = run_cli("run " + scene + " --backend cpu --quiet --set run.end_time=0.02 --set run.output_interval=0.01 "
+                           "--set field.kernel=zhu_bridson --summary-json " + tmp + "/sphray_field_summary_zb.json");
+  INFO(z.output);
+  CHECK(z.code == 0);
+  CHECK(has(z.output, "gather builder, zhu_bridson surface"));
+  CHECK(has(z.output, "3 builds"));
+  CHECK(has(slurp(tmp + "/sphray_field_summary_zb.json"), "\"builds_without_presence\": 0"));  // it reads none
+  CHECK(has(slurp(tmp + "/sphray_field_summary_zb.json"), "\"kernel\": \"zhu_bridson\""));
 }
 
 TEST_CASE("sphray bench sim writes every row with its stages and its wall time", "[cli][cpu]") {
