@@ -244,7 +244,7 @@ TEST_CASE("the shipped scenes all parse", "[scene][cpu]") {
   CHECK(n >= 18);  // the stress suite's ten among them
 }
 
-TEST_CASE("the main job's scene is the dam break, under PBF with ellipsoids", "[scene][cpu]") {
+TEST_CASE("the main job's scene is the dam break, under PBF with Zhu & Bridson's surface", "[scene][cpu]") {
   const Scene reference = load_scene(test::source_path("scenes/dam_break.json"));
   const Scene watched = load_scene(test::source_path("scenes/dam_break_realtime.json"));
   for (const char* key : {"tank", "fluid", "gravity", "run"}) {
@@ -253,7 +253,8 @@ TEST_CASE("the main job's scene is the dam break, under PBF with ellipsoids", "[
   }
   CHECK(watched.sph.solver == SolverKind::Pbf);
   CHECK(reference.sph.solver == SolverKind::Wcsph);
-  CHECK(watched.field.kernel == FieldKernel::Anisotropic);
+  CHECK(watched.field.kernel == FieldKernel::ZhuBridson);
+  CHECK(watched.field.builder == FieldKind::Gather);
   CHECK_FALSE(watched.field.every_frame);  // built where frames or the viewer draw it
   CHECK(watched.sph.spacing == Approx(0.00432));
 }
