@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # The main job of the README: set up, build, and run the dam break as it is
 # meant to be watched (scenes/dam_break_realtime.json: position-based fluids,
-# ellipsoids in the field) on the CUDA backend when a device is present, else
+# Zhu & Bridson's surface in the field) on the CUDA backend when a device is present, else
 # on the CPU. Writes the surge front and energy per output interval and the run
 # summary to out/, and renders the liquid to PNG frames in out/frames/
 # (docs/rendering.md). Extra arguments go to `sphray run` (e.g. --set
