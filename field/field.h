@@ -38,6 +38,13 @@ inline FieldKernel field_kernel_of(const FieldSetup& s) {
   return s.aniso.on ? FieldKernel::Anisotropic : s.zhu_bridson.on ? FieldKernel::ZhuBridson : FieldKernel::Isotropic;
 }
 
+// The reach [m] of the builder's pass that sorts the particles by a grid of
+// half of it (anisotropy_grid): the ellipsoids' covariance radius, or Zhu &
+// Bridson's R; 0 where no pass sorts (spheres).
+inline float field_sort_radius(const FieldSetup& s) {
+  return s.zhu_bridson.on ? s.zhu_bridson.radius * s.geom.voxel : s.aniso.on ? s.aniso.radius : 0.0f;
+}
+
 // What a build did (counted only when asked; see docs/field.md).
 struct FieldCounts {
   bool counted = false;

@@ -112,7 +112,7 @@ class FieldBuilderImpl final : public FieldBuilder {
         // sums the ellipsoid costs less than that test: docs/field.md).
         const bool leave_out = kind == FieldKind::Presence && setup_.leave_out_buried;
         const FullCells cells{vol, pv.grid, leave_out ? full.flags : nullptr};
-        const GridGeom ag = sort_by_radius(pv, setup_.aniso.radius);
+        const GridGeom ag = sort_by_radius(pv, field_sort_radius(setup_));
         parallel_for("field_anisotropy", pv.n,
                      EllipsoidPass<ComputeAnisotropy>{
                          {ag, raw(aniso_offsets_), raw(aniso_pos_), raw(aniso_order_), pv.n, vol, setup_.aniso,
@@ -139,7 +139,7 @@ class FieldBuilderImpl final : public FieldBuilder {
         break;
       case FieldKind::Gather:
         if (setup_.zhu_bridson.on) {
-          const GridGeom zg = sort_by_radius(pv, setup_.zhu_bridson.radius * vol.voxel);
+          const GridGeom zg = sort_by_radius(pv, field_sort_radius(setup_));
           launch_variant("zhu_bridson_field", items, count, 1, false, [&](auto c, auto, auto) {
             return ZhuBridsonGather<decltype(c)::value>{
                 vol, pv.grid, pv.offsets, zg, raw(aniso_offsets_), raw(aniso_pos_), shape, setup_.zhu_bridson, f, sink};

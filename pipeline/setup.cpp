@@ -419,7 +419,7 @@ void check_fits(const ResolvedScene& r, Backend backend, bool field, const RankS
       // The ellipsoids, and the sort of the pass that reads a radius around
       // each particle or voxel: keys, order, positions and its grid's slab table.
       const bool zb = fs.zhu_bridson.on;
-      const GridGeom ag = anisotropy_grid(z.grid, zb ? fs.zhu_bridson.radius * fs.geom.voxel : fs.aniso.radius);
+      const GridGeom ag = anisotropy_grid(z.grid, field_sort_radius(fs));
       if (!ag.fine_cells_indexable()) {
         os << s.file << ": sph.spacing = " << s.sph.spacing << " with "
            << (zb ? "field.zhu_bridson.radius = " : "field.anisotropy.radius = ")
