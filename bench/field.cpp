@@ -102,11 +102,15 @@ std::vector<BenchFieldRow> bench_field(Backend b, const BenchFieldOptions& opt, 
                                 {"presence-8", FieldKind::Presence, true, 8, true},
                                 {"presence-warp", FieldKind::Presence, true, 32, true},
                                 {"presence-full", FieldKind::Presence, false, 0},
-                                {"gather", FieldKind::Gather, true, 0}};
+                                {"gather", FieldKind::Gather, true, 0},
+                                {"gather-thread", FieldKind::Gather, true, 1, true},
+                                {"gather-8", FieldKind::Gather, true, 8, true},
+                                {"gather-warp", FieldKind::Gather, true, 32, true}};
     for (const Variant& v : variants) {
       if (b == Backend::Cpu && v.gpu_layout) continue;
       if (setup.aniso.on && v.kind == FieldKind::Gather) continue;  // spheres only
       if (setup.zhu_bridson.on && v.kind != FieldKind::Gather) continue;  // built by the gather builder only
+      if (!setup.zhu_bridson.on && v.kind == FieldKind::Gather && v.group != 0) continue;  // spheres: a thread per voxel
       ParticleView view = pv;
       if (!v.presence) view.presence = nullptr;
       std::unique_ptr<FieldBuilder>& builder = builders[int(v.kind)];

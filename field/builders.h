@@ -515,9 +515,15 @@ struct GatherField {
 // the SPH cells the voxel's reach overlaps (most voxels are far from the
 // liquid: the 25 rows' table reads would cost them more than their
 // particles cost the voxels near it).
-template <bool Count>
+// G threads per voxel (the CUDA backend where a voxel's reach holds many
+// particles: coarse voxels, field.refine 0 or 1; zhu_bridson_group): each
+// lane sums every G-th candidate of the rows and the group's sums meet by
+// warp shuffles; lane 0 stores. One voxel per thread elsewhere (G = 1, the
+// CPU always).
+template <bool Count, int G>
 struct ZhuBridsonGather {
   static constexpr int kSpan = 2;
+  static_assert(G == 1 || G == 4 || G == 8 || G == 32, "lanes per voxel: 1, 4, 8 or 32");
   VolumeGeom vol;
   GridGeom view;                 // the SPH grid
   const uint32_t* view_offsets;  // its cell table
@@ -527,17 +533,35 @@ struct ZhuBridsonGather {
   FieldShape shape;
   ZhuBridsonParams zb;
   float* field;
-  CounterSink sink;
+  CounterSink sink;              // per thread (voxel x lane)
 
-  SPHRAY_HD void operator()(uint32_t v) const {
+  // The group's sum of a lane's value (every lane of the group gets it).
+  SPHRAY_HD SPHRAY_FORCEINLINE static float group_sum(float value, [[maybe_unused]] uint32_t mask) {
+#if defined(__CUDA_ARCH__)
+    SPHRAY_UNROLL
+    for (int d = G / 2; d > 0; d /= 2) value += __shfl_xor_sync(mask, value, d);
+#endif
+    return value;
+  }
+
+  SPHRAY_HD void operator()(uint32_t t) const {
+#if defined(__CUDA_ARCH__)
+    // The lanes that run this launch's functor (whole groups: the launch
+    // holds voxels x G threads and G divides 32); all of them reach the
+    // shuffles below.
+    const uint32_t mask = G > 1 ? __activemask() : 0u;
+#else
+    const uint32_t mask = 0u;  // the host runs G = 1 only (the builder refuses more)
+#endif
+    const uint32_t v = t / uint32_t(G), lane = t % uint32_t(G);
     int i, j, k;
     voxel_coords(vol, v, i, j, k);
     bool any = false;
     for_each_row_near(vol, view, float(i) + 0.5f, float(j) + 0.5f, float(k) + 0.5f, zb.radius,
                       [&](uint32_t row, uint32_t x0, uint32_t x1) { any |= view_offsets[row + x1 + 1u] > view_offsets[row + x0]; });
-    if (!any) {
+    if (G == 1 && !any) {
       field[v] = 0.0f;
-      if (Count) sink.put(v, 0, 1, 0, 0);
+      if (Count) sink.put(t, 0, 1, 0, 0);
       return;
     }
     const float h = vol.voxel;
@@ -547,10 +571,10 @@ struct ZhuBridsonGather {
     // Offsets of the particles from x in units of R: their weighted mean is (m - x) / R.
     float w = 0.0f, mx = 0.0f, my = 0.0f, mz = 0.0f;
     uint32_t pairs = 0;
-    for (int row = 0; row < candidate_rows<kSpan>(); ++row) {
+    for (int row = 0; any && row < candidate_rows<kSpan>(); ++row) {
       uint32_t begin = 0, end = 0;
       if (!candidate_row<kSpan>(grid, fine_offsets, x, row, begin, end, R * h)) continue;
-      for (uint32_t q = begin; q < end; ++q) {
+      for (uint32_t q = begin + lane; q < end; q += uint32_t(G)) {
         const Vec3f p = xyz(pos[q]);
         const float dx = (p.x - x.x) * inv_Rw, dy = (p.y - x.y) * inv_Rw, dz = (p.z - x.z) * inv_Rw;
         if (Count) ++pairs;
@@ -563,6 +587,14 @@ struct ZhuBridsonGather {
         mz += kq * dz;
       }
     }
+    if (G > 1) {
+      w = group_sum(w, mask);
+      mx = group_sum(mx, mask);
+      my = group_sum(my, mask);
+      mz = group_sum(mz, mask);
+    }
+    if (Count) sink.put(t, pairs, lane == 0 ? 1 : 0, 0, 0);
+    if (lane != 0) return;
     float f = 0.0f;
     if (w > 0.0f) {
       const float phi = R * std::sqrt(mx * mx + my * my + mz * mz) / w - zb.particle_radius;
@@ -570,7 +602,6 @@ struct ZhuBridsonGather {
       f = f < 0.0f ? 0.0f : (f > shape.clip ? shape.clip : f);
     }
     field[v] = f;
-    if (Count) sink.put(v, pairs, 1, 0, 0);
   }
 };
 

@@ -57,13 +57,17 @@ class FieldBuilderImpl final : public FieldBuilder {
     if (pv.backend != kBackend)
       throw std::invalid_argument(std::string("field builder on the ") + backend_name(kBackend) +
                                   " backend was given particles of the " + backend_name(pv.backend) + " backend");
-    if (group == 0) group = default_group(kind, pv.n);
+    if (group == 0) group = setup_.zhu_bridson.on ? zhu_bridson_group(setup_) : default_group(kind, pv.n);
+    if (setup_.zhu_bridson.on && group > 1 && kBackend != Backend::Cuda)
+      throw std::invalid_argument("field builder: the CPU builds Zhu & Bridson's surface with one thread per voxel (got " +
+                                  std::to_string(group) + ")");
     if (!valid_group(group))
       throw std::invalid_argument("field builder: threads per particle must be 1, 4, 8 or 32 (got " + std::to_string(group) + ")");
     const VolumeGeom& vol = setup_.geom;
     const FieldShape& shape = setup_.shape;
     const uint32_t voxels = uint32_t(vol.num_voxels());
-    const uint64_t items64 = kind == FieldKind::Gather ? uint64_t(voxels) : uint64_t(pv.n) * uint64_t(group);
+    const uint64_t items64 = kind == FieldKind::Gather ? uint64_t(voxels) * uint64_t(setup_.zhu_bridson.on ? group : 1)
+                                                       : uint64_t(pv.n) * uint64_t(group);
     if (items64 > 0xffffffffull) throw std::invalid_argument("field builder: too many particles for " + std::to_string(group) + " threads each");
     const uint32_t items = uint32_t(items64);
     CounterSink sink{nullptr, items};
@@ -140,8 +144,8 @@ class FieldBuilderImpl final : public FieldBuilder {
       case FieldKind::Gather:
         if (setup_.zhu_bridson.on) {
           const GridGeom zg = sort_by_radius(pv, field_sort_radius(setup_));
-          launch_variant("zhu_bridson_field", items, count, 1, false, [&](auto c, auto, auto) {
-            return ZhuBridsonGather<decltype(c)::value>{
+          launch_variant("zhu_bridson_field", items, count, group, false, [&](auto c, auto g, auto) {
+            return ZhuBridsonGather<decltype(c)::value, decltype(g)::value>{
                 vol, pv.grid, pv.offsets, zg, raw(aniso_offsets_), raw(aniso_pos_), shape, setup_.zhu_bridson, f, sink};
           });
         } else
@@ -182,6 +186,17 @@ class FieldBuilderImpl final : public FieldBuilder {
   // reads its voxels before it adds (in batches, PresenceSplat), runs 4 per
   // particle while that fills the GPU at most twice over (H100: up to 135k
   // particles), else 1.
+  // Zhu & Bridson's gather: threads per voxel. A voxel's reach of R voxels
+  // holds 8x the particles at each coarser refine (about 130 at refine 2,
+  // 1,000 at 1, 8,000 at 0) for 8x fewer voxels: one thread per voxel at
+  // refine 2, where the voxels fill the GPU; at coarser voxels one thread
+  // each left it nearly idle on long loops (docs/field.md, "Zhu & Bridson's
+  // surface"). One on the CPU.
+  static int zhu_bridson_group(const FieldSetup& s) {
+    if (kBackend != Backend::Cuda) return 1;
+    return s.geom.refine >= 2 ? 1 : s.geom.refine == 1 ? 8 : 32;
+  }
+
   static int default_group(FieldKind kind, uint32_t n) {
     if (kBackend != Backend::Cuda || kind == FieldKind::Gather) return 1;
     if (kind == FieldKind::Naive) return 8;

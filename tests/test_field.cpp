@@ -190,8 +190,9 @@ TEST_CASE("zhu_bridson: the field is |x - weighted mean| - r in double, mapped t
   CHECK(inside > 100);
   CHECK(outside > 100);
   CHECK(empty > 100);
-  // The other builders do not build it.
+  // The other builders do not build it, and the CPU's gather takes one thread per voxel.
   CHECK_THROWS_AS(test::cpu_field(fs, ps.view(), FieldKind::Naive), std::invalid_argument);
+  CHECK_THROWS_AS(make_cpu_field_builder(fs, FieldKind::Gather)->build(ps.view(), false, 8), std::invalid_argument);
 }
 
 TEST_CASE("zhu_bridson: a lone particle is a ball of radius r", "[field]") {
