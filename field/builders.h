@@ -534,31 +534,29 @@ struct ZhuBridsonGather {
   ZhuBridsonParams zb;
   float* field;
   CounterSink sink;              // per thread (voxel x lane)
+  // voxels x G. With G > 1 the launch is rounded up to whole warps, and the
+  // threads past it only take part in the shuffles, so that every lane of
+  // a warp reaches them (the full mask) whatever the voxel count.
+  uint32_t threads;
 
   // The group's sum of a lane's value (every lane of the group gets it).
-  SPHRAY_HD SPHRAY_FORCEINLINE static float group_sum(float value, [[maybe_unused]] uint32_t mask) {
+  SPHRAY_HD SPHRAY_FORCEINLINE static float group_sum(float value) {
 #if defined(__CUDA_ARCH__)
     SPHRAY_UNROLL
-    for (int d = G / 2; d > 0; d /= 2) value += __shfl_xor_sync(mask, value, d);
+    for (int d = G / 2; d > 0; d /= 2) value += __shfl_xor_sync(0xffffffffu, value, d);
 #endif
-    return value;
+    return value;  // the host runs G = 1 only (the builder refuses more)
   }
 
   SPHRAY_HD void operator()(uint32_t t) const {
-#if defined(__CUDA_ARCH__)
-    // The lanes that run this launch's functor (whole groups: the launch
-    // holds voxels x G threads and G divides 32); all of them reach the
-    // shuffles below.
-    const uint32_t mask = G > 1 ? __activemask() : 0u;
-#else
-    const uint32_t mask = 0u;  // the host runs G = 1 only (the builder refuses more)
-#endif
-    const uint32_t v = t / uint32_t(G), lane = t % uint32_t(G);
+    const bool real = t < threads;
+    const uint32_t v = real ? t / uint32_t(G) : 0u, lane = t % uint32_t(G);
     int i, j, k;
     voxel_coords(vol, v, i, j, k);
     bool any = false;
-    for_each_row_near(vol, view, float(i) + 0.5f, float(j) + 0.5f, float(k) + 0.5f, zb.radius,
-                      [&](uint32_t row, uint32_t x0, uint32_t x1) { any |= view_offsets[row + x1 + 1u] > view_offsets[row + x0]; });
+    if (real)
+      for_each_row_near(vol, view, float(i) + 0.5f, float(j) + 0.5f, float(k) + 0.5f, zb.radius,
+                        [&](uint32_t row, uint32_t x0, uint32_t x1) { any |= view_offsets[row + x1 + 1u] > view_offsets[row + x0]; });
     if (G == 1 && !any) {
       field[v] = 0.0f;
       if (Count) sink.put(t, 0, 1, 0, 0);
@@ -588,11 +586,12 @@ struct ZhuBridsonGather {
       }
     }
     if (G > 1) {
-      w = group_sum(w, mask);
-      mx = group_sum(mx, mask);
-      my = group_sum(my, mask);
-      mz = group_sum(mz, mask);
+      w = group_sum(w);
+      mx = group_sum(mx);
+      my = group_sum(my);
+      mz = group_sum(mz);
     }
+    if (!real) return;
     if (Count) sink.put(t, pairs, lane == 0 ? 1 : 0, 0, 0);
     if (lane != 0) return;
     float f = 0.0f;

@@ -68,7 +68,7 @@ class FieldBuilderImpl final : public FieldBuilder {
     const uint32_t voxels = uint32_t(vol.num_voxels());
     const uint64_t items64 = kind == FieldKind::Gather ? uint64_t(voxels) * uint64_t(setup_.zhu_bridson.on ? group : 1)
                                                        : uint64_t(pv.n) * uint64_t(group);
-    if (items64 > 0xffffffffull) throw std::invalid_argument("field builder: too many particles for " + std::to_string(group) + " threads each");
+    if (items64 > 0xffffffffull - 31u) throw std::invalid_argument("field builder: too many particles for " + std::to_string(group) + " threads each");
     const uint32_t items = uint32_t(items64);
     CounterSink sink{nullptr, items};
     if (count) {
@@ -144,9 +144,11 @@ class FieldBuilderImpl final : public FieldBuilder {
       case FieldKind::Gather:
         if (setup_.zhu_bridson.on) {
           const GridGeom zg = sort_by_radius(pv, field_sort_radius(setup_));
-          launch_variant("zhu_bridson_field", items, count, group, false, [&](auto c, auto g, auto) {
+          const uint32_t launched = group > 1 ? (items + 31u) / 32u * 32u : items;  // whole warps (ZhuBridsonGather)
+          launch_variant("zhu_bridson_field", launched, count, group, false, [&](auto c, auto g, auto) {
             return ZhuBridsonGather<decltype(c)::value, decltype(g)::value>{
-                vol, pv.grid, pv.offsets, zg, raw(aniso_offsets_), raw(aniso_pos_), shape, setup_.zhu_bridson, f, sink};
+                vol, pv.grid, pv.offsets, zg, raw(aniso_offsets_), raw(aniso_pos_), shape, setup_.zhu_bridson, f, sink,
+                items};
           });
         } else
           launch_variant("gather_field", items, count, 1, false, [&](auto c, auto, auto) {
