@@ -300,7 +300,7 @@ void print_summary(const RunSummary& r, std::ostream& log) {
   log << "\n";
   if (r.field_builds)
     log << "  field          " << r.field_builder << " builder, " << r.field_kernel
-        << (r.field_kernel == "zhu_bridson" ? " surface, " : " kernels, ") << r.field_dims[0]
+        << (r.field_kernel == field_kernel_name(FieldKernel::ZhuBridson) ? " surface, " : " kernels, ") << r.field_dims[0]
         << "x" << r.field_dims[1] << "x" << r.field_dims[2] << " voxels, " << r.field_builds << " builds, " << r.field_ms_mean << " ms per build"
         << (r.field_without_presence ? " (" + std::to_string(r.field_without_presence) +
                                            " without presence, e.g. at t = 0: full extents)"
