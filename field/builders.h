@@ -508,18 +508,16 @@ struct GatherField {
 // Stored as iso (1 - phi / (R - r)), clamped to [0, clip]: the surface is at
 // iso, and the value falls to 0 where a lone particle's support ends, so the
 // field is continuous as particles enter and leave a voxel's reach
-// (ZhuBridsonParams: volume.h). One thread per voxel over the particles
+// (ZhuBridsonParams: volume.h). G threads per voxel over the particles
 // sorted by a grid of cells of at least R / 2 (anisotropy_grid, as the
 // ellipsoids' pass): its 25 rows around the voxel centre, culled to R;
 // first, from the view grid's cell table, whether any particle lies in
 // the SPH cells the voxel's reach overlaps (most voxels are far from the
 // liquid: the 25 rows' table reads would cost them more than their
-// particles cost the voxels near it).
-// G threads per voxel (the CUDA backend where a voxel's reach holds many
-// particles: coarse voxels, field.refine 0 or 1; zhu_bridson_group): each
-// lane sums every G-th candidate of the rows and the group's sums meet by
-// warp shuffles; lane 0 stores. One voxel per thread elsewhere (G = 1, the
-// CPU always).
+// particles cost the voxels near it). G = 1 except on the CUDA backend
+// where a voxel's reach holds many particles (coarse voxels, field.refine 0
+// or 1; zhu_bridson_group): there each lane sums every G-th candidate of
+// the rows and the group's sums meet by warp shuffles; lane 0 stores.
 template <bool Count, int G>
 struct ZhuBridsonGather {
   static constexpr int kSpan = 2;
@@ -557,6 +555,8 @@ struct ZhuBridsonGather {
     if (real)
       for_each_row_near(vol, view, float(i) + 0.5f, float(j) + 0.5f, float(k) + 0.5f, zb.radius,
                         [&](uint32_t row, uint32_t x0, uint32_t x1) { any |= view_offsets[row + x1 + 1u] > view_offsets[row + x0]; });
+    // Most voxels: nothing within reach, written at once (with G > 1 every
+    // lane goes on to the shuffles, and `any` skips the rows).
     if (G == 1 && !any) {
       field[v] = 0.0f;
       if (Count) sink.put(t, 0, 1, 0, 0);
