@@ -421,11 +421,11 @@ void check_fits(const ResolvedScene& r, Backend backend, bool field, const RankS
       const bool zb = fs.zhu_bridson.on;
       const GridGeom ag = anisotropy_grid(z.grid, field_sort_radius(fs));
       if (!ag.fine_cells_indexable()) {
-        os << s.file << ": sph.spacing = " << s.sph.spacing << " with "
-           << (zb ? "field.zhu_bridson.radius = " : "field.anisotropy.radius = ")
+        const char* key = zb ? "field.zhu_bridson.radius" : "field.anisotropy.radius";
+        os << s.file << ": sph.spacing = " << s.sph.spacing << " with " << key << " = "
            << (zb ? s.field.zhu_bridson.radius : s.field.anisotropy.radius) << (zb ? " voxels" : " spacings")
            << " gives the field's grid of half that reach more slabs than sphray can index (2^32). Raise "
-           << "sph.spacing or " << (zb ? "field.zhu_bridson.radius." : "field.anisotropy.radius.");
+           << "sph.spacing or " << key << ".";
         throw SceneError(os.str());
       }
       bytes += z.fluid * ((zb ? 0 : 3 * sizeof(Float4)) + 2 * sizeof(uint32_t) + sizeof(Float4)) +
