@@ -101,6 +101,27 @@ void transform_reduce_into(uint32_t n, const F& f, const Op& op, const T& init, 
                                   f, init, op);
 }
 
+// The indices [0, n) split by their class cls(i), 0, 1 or 2: class 0 into
+// first and class 1 into second, each in index order, class 2 into rest;
+// counts[0], counts[1] and *rest_count their numbers (the CUDA backend's
+// leaves them on the device and may order the rest otherwise).
+template <class Cls>
+void partition_three(const char* name, uint32_t n, const Cls& cls, uint32_t* first, uint32_t* second, uint32_t* rest,
+                     uint32_t* counts, uint32_t* rest_count) {
+  const bool timed = kernel_timing();
+  const auto t0 = timed ? std::chrono::steady_clock::now() : std::chrono::steady_clock::time_point{};
+  uint32_t c[3] = {0, 0, 0};
+  for (uint32_t i = 0; i < n; ++i) {
+    const uint32_t k = uint32_t(cls(i));
+    (k == 0 ? first : k == 1 ? second : rest)[c[k < 2 ? k : 2]++] = i;
+  }
+  counts[0] = c[0];
+  counts[1] = c[1];
+  *rest_count = c[2];
+  if (timed)
+    add_kernel_time(name, std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count());
+}
+
 // The CUDA backend's read-back of a device value; here a copy.
 template <class T>
 class ReadBack {

@@ -14,6 +14,7 @@
 
 #include <cuda_runtime.h>
 #include <nvtx3/nvToolsExt.h>
+#include <cub/device/device_partition.cuh>
 #include <cub/device/device_radix_sort.cuh>
 #include <cub/device/device_reduce.cuh>
 #include <cub/util_allocator.cuh>
@@ -25,6 +26,7 @@
 #include <thrust/gather.h>
 #include <thrust/iterator/counting_iterator.h>
 #include <thrust/iterator/transform_iterator.h>
+#include <thrust/iterator/transform_output_iterator.h>
 #include <thrust/transform_scan.h>
 #include <thrust/reduce.h>
 #include <thrust/sequence.h>
@@ -275,6 +277,63 @@ void transform_reduce_into(uint32_t n, const F& f, const Op& op, const T& init, 
   SPHRAY_CUDA_CHECK(cache.DeviceAllocate(&temp, bytes));
   SPHRAY_CUDA_CHECK(cub::DeviceReduce::Reduce(temp, bytes, in, out, n, op, init));
   SPHRAY_CUDA_CHECK(cache.DeviceFree(temp));
+}
+
+// The indices [0, n) split by their class cls(i), 0, 1 or 2 (n < 2^30):
+// class 0 into first and class 1 into second, each in index order, class 2
+// into rest in any order; counts[0] and counts[1] their numbers and
+// *rest_count the rest's, left on the device. One pass of CUB's three-way
+// partition over i << 2 | cls(i), so each class is computed once, timed as
+// `name` while kernel timing is on.
+template <class Cls>
+struct PackClass {
+  Cls cls;
+  __device__ uint32_t operator()(uint32_t i) const { return i << 2 | uint32_t(cls(i)); }
+};
+struct IsClass {
+  uint32_t c;
+  __device__ bool operator()(uint32_t v) const { return (v & 3u) == c; }
+};
+struct UnpackIndex {
+  __device__ uint32_t operator()(uint32_t v) const { return v >> 2; }
+};
+struct RestCount {
+  const uint32_t* counts;
+  uint32_t* rest;
+  uint32_t n;
+  __device__ void operator()(uint32_t) const { *rest = n - counts[0] - counts[1]; }
+};
+template <class Cls>
+void partition_three(const char* name, uint32_t n, const Cls& cls, uint32_t* first, uint32_t* second, uint32_t* rest,
+                     uint32_t* counts, uint32_t* rest_count) {
+  if (n >= (1u << 30)) throw std::invalid_argument("partition_three: more than 2^30 items");
+  const bool timed = kernel_timing();
+  TimedLaunch t{name, nullptr, nullptr};
+  if (timed) {
+    SPHRAY_CUDA_CHECK(cudaEventCreate(&t.start));
+    SPHRAY_CUDA_CHECK(cudaEventCreate(&t.stop));
+    SPHRAY_CUDA_CHECK(cudaEventRecord(t.start));
+  }
+  const auto in = thrust::make_transform_iterator(thrust::counting_iterator<uint32_t>(0), PackClass<Cls>{cls});
+  const auto out0 = thrust::make_transform_output_iterator(first, UnpackIndex{});
+  const auto out1 = thrust::make_transform_output_iterator(second, UnpackIndex{});
+  const auto out2 = thrust::make_transform_output_iterator(rest, UnpackIndex{});
+  auto& cache = CachedTempAllocator::cache();
+  size_t bytes = 0;
+  SPHRAY_CUDA_CHECK(cub::DevicePartition::If(nullptr, bytes, in, out0, out1, out2, counts, int(n), IsClass{0},
+                                             IsClass{1}));
+  void* temp = nullptr;
+  SPHRAY_CUDA_CHECK(cache.DeviceAllocate(&temp, bytes));
+  SPHRAY_CUDA_CHECK(cub::DevicePartition::If(temp, bytes, in, out0, out1, out2, counts, int(n), IsClass{0},
+                                             IsClass{1}));
+  SPHRAY_CUDA_CHECK(cache.DeviceFree(temp));
+  for_each_index_kernel<<<1, 1>>>(1u, RestCount{counts, rest_count, n});
+  SPHRAY_CUDA_CHECK(cudaGetLastError());
+  if (timed) {
+    SPHRAY_CUDA_CHECK(cudaEventRecord(t.stop));
+    timed_launches().push_back(t);
+    set_pending_kernel_times(&resolve_timed_launches);
+  }
 }
 
 // A value on the device that the host reads without a wait of its own:

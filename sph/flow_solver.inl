@@ -129,25 +129,27 @@ inline void check_flow_state(const char* solver, const char* remedy, const FlowS
 enum LaunchGroup : int { kGroupRest = 0, kGroupListed = 1, kGroupGhosts = 2 };
 constexpr int kLaunchGroups = 3;
 
-// The class of each particle (mirror_walls.h, launch_class) at its position,
-// plus 4 times its group where the run is decomposed (status and the
-// refresh's peer bits given).
-struct ClassifyLaunch {
+// The class of a particle (mirror_walls.h, launch_class) at its position.
+struct LaunchClassOf {
   SphParams prm;
   float support, margin;
   WallsView walls;
   PairMask pairs;
   const Float4* pos;
-  const uint8_t* status;     // null: one group
+  SPHRAY_HD uint8_t operator()(uint32_t i) const {
+    return launch_class(prm, support, margin, walls, pairs, i, xyz(pos[i]));
+  }
+};
+
+// A decomposed run's classes, plus 4 times each particle's group.
+struct ClassifyLaunch {
+  LaunchClassOf cls_of;
+  const uint8_t* status;
   const uint8_t* peer_bits;  // GhostRefresh::peer_bits
   uint8_t* cls;
   SPHRAY_HD void operator()(uint32_t i) const {
-    uint8_t c = launch_class(prm, support, margin, walls, pairs, i, xyz(pos[i]));
-    if (status) {
-      const int g = status[i] == kStatusGhost ? kGroupGhosts : (peer_bits[i] & kToPeers) ? kGroupListed : kGroupRest;
-      c = uint8_t(c + 4 * g);
-    }
-    cls[i] = c;
+    const int g = status[i] == kStatusGhost ? kGroupGhosts : (peer_bits[i] & kToPeers) ? kGroupListed : kGroupRest;
+    cls[i] = uint8_t(cls_of(i) + 4 * g);
   }
 };
 
@@ -271,24 +273,29 @@ class LaunchLists {
     if (grouped_ && !side_) side_ = std::make_unique<SideStream>();
     listed_bound_ = std::min(listed_bound, n);
     ghosts_bound_ = std::min(ghosts, n);
-    if (cls_.size() < n) {
-      cls_.resize(n);
+    if (direct_.size() < n) {
       interior_[0].resize(n);
       near_[0].resize(n);
       direct_.resize(n);
     }
-    if (grouped_)
+    if (grouped_) {
+      if (cls_.size() < n) cls_.resize(n);
       for (int g = 1; g < kLaunchGroups; ++g) {
         if (interior_[g].size() < n) interior_[g].resize(n);
         if (near_[g].size() < n) near_[g].resize(n);
       }
+    }
     direct_known_ = n == 0;
     direct_count_ = 0;
     if (n == 0) return;
-    parallel_for("launch_classes", n,
-                 ClassifyLaunch{prm, support, margin, walls, pairs, pos, status, peer_bits, raw(cls_)});
-    if (grouped_) scatter<kLaunchGroups>(before_grouped_);
-    else scatter<1>(before_);
+    const LaunchClassOf cls_of{prm, support, margin, walls, pairs, pos};
+    if (grouped_) {
+      parallel_for("launch_classes", n, ClassifyLaunch{cls_of, status, peer_bits, raw(cls_)});
+      scatter();
+    } else {  // one group: one pass (CUB's three-way partition on the GPU)
+      partition_three("launch_lists", n, cls_of, raw(interior_[0]), raw(near_[0]), raw(direct_), raw(counts_),
+                      raw(counts_) + kDirectCount);
+    }
     direct_read_.start(raw(counts_) + kDirectCount);
   }
   // The direct loop's particles (usually none): read once per grid, when
@@ -320,34 +327,33 @@ class LaunchLists {
   }
   uint32_t direct_threads() const { return n_ < kDirectThreads ? n_ : kDirectThreads; }
   size_t bytes() const {
-    size_t b = cls_.size() + before_.size() * sizeof(LaunchCounts<1>) +
-               before_grouped_.size() * sizeof(LaunchCounts<kLaunchGroups>) + direct_.size() * sizeof(uint32_t) +
+    size_t b = cls_.size() + before_.size() * sizeof(LaunchCounts<kLaunchGroups>) + direct_.size() * sizeof(uint32_t) +
                counts_.size() * sizeof(uint32_t);
     for (int g = 0; g < kLaunchGroups; ++g) b += (interior_[g].size() + near_[g].size()) * sizeof(uint32_t);
     return b;
   }
 
  private:
-  template <int G>
-  void scatter(Vector<LaunchCounts<G>>& before) {
-    if (before.size() < n_) before.resize(n_);
-    thrust::transform_exclusive_scan(policy(), cls_.begin(), cls_.begin() + n_, before.begin(), CountLaunch<G>{},
+  // The groups' lists from the classes in cls_, by a scan of their counts.
+  void scatter() {
+    constexpr int G = kLaunchGroups;
+    if (before_.size() < n_) before_.resize(n_);
+    thrust::transform_exclusive_scan(policy(), cls_.begin(), cls_.begin() + n_, before_.begin(), CountLaunch<G>{},
                                      LaunchCounts<G>{}, AddLaunchCounts<G>{});
     LaunchListPtrs out{{}, {}, raw(direct_), raw(counts_)};
-    for (int g = 0; g < kLaunchGroups; ++g) {
-      out.interior[g] = g < G ? raw(interior_[g]) : nullptr;
-      out.near[g] = g < G ? raw(near_[g]) : nullptr;
+    for (int g = 0; g < G; ++g) {
+      out.interior[g] = raw(interior_[g]);
+      out.near[g] = raw(near_[g]);
     }
-    parallel_for("launch_lists", n_, ScatterLaunchLists<G>{raw(cls_), raw(before), n_, out});
+    parallel_for("launch_lists", n_, ScatterLaunchLists<G>{raw(cls_), raw(before_), n_, out});
   }
 
   uint32_t n_ = 0;
   bool grouped_ = false;
   std::unique_ptr<SideStream> side_;
   uint32_t listed_bound_ = 0, ghosts_bound_ = 0;
-  Vector<uint8_t> cls_;
-  Vector<LaunchCounts<1>> before_;
-  Vector<LaunchCounts<kLaunchGroups>> before_grouped_;
+  Vector<uint8_t> cls_;  // grouped runs only
+  Vector<LaunchCounts<kLaunchGroups>> before_;
   Vector<uint32_t> interior_[kLaunchGroups], near_[kLaunchGroups], direct_;
   Vector<uint32_t> counts_ = Vector<uint32_t>(kDirectCount + 1);
   ReadBack<uint32_t> direct_read_;

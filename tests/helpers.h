@@ -9,12 +9,14 @@
 #include <filesystem>
 #include <stdexcept>
 #include <fstream>
+#include <random>
 #include <sstream>
 #include <string>
 #include <vector>
 
 #include "pipeline/pipeline.h"
 #include "io/scene.h"
+#include "nsearch_probe.h"
 #include "mesh/mesh.h"
 #include "pipeline/setup.h"
 #include "sph/solver.h"
@@ -38,6 +40,26 @@ inline void check_flow_sums(const Solver& s) {
                     << " against " << speed2);
   CHECK(f.max_x == max_x);
   CHECK(std::abs(f.speed2_sum - speed2) <= 1e-9 * speed2);
+}
+
+// The backend's three-way split of n indices by random classes (half of
+// class 0, about a third of class 1, the rest 2, and runs of one class as
+// the grid order gives) against the lists made by hand: the first two in
+// index order, the rest as a set.
+inline void check_partition_three(Backend b, uint32_t n, uint32_t seed) {
+  std::mt19937 rng(seed);
+  std::vector<uint8_t> cls(n);
+  std::vector<uint32_t> want[3];
+  for (uint32_t i = 0; i < n; ++i) {
+    const uint32_t r = rng() % 100;
+    cls[i] = uint8_t(i % 5000 < 700 ? 1 : r < 50 ? 0 : r < 83 ? 1 : 2);
+    want[cls[i]].push_back(i);
+  }
+  PartitionBuild got = partition_three(b, cls);
+  CHECK(got.first == want[0]);
+  CHECK(got.second == want[1]);
+  std::sort(got.rest.begin(), got.rest.end());
+  CHECK(got.rest == want[2]);
 }
 
 // This test process's own directory for the files it writes, made on first

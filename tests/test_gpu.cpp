@@ -32,6 +32,14 @@ TEST_CASE("cuda grid build equals the cpu grid build", "[gpu]") {
   CHECK(c.keys == d.keys);
 }
 
+TEST_CASE("cuda three-way split of the passes' particles keeps each list in grid order", "[gpu]") {
+  // Across CUB's tiles (thousands of items each) and a million items.
+  for (uint32_t n : {0u, 1u, 7u, 100000u, 1000003u}) {
+    INFO("n = " << n);
+    test::check_partition_three(Backend::Cuda, n, 3 + n);
+  }
+}
+
 namespace {
 
 // The GPU's shared-tile test may keep a candidate a hair beyond the support

@@ -325,3 +325,10 @@ TEST_CASE("pair masks against another set skip queries in unflagged cells and lo
     REQUIRE(pm.neighbours[i] == direct);
   }
 }
+
+TEST_CASE("the three-way split of the passes' particles keeps each list in grid order", "[grid][cpu]") {
+  for (uint32_t n : {0u, 1u, 7u, 100000u}) {
+    INFO("n = " << n);
+    test::check_partition_three(Backend::Cpu, n, 3 + n);
+  }
+}

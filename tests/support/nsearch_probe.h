@@ -40,4 +40,12 @@ PairMaskBuild build_pair_masks(Backend b, const GridGeom& g, const std::vector<V
                                uint32_t capacity, const std::vector<Vec3f>* queries = nullptr,
                                bool tensor_tiles = true);
 
+// The backend's three-way split of the indices [0, n) by their classes
+// (partition_three: how the incompressible solvers list the particles of
+// their passes, sph/flow_solver.inl), brought back to the host.
+struct PartitionBuild {
+  std::vector<uint32_t> first, second, rest;  // the indices of class 0, 1 and 2
+};
+PartitionBuild partition_three(Backend b, const std::vector<uint8_t>& classes);
+
 }  // namespace sphray

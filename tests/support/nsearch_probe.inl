@@ -69,3 +69,18 @@ inline PairMaskBuild build_pair_masks_impl(const GridGeom& g, const std::vector<
   return out;
 }
 
+struct ClassAt {
+  const uint8_t* classes;
+  SPHRAY_HD uint8_t operator()(uint32_t i) const { return classes[i]; }
+};
+
+inline PartitionBuild partition_three_impl(const std::vector<uint8_t>& classes) {
+  const uint32_t n = uint32_t(classes.size());
+  Vector<uint8_t> cls;
+  upload(cls, classes);
+  Vector<uint32_t> first(n), second(n), rest(n), counts(3);
+  partition_three("probe_partition", n, ClassAt{raw(cls)}, raw(first), raw(second), raw(rest), raw(counts),
+                  raw(counts) + 2);
+  const std::vector<uint32_t> c = download(counts, 3);
+  return {download(first, c[0]), download(second, c[1]), download(rest, c[2])};
+}

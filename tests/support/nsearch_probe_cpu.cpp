@@ -21,4 +21,8 @@ PairMaskBuild build_pair_masks_cpu(const GridGeom& g, const std::vector<Vec3f>& 
   return cpu_backend::build_pair_masks_impl(g, points, radius, capacity, queries);
 }
 
+PartitionBuild partition_three_cpu(const std::vector<uint8_t>& classes) {
+  return cpu_backend::partition_three_impl(classes);
+}
+
 }  // namespace sphray

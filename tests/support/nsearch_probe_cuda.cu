@@ -21,4 +21,9 @@ PairMaskBuild build_pair_masks_cuda(const GridGeom& g, const std::vector<Vec3f>&
   return cuda_backend::build_pair_masks_impl(g, points, radius, capacity, queries, tensor_tiles);
 }
 
+PartitionBuild partition_three_cuda(const std::vector<uint8_t>& classes) {
+  if (!cuda_available()) throw std::runtime_error("the CUDA backend was asked for, but no CUDA device is present");
+  return cuda_backend::partition_three_impl(classes);
+}
+
 }  // namespace sphray
