@@ -1,6 +1,8 @@
 #include "config.h"
 
+#include <iterator>
 #include <stdexcept>
+#include <string>
 
 namespace sphray {
 
@@ -46,10 +48,12 @@ FieldConfig read_field_config(const ConfigReader& r) {
   c.full_fraction = r.number("full_fraction", c.full_fraction, 0.1, 2.0);
   c.full_value_clip = r.string("full_value", c.full_value_clip ? "clip" : "coarse", {"clip", "coarse"}) == "clip";
   c.every_frame = r.boolean("every_frame", true);  // the section's own; io/scene.cpp: false without one
-  const std::string kernel = r.string("kernel", "isotropic", {"isotropic", "anisotropic", "zhu_bridson"});
-  c.kernel = kernel == "anisotropic" ? FieldKernel::Anisotropic
-             : kernel == "zhu_bridson" ? FieldKernel::ZhuBridson
-                                       : FieldKernel::Isotropic;
+  const std::string kernel =
+      r.string("kernel", field_kernel_name(c.kernel),
+               {field_kernel_name(kFieldKernels[0]), field_kernel_name(kFieldKernels[1]), field_kernel_name(kFieldKernels[2])});
+  static_assert(std::size(kFieldKernels) == 3, "the kernel key's choices name every kernel");
+  for (FieldKernel k : kFieldKernels)
+    if (kernel == field_kernel_name(k)) c.kernel = k;
   if (c.kernel == FieldKernel::Anisotropic && c.builder == FieldKind::Gather)
     r.fail("kernel", r.at("kernel"), "the gather builder splats spheres only: use builder naive or presence");
   // Zhu & Bridson's surface is a per-voxel mean of the particles around it:

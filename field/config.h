@@ -18,6 +18,7 @@ FieldKind parse_field_kind(const std::string& name);  // throws std::invalid_arg
 // sum of kernels but the distance to the neighbours' weighted mean position
 // less a particle radius (Zhu & Bridson 2005; field/builders.h, ZhuBridsonGather).
 enum class FieldKernel { Isotropic, Anisotropic, ZhuBridson };
+constexpr FieldKernel kFieldKernels[] = {FieldKernel::Isotropic, FieldKernel::Anisotropic, FieldKernel::ZhuBridson};
 const char* field_kernel_name(FieldKernel k);
 
 struct AnisotropyConfig {

@@ -68,7 +68,8 @@ class FieldBuilderImpl final : public FieldBuilder {
     const uint32_t voxels = uint32_t(vol.num_voxels());
     const uint64_t items64 = kind == FieldKind::Gather ? uint64_t(voxels) * uint64_t(setup_.zhu_bridson.on ? group : 1)
                                                        : uint64_t(pv.n) * uint64_t(group);
-    if (items64 > 0xffffffffull - 31u) throw std::invalid_argument("field builder: too many particles for " + std::to_string(group) + " threads each");
+    if (items64 > 0xffffffffull - 31u) throw std::invalid_argument("field builder: too many " + std::string(kind == FieldKind::Gather ? "voxels" : "particles") +
+                                  " for " + std::to_string(group) + " threads each");
     const uint32_t items = uint32_t(items64);
     CounterSink sink{nullptr, items};
     if (count) {

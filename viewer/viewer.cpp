@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <iterator>
 #include <memory>
 #include <ostream>
 #include <stdexcept>
@@ -304,9 +305,10 @@ void draw_panel(PanelState& s, RenderSettings& rs, const Solver& solver, Backend
     const char* builders[] = {"naive", "presence", "gather"};
     if (ImGui::Combo("field builder", &s.builder_index, builders, 3))
       s.kind = parse_field_kind(builders[s.builder_index]);
-    const char* kernels[] = {"isotropic", "anisotropic", "zhu_bridson"};
+    const char* kernels[std::size(kFieldKernels)];
+    for (size_t k = 0; k < std::size(kFieldKernels); ++k) kernels[k] = field_kernel_name(kFieldKernels[k]);
     int kernel = int(s.kernel);
-    if (ImGui::Combo("field kernel", &kernel, kernels, 3)) s.kernel = FieldKernel(kernel);
+    if (ImGui::Combo("field kernel", &kernel, kernels, int(std::size(kernels)))) s.kernel = kFieldKernels[kernel];
     if (rs.method == RenderMethod::Slices) ImGui::SliderInt("slices", &rs.slices, 8, 4096);
     ImGui::SliderInt("interfaces", &rs.interfaces, 1, 8);
     ImGui::Checkbox("reflections traced", &rs.reflections);
