@@ -194,10 +194,14 @@ class FieldBuilderImpl final : public FieldBuilder {
   // 1,000 at 1, 8,000 at 0) for 8x fewer voxels: one thread per voxel at
   // refine 2, where the voxels fill the GPU; at coarser voxels one thread
   // each left it nearly idle on long loops (docs/field.md, "Zhu & Bridson's
-  // surface"). One on the CPU.
+  // surface"): 8 at refine 1, and at refine 0 a warp while that fills the
+  // GPU at most twice over, else 8 (8 lanes shuffle less, and enough
+  // voxels fill the GPU with them). One on the CPU.
   static int zhu_bridson_group(const FieldSetup& s) {
     if (kBackend != Backend::Cuda) return 1;
-    return s.geom.refine >= 2 ? 1 : s.geom.refine == 1 ? 8 : 32;
+    if (s.geom.refine >= 2) return 1;
+    if (s.geom.refine == 1) return 8;
+    return s.geom.num_voxels() * 32u <= 2ull * resident_threads() ? 32 : 8;
   }
 
   static int default_group(FieldKind kind, uint32_t n) {
