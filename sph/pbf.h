@@ -10,6 +10,9 @@
 //                    + lambda_i grad_i C_i(walls)                     (Correct)
 //   finish    v = (x* - x) / dt, XSPH viscosity, x = x*; the density left
 //             and presence at the new positions                      (Finish)
+//             Without obstacles the last iteration's Correct and Finish
+//             are one pass (CorrectFinish), XSPH and the density then at
+//             the positions before that correction.
 // The constraint is one-sided (only compression is corrected, as in
 // SPlisHSPlasH's PBF): a free surface has no neighbours above it and would
 // otherwise be pulled together. Walls are the tank's planes, as mirrors: a
@@ -277,6 +280,93 @@ struct Finish {
     vel_out[i] = {v.x, v.y, v.z, 0.0f};
     error[i] = fmaxf(rho_rel - 1.0f, 0.0f);
   }
+};
+
+// The last iteration's correction and the end of the step in one pass,
+// where the scene has no obstacles (whose stop must come between the two):
+// x*_i + dx_i as Correct makes it from (x*, lambda) at the last iteration's
+// positions, projected into the tank; v = (that - x) / dt with XSPH over the
+// neighbours' velocities at those positions, (x*_j - x_j) / dt, before the
+// correction; the density (pos_out.w) and presence there too. So a step
+// runs 2K neighbour passes for K iterations, not 2K + 1, and error[] keeps
+// Lambda's: the compression at the last iteration, before its correction.
+// Measured against Correct then Finish: docs/benchmarks.md.
+template <bool WithPresence, int P>
+struct CorrectFinish {
+  static constexpr int kMaxRegisters = kMirrorPassRegisters;
+  SphParams prm;
+  PbfParams pbf;
+  GridGeom grid;
+  const uint32_t* offsets;
+  PairMask pairs;
+  const FlowControl* control;
+  const Float4* pred;  // x*, lambda
+  const Float4* pos;   // x at the step's start
+  Float4* pos_out;     // x* corrected, density
+  Float4* vel_out;
+  float* presence;     // [6][n]; null without presence
+  uint32_t n;
+  SPHRAY_HD void operator()(uint32_t i) const {
+    const PbfKernel<float>& k = pbf.kernel;
+    const Float4 pi = pred[i];
+    const Vec3f xi = xyz(pi);
+    const Mirrors mirrors = mirrors_of(prm, k.s, xi);
+    const float inv_dt = float(1.0 / control->limits.dt);
+    const Vec3f x0 = xyz(pos[i]);
+    const Vec3f vi = inv_dt * (xi - x0);
+    float w_sum = k.W(0.0f);
+    Vec3f dx = {0.0f, 0.0f, 0.0f}, smooth = {0.0f, 0.0f, 0.0f}, grad = {0.0f, 0.0f, 0.0f};
+    float ux = 0.0f, uy = 0.0f, uz = 0.0f;
+    // A neighbour's velocity and lambda; an image's are its original's (i's own: vi, lambda_i).
+    auto fetch = [&](uint32_t j, Float4 pj) {
+      const Vec3f v = inv_dt * (xyz(pj) - xyz(load(pos + j)));
+      return Float4{v.x, v.y, v.z, pj.w};
+    };
+    const Float4 self{vi.x, vi.y, vi.z, pi.w};
+    for_each_neighbour_and_image<P>(grid, offsets, pairs, pred, i, xi, k.s * k.s, mirrors, self, fetch,
+                                    [&](Vec3f r, float r2, Float4 a, uint32_t set) {
+      const float w = k.W(r2);
+      const float v_dwr = pbf.volume * k.dW_over_r_sq(r2);
+      w_sum += w;
+      float scale = pi.w;  // as Correct: an image pushes with lambda_i and, mirrored, its original's
+      if (set != 0u) {
+        if (pbf.mirrored_images) {
+          scale += a.w;
+          smooth += w * (Mirrors::flip(xyz(a), set) - vi);
+        }
+      } else {
+        scale += a.w;
+        if (pbf.scorr_coef != 0.0f) {
+          const float q = k.W(r2) * pbf.inv_w_dq;
+          float qn = 1.0f;
+          for (int e = 0; e < pbf.scorr_n; ++e) qn *= q;
+          scale -= pbf.scorr_coef * qn;
+        }
+        smooth += w * (xyz(a) - vi);
+        if (WithPresence) {
+          grad += v_dwr * r;
+          ux += v_dwr * std::fabs(r.x);
+          uy += v_dwr * std::fabs(r.y);
+          uz += v_dwr * std::fabs(r.z);
+        }
+      }
+      dx += (scale * v_dwr) * r;
+    });
+    const float len2 = length2(dx);
+    if (pbf.max_correction > 0.0f && len2 > pbf.max_correction * pbf.max_correction)
+      dx = (pbf.max_correction / std::sqrt(len2)) * dx;
+    const Vec3f x = inside_tank(prm, xi + dx, pbf.wall_margin);
+    if (WithPresence) write_presence_lobes(presence, n, i, pbf.presence_scale, grad, ux, uy, uz);
+    const Vec3f v = inv_dt * (x - x0) + (pbf.xsph * pbf.volume) * smooth;
+    pos_out[i] = {x.x, x.y, x.z, prm.rest_density * pbf.volume * w_sum};
+    vel_out[i] = {v.x, v.y, v.z, 0.0f};
+  }
+};
+
+template <bool WithPresence>
+struct CorrectFinishOf {
+  template <int P>
+  using pass = CorrectFinish<WithPresence, P>;
 };
 
 // Finish with presence fixed, as a template of the pass alone (the solver

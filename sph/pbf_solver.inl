@@ -254,7 +254,12 @@ class PbfSolverImpl final : public Solver {
   static constexpr const char* kCorrectNames[3] = {"pbf_correct", "pbf_correct_walls",
                                                    "pbf_correct_direct"};
 
-  // The constraint iterations; returns how many corrections were applied.
+  // Without obstacles the last correction is finish()'s (CorrectFinish):
+  // the stop at an obstacle must come between a correction and the velocity.
+  bool fused_finish() const { return obstacles_.view.count == 0; }
+
+  // The constraint iterations; returns how many corrections were applied
+  // (with fused_finish(), counting the one finish() applies).
   int solve() {
     const bool stop = obstacles_.view.count > 0;
     for (int k = 0; k < pbf_.iterations; ++k) {
@@ -263,10 +268,11 @@ class PbfSolverImpl final : public Solver {
                              raw(pred_), raw(pred_tmp_), raw(error_), walls_.view(), raw(wall_grad_), raw(control_),
                              rest_weight);
       pred_.swap(pred_tmp_);
-      if (pbf_.tolerance > 0) {
-        // Ending early needs the error on the host: one read per iteration.
-        if (mean_over_run(error_, n_, ghosts_, status_, transport_) <= pbf_.tolerance) return k;
-      }
+      // Ending early needs the error on the host: one read per iteration.
+      const bool converged =
+          pbf_.tolerance > 0 && mean_over_run(error_, n_, ghosts_, status_, transport_) <= pbf_.tolerance;
+      if (fused_finish() && (converged || k + 1 == pbf_.iterations)) return k + 1;
+      if (converged) return k;
       iteration_pass<Correct>(kCorrectNames, pred_tmp_, stop, prm_, pbf_, step_grid_, raw(fine_offsets_), pairs(),
                               raw(pred_), raw(pred_tmp_), walls_.view(), raw(wall_grad_));
       pred_.swap(pred_tmp_);
@@ -337,13 +343,22 @@ class PbfSolverImpl final : public Solver {
                  Confine<true>{pbf_, step_grid_, raw(fine_offsets_), pairs(), control, raw(pos_), raw(vel_tmp_), raw(vel_)});
   }
 
-  // The finishing pass's launches (pbf.h, MirrorPass), with or without presence.
+  // The finishing pass's launches (pbf.h, MirrorPass), with or without
+  // presence: with the last correction where fused_finish(), else after it.
   static constexpr const char* kFinishNames[3] = {"pbf_finish", "pbf_finish_walls",
                                                   "pbf_finish_direct"};
+  static constexpr const char* kCorrectFinishNames[3] = {"pbf_correct_finish", "pbf_correct_finish_walls",
+                                                         "pbf_correct_finish_direct"};
   template <bool Presence>
   void finish_launches() {
     const FlowControl* control = raw(control_);
     float* presence = Presence ? raw(presence_) : nullptr;
+    if (fused_finish()) {
+      mirror_pass_launches<CorrectFinishOf<Presence>::template pass>(
+          kCorrectFinishNames, lists_, false, prm_, pbf_, step_grid_, raw(fine_offsets_), pairs(), control, raw(pred_),
+          raw(pos_), raw(pos_tmp_), raw(vel_tmp_), presence, n_);
+      return;
+    }
     mirror_pass_launches<FinishOf<Presence>::template pass>(kFinishNames, lists_, walls_.size() > 0, prm_, pbf_, step_grid_,
                                                             raw(fine_offsets_), pairs(), control, raw(pred_), raw(pos_),
                                                             raw(pos_tmp_), raw(vel_tmp_), raw(error_), presence, n_,
