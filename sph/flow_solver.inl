@@ -241,7 +241,7 @@ struct ListedLaunch {
 
 // The direct loop's particles (overflowed masks: usually none), by a few
 // threads that stride over their list (a full-size grid of mostly idle
-// threads, seven times a step, cost a 125k step several percent); not
+// threads, once per pass, cost a 125k step several percent); not
 // launched at all when the list is empty (LaunchLists::direct_count).
 constexpr uint32_t kDirectThreads = 4096;
 template <class Pass>
@@ -299,8 +299,8 @@ class LaunchLists {
     direct_read_.start(raw(counts_) + kDirectCount);
   }
   // The direct loop's particles (usually none): read once per grid, when
-  // the first pass asks, so that a pass launches no empty direct loop (seven
-  // a PBF step, sixteen a DFSPH step, a few microseconds each). The host
+  // the first pass asks, so that a pass launches no empty direct loop (six or
+  // seven a PBF step, sixteen a DFSPH step, a few microseconds each). The host
   // waits only for the lists; the pass launched before the question runs on.
   uint32_t direct_count() const {
     if (!direct_known_) {
