@@ -154,7 +154,7 @@ void print_table(const std::vector<BenchSimRow>& rows, std::ostream& out) {
       out << "  " << r.solver << " at " << r.particles << " particles: " << r.solve.iterations
           << " iterations"
           << (r.solve.divergence_iterations ? " (+ " + std::to_string(r.solve.divergence_iterations) + " divergence)" : "")
-          << ", density error left " << std::setprecision(3) << 100 * r.solve.density_error_mean
+          << ", density error " << std::setprecision(3) << 100 * r.solve.density_error_mean
           << "% mean, " << 100 * r.solve.density_error_max << "% max (last step)\n";
   out << "  grid: the sort, the cell tables and the pair masks; pairs: the wall pressure and the one neighbour\n"
       << "  loop of forces, density rate and presence (pbf: the constraint iterations; dfsph: the forces, the\n"

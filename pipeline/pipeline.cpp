@@ -277,7 +277,7 @@ void print_summary(const RunSummary& r, std::ostream& log) {
         << r.iterations_max << ")";
     if (dfsph)
       log << ", divergence solve " << r.divergence_iterations_mean << " (max " << r.divergence_iterations_max << ")";
-    log << ", density error left " << 100 * r.density_error_mean << "% mean, " << 100 * r.density_error_max
+    log << ", density error " << 100 * r.density_error_mean << "% mean, " << 100 * r.density_error_max
         << "% largest";
     if (r.unconverged_steps)
       log << ", " << r.unconverged_steps << (dfsph ? " steps at an iteration limit above the tolerance"
