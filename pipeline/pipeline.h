@@ -121,7 +121,7 @@ struct RunSummary {
   Vec3f max_speed_at = {0.0f, 0.0f, 0.0f};
   // The constraint or pressure solve of each step (Solver::last_solve; PBF,
   // DFSPH): iterations mean and max (DFSPH: also of the divergence solve),
-  // the density error left (mean over the steps of each step's mean, and the
+  // the density error of SolveStats (mean over the steps of each step's mean, and the
   // largest of any particle), steps that missed a tolerance within the limits.
   double iterations_mean = 0, density_error_mean = 0, density_error_max = 0;
   int iterations_max = 0;
