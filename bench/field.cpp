@@ -108,9 +108,9 @@ std::vector<BenchFieldRow> bench_field(Backend b, const BenchFieldOptions& opt, 
                                 {"gather-warp", FieldKind::Gather, true, 32, true}};
     for (const Variant& v : variants) {
       if (b == Backend::Cpu && v.gpu_layout) continue;
-      if (setup.aniso.on && v.kind == FieldKind::Gather) continue;  // spheres only
-      if (setup.zhu_bridson.on && v.kind != FieldKind::Gather) continue;  // built by the gather builder only
-      if (!setup.zhu_bridson.on && v.kind == FieldKind::Gather && v.group != 0) continue;  // spheres: a thread per voxel
+      if (setup.kernel == FieldKernel::Anisotropic && v.kind == FieldKind::Gather) continue;  // spheres only
+      if (setup.kernel == FieldKernel::ZhuBridson && v.kind != FieldKind::Gather) continue;  // built by the gather builder only
+      if (setup.kernel != FieldKernel::ZhuBridson && v.kind == FieldKind::Gather && v.group != 0) continue;  // spheres: a thread per voxel
       ParticleView view = pv;
       if (!v.presence) view.presence = nullptr;
       std::unique_ptr<FieldBuilder>& builder = builders[int(v.kind)];

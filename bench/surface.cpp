@@ -138,7 +138,7 @@ std::vector<BenchSurfaceRow> bench_surface(Backend b, const BenchSurfaceOptions&
       r.scene.field.kernel = kernel;
       const FieldSetup fs = make_field_setup(r);
       // Zhu & Bridson's surface has the gather builder alone.
-      auto builder = make_field_builder(b, fs, fs.zhu_bridson.on ? FieldKind::Gather : FieldKind::Presence);
+      auto builder = make_field_builder(b, fs, fs.kernel == FieldKernel::ZhuBridson ? FieldKind::Gather : FieldKind::Presence);
       BenchSurfaceRow row;
       row.kernel = field_kernel_name(kernel);
       row.refine = refine;

@@ -33,7 +33,6 @@
 namespace sphray {
 
 struct AnisotropyParams {
-  bool on = false;
   float radius = 0;              // neighbourhood [m]
   float stretch = 4;             // largest / smallest axis, at most
   float smoothing = 0.9f;        // centre = x + smoothing * mean offset

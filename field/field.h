@@ -25,24 +25,24 @@ struct FieldSetup {
   // fill (refine > 0, or anisotropic kernels); otherwise (refine 0, spheres)
   // any occupied cell is just inside (the paper's rule).
   bool mark_occupied = false;
-  AnisotropyParams aniso;   // aniso.on: ellipsoids (field/anisotropy.h)
-  ZhuBridsonParams zhu_bridson;  // on: Zhu & Bridson's surface, gather builder only (builders.h, ZhuBridsonGather)
+  // Spheres, ellipsoids (aniso: field/anisotropy.h) or Zhu & Bridson's
+  // surface (zhu_bridson; the gather builder only: builders.h, ZhuBridsonGather).
+  FieldKernel kernel = FieldKernel::Isotropic;
+  AnisotropyParams aniso;
+  ZhuBridsonParams zhu_bridson;
   // The presence builder with ellipsoids leaves out the particles whose splat
   // box lies in full cells whatever their ellipsoid (EllipsoidPass): on by
   // default; off only to compare against.
   bool leave_out_buried = true;
 };
 
-// The kernel a setup builds with.
-inline FieldKernel field_kernel_of(const FieldSetup& s) {
-  return s.aniso.on ? FieldKernel::Anisotropic : s.zhu_bridson.on ? FieldKernel::ZhuBridson : FieldKernel::Isotropic;
-}
-
 // The reach [m] of the builder's pass that sorts the particles by a grid of
 // half of it (anisotropy_grid): the ellipsoids' covariance radius, or Zhu &
 // Bridson's R; 0 where no pass sorts (spheres).
 inline float field_sort_radius(const FieldSetup& s) {
-  return s.zhu_bridson.on ? s.zhu_bridson.radius * s.geom.voxel : s.aniso.on ? s.aniso.radius : 0.0f;
+  return s.kernel == FieldKernel::ZhuBridson ? s.zhu_bridson.radius * s.geom.voxel
+         : s.kernel == FieldKernel::Anisotropic ? s.aniso.radius
+                                                : 0.0f;
 }
 
 // What a build did (counted only when asked; see docs/field.md).

@@ -57,8 +57,8 @@ class FieldBuilderImpl final : public FieldBuilder {
     if (pv.backend != kBackend)
       throw std::invalid_argument(std::string("field builder on the ") + backend_name(kBackend) +
                                   " backend was given particles of the " + backend_name(pv.backend) + " backend");
-    if (group == 0) group = setup_.zhu_bridson.on ? zhu_bridson_group(setup_) : default_group(kind, pv.n);
-    if (setup_.zhu_bridson.on && group > 1 && kBackend != Backend::Cuda)
+    if (group == 0) group = setup_.kernel == FieldKernel::ZhuBridson ? zhu_bridson_group(setup_) : default_group(kind, pv.n);
+    if (setup_.kernel == FieldKernel::ZhuBridson && group > 1 && kBackend != Backend::Cuda)
       throw std::invalid_argument("field builder: the CPU builds Zhu & Bridson's surface with one thread per voxel (got " +
                                   std::to_string(group) + ")");
     if (!valid_group(group))
@@ -66,7 +66,7 @@ class FieldBuilderImpl final : public FieldBuilder {
     const VolumeGeom& vol = setup_.geom;
     const FieldShape& shape = setup_.shape;
     const uint32_t voxels = uint32_t(vol.num_voxels());
-    const uint64_t items64 = kind == FieldKind::Gather ? uint64_t(voxels) * uint64_t(setup_.zhu_bridson.on ? group : 1)
+    const uint64_t items64 = kind == FieldKind::Gather ? uint64_t(voxels) * uint64_t(setup_.kernel == FieldKernel::ZhuBridson ? group : 1)
                                                        : uint64_t(pv.n) * uint64_t(group);
     if (items64 > 0xffffffffull - 31u) throw std::invalid_argument("field builder: too many " + std::string(kind == FieldKind::Gather ? "voxels" : "particles") +
                                   " for " + std::to_string(group) + " threads each");
@@ -77,8 +77,8 @@ class FieldBuilderImpl final : public FieldBuilder {
       sink.counts = raw(counters_);
     }
     float* f = raw(field_);
-    const bool aniso = setup_.aniso.on;
-    if (setup_.zhu_bridson.on && kind != FieldKind::Gather)
+    const bool aniso = setup_.kernel == FieldKernel::Anisotropic;
+    if (setup_.kernel == FieldKernel::ZhuBridson && kind != FieldKind::Gather)
       throw std::invalid_argument("field builder: Zhu & Bridson's surface is built by the gather builder only");
     if (aniso && kind == FieldKind::Gather)
       throw std::invalid_argument("field builder: the gather builder splats spheres only (anisotropic kernels: naive or presence)");
@@ -143,7 +143,7 @@ class FieldBuilderImpl final : public FieldBuilder {
         });
         break;
       case FieldKind::Gather:
-        if (setup_.zhu_bridson.on) {
+        if (setup_.kernel == FieldKernel::ZhuBridson) {
           const GridGeom zg = sort_by_radius(pv, field_sort_radius(setup_));
           const uint32_t launched = group > 1 ? (items + 31u) / 32u * 32u : items;  // whole warps (ZhuBridsonGather)
           launch_variant("zhu_bridson_field", launched, count, group, false, [&](auto c, auto g, auto) {

@@ -46,7 +46,6 @@ struct FieldShape {
 // Zhu & Bridson's surface instead of a sum of falloffs (FieldKernel::ZhuBridson;
 // builders.h, ZhuBridsonGather).
 struct ZhuBridsonParams {
-  bool on = false;
   float radius = 0;           // R: the neighbours' reach [voxels]
   float particle_radius = 0;  // r: the surface's distance from their weighted mean [voxels]
 };

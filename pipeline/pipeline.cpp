@@ -126,7 +126,7 @@ void finish_summary(RunSummary& r, const Solver& solver, const StepTally& tally,
   if (!tally.free_steps) r.min_dt = r.mean_dt;
   if (field) {
     r.field_builder = field_kind_name(field->kind());
-    r.field_kernel = field_kernel_name(field_kernel_of(field->setup()));
+    r.field_kernel = field_kernel_name(field->setup().kernel);
     r.field_ms_mean = r.field_builds ? field_ms / double(r.field_builds) : 0.0;
     const VolumeGeom& g = field->setup().geom;
     r.field_dims[0] = g.nx; r.field_dims[1] = g.ny; r.field_dims[2] = g.nz;

@@ -415,10 +415,10 @@ void check_fits(const ResolvedScene& r, Backend backend, bool field, const RankS
   if (field) {
     const FieldSetup fs = make_field_setup(r);
     bytes += size_t(fs.geom.num_voxels()) * sizeof(float);
-    if (fs.aniso.on || fs.zhu_bridson.on) {
+    if (fs.kernel != FieldKernel::Isotropic) {
       // The ellipsoids, and the sort of the pass that reads a radius around
       // each particle or voxel: keys, order, positions and its grid's slab table.
-      const bool zb = fs.zhu_bridson.on;
+      const bool zb = fs.kernel == FieldKernel::ZhuBridson;
       const GridGeom ag = anisotropy_grid(z.grid, field_sort_radius(fs));
       if (!ag.fine_cells_indexable()) {
         const char* key = zb ? "field.zhu_bridson.radius" : "field.anisotropy.radius";
@@ -678,19 +678,18 @@ FieldSetup make_field_setup(const ResolvedScene& r) {
   sh.shrink_from = float(f.shrink_from);
   const double per_cell = std::pow(g.cell_size / s.sph.spacing, 3.0);
   out.full_fill = f.full_value_clip ? sh.clip : sh.coarse;
+  out.kernel = f.kernel;
   AnisotropyParams& an = out.aniso;
-  an.on = f.kernel == FieldKernel::Anisotropic;
   an.radius = anisotropy_radius(s);
   an.stretch = float(f.anisotropy.stretch);
   an.smoothing = float(f.anisotropy.smoothing);
   an.min_neighbours = uint32_t(f.anisotropy.min_neighbours);
-  out.zhu_bridson.on = f.kernel == FieldKernel::ZhuBridson;
   out.zhu_bridson.radius = float(f.zhu_bridson.radius);
   out.zhu_bridson.particle_radius = float(f.zhu_bridson.particle_radius);
   // With ellipsoids a particle's own voxel need not be inside (a flat kernel
   // is thinner than a voxel): only full cells are filled, and each particle's
   // voxel is marked only where its own kernel reaches the iso value there.
-  out.mark_occupied = f.refine > 0 || an.on;
+  out.mark_occupied = f.refine > 0 || f.kernel == FieldKernel::Anisotropic;
   out.full_count = uint32_t(std::max(1.0, std::ceil(f.full_fraction * per_cell - 1e-9)));
   // Liquid beyond every face of a full cell: a quarter of a cell at rest,
   // whose surface then lies at least a voxel (at refine 2) beyond the face.

@@ -125,7 +125,7 @@ Eigen::Matrix3d form_of(const Ellipsoid& e) {
 TEST_CASE("anisotropic kernels equal a double brute-force covariance with another eigensolver", "[field]") {
   const Scene s = aniso_scene();
   const FieldSetup fs = make_field_setup(resolve_scene(s));
-  REQUIRE(fs.aniso.on);
+  REQUIRE(fs.kernel == FieldKernel::Anisotropic);
   // Sorted by the scene's grid (cells of 4 spacings, wider than the radius
   // of 3) and by the pass's own (cells of half the radius, rows two cells out).
   const GridGeom scene_grid = measure_scene(s).grid;

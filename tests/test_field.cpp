@@ -162,7 +162,7 @@ TEST_CASE("zhu_bridson: the field is |x - weighted mean| - r in double, mapped t
   const Scene s = small_scene({"field.kernel=zhu_bridson"});
   CHECK(s.field.builder == FieldKind::Gather);  // its builder when none is named
   const FieldSetup fs = make_field_setup(resolve_scene(s));
-  REQUIRE(fs.zhu_bridson.on);
+  REQUIRE(fs.kernel == FieldKernel::ZhuBridson);
   // Dense enough that most voxels see several particles, sparse enough for lone ones.
   const std::vector<Vec3f> pts = random_points(s, 6000, 5);
   const HostParticleSet ps(measure_scene(s).grid, pts);

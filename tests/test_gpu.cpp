@@ -389,16 +389,16 @@ TEST_CASE("cuda field builders agree with the cpu builders", "[gpu]") {
   }
   const FieldSetup fs = make_field_setup(resolve_scene(s));
   // Ellipsoids from the sums of WCSPH's pair loop on both backends (sph/covariance.h).
-  CHECK(bool(cpu->view().covariance) == fs.aniso.on);
-  CHECK(bool(gpu->view().covariance) == fs.aniso.on);
+  CHECK(bool(cpu->view().covariance) == (fs.kernel == FieldKernel::Anisotropic));
+  CHECK(bool(gpu->view().covariance) == (fs.kernel == FieldKernel::Anisotropic));
   for (FieldKind kind : {FieldKind::Naive, FieldKind::Presence, FieldKind::Gather}) {
-    if (fs.aniso.on && kind == FieldKind::Gather) continue;  // spheres only
-    if (fs.zhu_bridson.on && kind != FieldKind::Gather) continue;  // the gather builder's alone
+    if (fs.kernel == FieldKernel::Anisotropic && kind == FieldKind::Gather) continue;  // spheres only
+    if (fs.kernel == FieldKernel::ZhuBridson && kind != FieldKind::Gather) continue;  // the gather builder's alone
     auto fc = make_cpu_field_builder(fs, kind), fg = make_cuda_field_builder(fs, kind);
     fc->build(cpu->view(), true);
     const std::vector<float> a = fc->download();
     for (int group : {1, 4, 8, 32}) {  // every thread layout (the sphere gather: one thread per voxel)
-      if (kind == FieldKind::Gather && !fs.zhu_bridson.on && group != 1) continue;
+      if (kind == FieldKind::Gather && fs.kernel != FieldKernel::ZhuBridson && group != 1) continue;
       fg->build(gpu->view(), true, group);
       const std::vector<float> b = fg->download();
       double worst = 0;
@@ -415,7 +415,7 @@ TEST_CASE("cuda field builders agree with the cpu builders", "[gpu]") {
   }
   // Zhu & Bridson's surface at coarser voxels, where the GPU's default is
   // several threads per voxel (FieldBuilderImpl::zhu_bridson_group).
-  if (!fs.zhu_bridson.on) return;
+  if (fs.kernel != FieldKernel::ZhuBridson) return;
   for (int refine : {0, 1}) {
     const FieldSetup coarse = make_field_setup(
         resolve_scene(load_scene(test::source_path("scenes/dam_break.json"), {"sph.spacing=0.02", "run.end_time=1",

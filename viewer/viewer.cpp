@@ -330,23 +330,23 @@ std::unique_ptr<FieldBuilder> switch_field(const ResolvedScene& rscene, Backend 
                                            PanelState& s) {
   const FieldSetup* setup = &current.setup();
   FieldSetup other;
-  if (field_kernel_of(current.setup()) != s.kernel) {
+  if (current.setup().kernel != s.kernel) {
     ResolvedScene r = rscene;
     r.scene.field.kernel = s.kernel;
     try {
       other = make_field_setup(r);
       setup = &other;
     } catch (const std::exception& e) {
-      s.kernel = field_kernel_of(current.setup());
+      s.kernel = current.setup().kernel;
       s.status = e.what();
     }
   }
-  if (setup->aniso.on && s.kind == FieldKind::Gather) {
+  if (setup->kernel == FieldKernel::Anisotropic && s.kind == FieldKind::Gather) {
     s.status = "the gather builder takes no ellipsoids: presence instead";
     s.kind = FieldKind::Presence;
     s.builder_index = int(s.kind);
   }
-  if (setup->zhu_bridson.on && s.kind != FieldKind::Gather) {
+  if (setup->kernel == FieldKernel::ZhuBridson && s.kind != FieldKind::Gather) {
     s.status = "Zhu & Bridson's surface is built by the gather builder";
     s.kind = FieldKind::Gather;
     s.builder_index = int(s.kind);
@@ -457,7 +457,7 @@ int run_viewer(const ViewOptions& opt, std::ostream& log) {
     if (gather || s.steps > 0) solver->gather_frame();
     gather = false;
     const ParticleView pv = solver->view();
-    if (field->kind() != s.kind || field_kernel_of(field->setup()) != s.kernel)  // switched in the panel
+    if (field->kind() != s.kind || field->setup().kernel != s.kernel)  // switched in the panel
       field = switch_field(rscene, b, *field, s);
     if (s.draws_field) field->build(pv);
     s.field_ms = s.draws_field ? field->last_ms() : 0.0;
