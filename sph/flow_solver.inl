@@ -153,30 +153,27 @@ struct ClassifyLaunch {
   }
 };
 
-// Counts of the particles of each class (and group, G of them) before a
-// position: c[2 g] interior, c[2 g + 1] near walls, c[2 G] the direct loop's
-// of every group. (A scan keeps the lists in grid order: appended by
+// Counts of the particles of each class and group (a decomposed run's
+// lists) before a position: c[2 g] interior, c[2 g + 1] near walls,
+// c[kDirectCount] the direct loop's of every group. (A scan keeps the lists in grid order: appended by
 // atomics, the warps' runs came in the device's order and the 1M passes lost
 // 4-8% to the scattered reads.)
-template <int G>
 struct LaunchCounts {
-  uint32_t c[2 * G + 1];
+  uint32_t c[2 * kLaunchGroups + 1];
 };
-template <int G>
 struct CountLaunch {
-  SPHRAY_HD LaunchCounts<G> operator()(uint8_t code) const {
-    LaunchCounts<G> r{};
+  SPHRAY_HD LaunchCounts operator()(uint8_t code) const {
+    LaunchCounts r{};
     const int cls = code & 3, g = code >> 2;
-    if (cls == kClassDirect) r.c[2 * G] = 1u;
+    if (cls == kClassDirect) r.c[2 * kLaunchGroups] = 1u;
     else r.c[2 * g + cls] = 1u;
     return r;
   }
 };
-template <int G>
 struct AddLaunchCounts {
-  SPHRAY_HD LaunchCounts<G> operator()(const LaunchCounts<G>& a, const LaunchCounts<G>& b) const {
-    LaunchCounts<G> r;
-    for (int k = 0; k < 2 * G + 1; ++k) r.c[k] = a.c[k] + b.c[k];
+  SPHRAY_HD LaunchCounts operator()(const LaunchCounts& a, const LaunchCounts& b) const {
+    LaunchCounts r;
+    for (int k = 0; k < 2 * kLaunchGroups + 1; ++k) r.c[k] = a.c[k] + b.c[k];
     return r;
   }
 };
@@ -193,25 +190,24 @@ struct LaunchListPtrs {
 
 // Each particle into its list, in grid order; the last particle writes the
 // lists' lengths.
-template <int G>
 struct ScatterLaunchLists {
   const uint8_t* cls;
-  const LaunchCounts<G>* before;
+  const LaunchCounts* before;
   uint32_t n;
   LaunchListPtrs out;
   SPHRAY_HD void operator()(uint32_t i) const {
     const uint8_t code = cls[i];
     const int c = code & 3, g = code >> 2;
-    const LaunchCounts<G>& b = before[i];
+    const LaunchCounts& b = before[i];
     if (c == kClassInterior) out.interior[g][b.c[2 * g]] = i;
     else if (c == kClassNearWalls) out.near[g][b.c[2 * g + 1]] = i;
-    else out.direct[b.c[2 * G]] = i;
+    else out.direct[b.c[kDirectCount]] = i;
     if (i + 1 == n) {
-      for (int k = 0; k < G; ++k) {
+      for (int k = 0; k < kLaunchGroups; ++k) {
         out.counts[2 * k] = b.c[2 * k] + (c == kClassInterior && g == k ? 1u : 0u);
         out.counts[2 * k + 1] = b.c[2 * k + 1] + (c == kClassNearWalls && g == k ? 1u : 0u);
       }
-      out.counts[kDirectCount] = b.c[2 * G] + (c == kClassDirect ? 1u : 0u);
+      out.counts[kDirectCount] = b.c[kDirectCount] + (c == kClassDirect ? 1u : 0u);
     }
   }
 };
@@ -327,7 +323,7 @@ class LaunchLists {
   }
   uint32_t direct_threads() const { return n_ < kDirectThreads ? n_ : kDirectThreads; }
   size_t bytes() const {
-    size_t b = cls_.size() + before_.size() * sizeof(LaunchCounts<kLaunchGroups>) + direct_.size() * sizeof(uint32_t) +
+    size_t b = cls_.size() + before_.size() * sizeof(LaunchCounts) + direct_.size() * sizeof(uint32_t) +
                counts_.size() * sizeof(uint32_t);
     for (int g = 0; g < kLaunchGroups; ++g) b += (interior_[g].size() + near_[g].size()) * sizeof(uint32_t);
     return b;
@@ -336,16 +332,15 @@ class LaunchLists {
  private:
   // The groups' lists from the classes in cls_, by a scan of their counts.
   void scatter() {
-    constexpr int G = kLaunchGroups;
     if (before_.size() < n_) before_.resize(n_);
-    thrust::transform_exclusive_scan(policy(), cls_.begin(), cls_.begin() + n_, before_.begin(), CountLaunch<G>{},
-                                     LaunchCounts<G>{}, AddLaunchCounts<G>{});
+    thrust::transform_exclusive_scan(policy(), cls_.begin(), cls_.begin() + n_, before_.begin(), CountLaunch{},
+                                     LaunchCounts{}, AddLaunchCounts{});
     LaunchListPtrs out{{}, {}, raw(direct_), raw(counts_)};
-    for (int g = 0; g < G; ++g) {
+    for (int g = 0; g < kLaunchGroups; ++g) {
       out.interior[g] = raw(interior_[g]);
       out.near[g] = raw(near_[g]);
     }
-    parallel_for("launch_lists", n_, ScatterLaunchLists<G>{raw(cls_), raw(before_), n_, out});
+    parallel_for("launch_lists", n_, ScatterLaunchLists{raw(cls_), raw(before_), n_, out});
   }
 
   uint32_t n_ = 0;
@@ -353,7 +348,7 @@ class LaunchLists {
   std::unique_ptr<SideStream> side_;
   uint32_t listed_bound_ = 0, ghosts_bound_ = 0;
   Vector<uint8_t> cls_;  // grouped runs only
-  Vector<LaunchCounts<kLaunchGroups>> before_;
+  Vector<LaunchCounts> before_;
   Vector<uint32_t> interior_[kLaunchGroups], near_[kLaunchGroups], direct_;
   Vector<uint32_t> counts_ = Vector<uint32_t>(kDirectCount + 1);
   ReadBack<uint32_t> direct_read_;
