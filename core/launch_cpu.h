@@ -3,6 +3,7 @@
 // source, two backends").
 #pragma once
 
+#include <algorithm>
 #include <chrono>
 #include <cstdint>
 #include <cstring>
@@ -62,16 +63,32 @@ inline void sort_pairs(Vector<uint32_t>& keys, Vector<uint32_t>& values, uint32_
   thrust::stable_sort_by_key(policy(), keys.begin(), keys.begin() + n, values.begin());
 }
 
+// The wall time between construction and stop(), as `name`'s
+// (kernel_times.h), while kernel timing is on.
+class LaunchTimer {
+ public:
+  explicit LaunchTimer(const char* name) : name_(name), timed_(kernel_timing()) {
+    if (timed_) t0_ = std::chrono::steady_clock::now();
+  }
+  void stop() {
+    if (timed_)
+      add_kernel_time(name_, std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0_).count());
+  }
+
+ private:
+  const char* name_;
+  bool timed_;
+  std::chrono::steady_clock::time_point t0_{};
+};
+
 // f(i) for i in [0, n) on all cores; `name` labels its time while kernel
 // timing is on (kernel_times.h).
 template <class F>
 void parallel_for(const char* name, uint32_t n, const F& f) {
-  const bool timed = kernel_timing();
-  const auto t0 = timed ? std::chrono::steady_clock::now() : std::chrono::steady_clock::time_point{};
+  LaunchTimer timer(name);
 #pragma omp parallel for schedule(static)
   for (int64_t i = 0; i < int64_t(n); ++i) f(uint32_t(i));
-  if (timed)
-    add_kernel_time(name, std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count());
+  timer.stop();
 }
 
 // The CUDA backend's stream beside the default one; here the work runs in
@@ -108,18 +125,17 @@ void transform_reduce_into(uint32_t n, const F& f, const Op& op, const T& init, 
 template <class Cls>
 void partition_three(const char* name, uint32_t n, const Cls& cls, uint32_t* first, uint32_t* second, uint32_t* rest,
                      uint32_t* counts, uint32_t* rest_count) {
-  const bool timed = kernel_timing();
-  const auto t0 = timed ? std::chrono::steady_clock::now() : std::chrono::steady_clock::time_point{};
+  LaunchTimer timer(name);
+  uint32_t* out[3] = {first, second, rest};
   uint32_t c[3] = {0, 0, 0};
   for (uint32_t i = 0; i < n; ++i) {
-    const uint32_t k = uint32_t(cls(i));
-    (k == 0 ? first : k == 1 ? second : rest)[c[k < 2 ? k : 2]++] = i;
+    const uint32_t k = std::min(uint32_t(cls(i)), 2u);
+    out[k][c[k]++] = i;
   }
   counts[0] = c[0];
   counts[1] = c[1];
   *rest_count = c[2];
-  if (timed)
-    add_kernel_time(name, std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count());
+  timer.stop();
 }
 
 // The CUDA backend's read-back of a device value; here a copy.

@@ -164,6 +164,28 @@ inline void resolve_timed_launches() {
   timed_launches().clear();
 }
 
+// The device time of the work queued on `stream` between start() and
+// stop(), as `name`'s (kernel_times.h), while kernel timing is on.
+class LaunchTimer {
+ public:
+  LaunchTimer(const char* name, cudaStream_t stream) : t_{name, nullptr, nullptr}, stream_(stream) {
+    if (!kernel_timing()) return;
+    SPHRAY_CUDA_CHECK(cudaEventCreate(&t_.start));
+    SPHRAY_CUDA_CHECK(cudaEventCreate(&t_.stop));
+    SPHRAY_CUDA_CHECK(cudaEventRecord(t_.start, stream_));
+  }
+  void stop() {
+    if (!t_.start) return;
+    SPHRAY_CUDA_CHECK(cudaEventRecord(t_.stop, stream_));
+    timed_launches().push_back(t_);
+    set_pending_kernel_times(&resolve_timed_launches);
+  }
+
+ private:
+  TimedLaunch t_;
+  cudaStream_t stream_;
+};
+
 // f(i) for i in [0, n) as one kernel on `stream`, named for the profiler (an
 // NVTX range) and for the per-kernel times (kernel_times.h). `name` must
 // outlive the process's last take_kernel_times() (a string literal).
@@ -171,24 +193,14 @@ template <class F>
 void parallel_for_on(cudaStream_t stream, const char* name, uint32_t n, const F& f) {
   if (n == 0) return;
   nvtxRangePushA(name);
-  const bool timed = kernel_timing();
-  TimedLaunch t{name, nullptr, nullptr};
-  if (timed) {
-    SPHRAY_CUDA_CHECK(cudaEventCreate(&t.start));
-    SPHRAY_CUDA_CHECK(cudaEventCreate(&t.stop));
-    SPHRAY_CUDA_CHECK(cudaEventRecord(t.start, stream));
-  }
+  LaunchTimer timer(name, stream);
   const uint32_t blocks = (n + kThreadsPerBlock - 1) / kThreadsPerBlock;
   if constexpr (KernelRegisterCap<F>::value > 0)
     for_each_index_kernel_capped<F, KernelRegisterCap<F>::value><<<blocks, kThreadsPerBlock, 0, stream>>>(n, f);
   else
     for_each_index_kernel<<<blocks, kThreadsPerBlock, 0, stream>>>(n, f);
   SPHRAY_CUDA_CHECK(cudaGetLastError());
-  if (timed) {
-    SPHRAY_CUDA_CHECK(cudaEventRecord(t.stop, stream));
-    timed_launches().push_back(t);
-    set_pending_kernel_times(&resolve_timed_launches);
-  }
+  timer.stop();
   nvtxRangePop();
 #if !defined(NDEBUG)
   SPHRAY_CUDA_CHECK(cudaDeviceSynchronize());
@@ -307,13 +319,7 @@ template <class Cls>
 void partition_three(const char* name, uint32_t n, const Cls& cls, uint32_t* first, uint32_t* second, uint32_t* rest,
                      uint32_t* counts, uint32_t* rest_count) {
   if (n >= (1u << 30)) throw std::invalid_argument("partition_three: more than 2^30 items");
-  const bool timed = kernel_timing();
-  TimedLaunch t{name, nullptr, nullptr};
-  if (timed) {
-    SPHRAY_CUDA_CHECK(cudaEventCreate(&t.start));
-    SPHRAY_CUDA_CHECK(cudaEventCreate(&t.stop));
-    SPHRAY_CUDA_CHECK(cudaEventRecord(t.start));
-  }
+  LaunchTimer timer(name, 0);
   const auto in = thrust::make_transform_iterator(thrust::counting_iterator<uint32_t>(0), PackClass<Cls>{cls});
   const auto out0 = thrust::make_transform_output_iterator(first, UnpackIndex{});
   const auto out1 = thrust::make_transform_output_iterator(second, UnpackIndex{});
@@ -329,11 +335,7 @@ void partition_three(const char* name, uint32_t n, const Cls& cls, uint32_t* fir
   SPHRAY_CUDA_CHECK(cache.DeviceFree(temp));
   for_each_index_kernel<<<1, 1>>>(1u, RestCount{counts, rest_count, n});
   SPHRAY_CUDA_CHECK(cudaGetLastError());
-  if (timed) {
-    SPHRAY_CUDA_CHECK(cudaEventRecord(t.stop));
-    timed_launches().push_back(t);
-    set_pending_kernel_times(&resolve_timed_launches);
-  }
+  timer.stop();
 }
 
 // A value on the device that the host reads without a wait of its own:
