@@ -89,6 +89,35 @@ SPHRAY_HD SPHRAY_FORCEINLINE Vec3f volume_grad(const PbfParams& pbf, Vec3f r, fl
   return (pbf.volume * pbf.kernel.dW_over_r_sq(r2)) * r;
 }
 
+// A neighbour's share of the correction, the factor of (m / rho0) grad W_ij:
+// lambda_i + lambda_j (less s_corr) for a neighbour; for an image (set != 0)
+// lambda_i and, mirrored, its original's lambda (i's own images: lambda_i
+// again), no s_corr.
+SPHRAY_HD SPHRAY_FORCEINLINE float correction_scale(const PbfParams& pbf, float r2, float lambda_i, float lambda_j,
+                                                    uint32_t set) {
+  float scale = lambda_i;
+  if (set != 0u && pbf.mirrored_images) scale += lambda_j;
+  if (set == 0u) {
+    scale += lambda_j;
+    if (pbf.scorr_coef != 0.0f) {  // off by default: the same for every thread, no divergence
+      const float q = pbf.kernel.W(r2) * pbf.inv_w_dq;
+      float qn = 1.0f;
+      for (int e = 0; e < pbf.scorr_n; ++e) qn *= q;
+      scale -= pbf.scorr_coef * qn;
+    }
+  }
+  return scale;
+}
+
+// x* moved by the correction dx, at most pbf.max_correction per iteration
+// (pbf_params.h), and projected into the tank.
+SPHRAY_HD SPHRAY_FORCEINLINE Vec3f corrected(const SphParams& prm, const PbfParams& pbf, Vec3f xi, Vec3f dx) {
+  const float len2 = length2(dx);
+  if (pbf.max_correction > 0.0f && len2 > pbf.max_correction * pbf.max_correction)
+    dx = (pbf.max_correction / std::sqrt(len2)) * dx;
+  return inside_tank(prm, xi + dx, pbf.wall_margin);
+}
+
 // Density at x* and lambda_i: out[i] = {x*_i, lambda_i}; error[i] = C_i.
 // The wall images (Mirrors) add to the density and to grad_i C_i, and, as
 // mirrored particles (pbf.mirrored_images), to the sum over the neighbours'
@@ -166,30 +195,14 @@ struct Correct {
     const Mirrors mirrors = mirrors_of(prm, k.s, xi);
     const bool near_mesh = walls.near_point(xi);
     Vec3f dx = {0.0f, 0.0f, 0.0f};
-    // An image pushes with lambda_i and, mirrored, its original's lambda
-    // (i's own images: lambda_i again); no s_corr.
     auto lambda = [](uint32_t, Float4 pj) { return pj.w; };
     for_each_neighbour_and_image<P>(grid, offsets, pairs, pred, i, xi, s2, mirrors, pi.w, lambda,
                                     [&](Vec3f r, float r2, float lambda_j, uint32_t set) {
-      float scale = pi.w;
-      if (set != 0u && pbf.mirrored_images) scale += lambda_j;
-      if (set == 0u) {
-        scale += lambda_j;
-        if (pbf.scorr_coef != 0.0f) {  // off by default: the same for every thread, no divergence
-          const float q = k.W(r2) * pbf.inv_w_dq;
-          float qn = 1.0f;
-          for (int e = 0; e < pbf.scorr_n; ++e) qn *= q;
-          scale -= pbf.scorr_coef * qn;
-        }
-      }
+      const float scale = correction_scale(pbf, r2, pi.w, lambda_j, set);
       dx += (scale * pbf.volume * k.dW_over_r_sq(r2)) * r;
     });
     if (with_mesh_walls(P) && near_mesh) dx += pi.w * xyz(wall_grad[i]);  // lambda_i only: static wall particles
-    // At most pbf.max_correction per iteration (pbf_params.h).
-    const float len2 = length2(dx);
-    if (pbf.max_correction > 0.0f && len2 > pbf.max_correction * pbf.max_correction)
-      dx = (pbf.max_correction / std::sqrt(len2)) * dx;
-    const Vec3f x = inside_tank(prm, xi + dx, pbf.wall_margin);
+    const Vec3f x = corrected(prm, pbf, xi, dx);
     out[i] = {x.x, x.y, x.z, 0.0f};
   }
 };
@@ -245,8 +258,8 @@ struct Finish {
     const float inv_dt = float(1.0 / control->limits.dt);
     const Vec3f vi = inv_dt * (xi - xyz(pos[i]));
     float w_sum = k.W(0.0f);
-    Vec3f smooth = {0.0f, 0.0f, 0.0f}, grad = {0.0f, 0.0f, 0.0f};
-    float ux = 0.0f, uy = 0.0f, uz = 0.0f;
+    Vec3f smooth = {0.0f, 0.0f, 0.0f};
+    PresenceSums lobes;
     // A neighbour's velocity over the step; the images add to the density only.
     auto velocity = [&](uint32_t j, Float4 pj) { return inv_dt * (xyz(pj) - xyz(load(pos + j))); };
     for_each_neighbour_and_image<P>(grid, offsets, pairs, pred, i, xi, k.s * k.s, mirrors, vi, velocity,
@@ -258,13 +271,8 @@ struct Finish {
         return;
       }
       smooth += w * (vj - vi);
-      if (WithPresence) {  // V_j = m / rho0: the volume the lobes are normalised with (make_pbf_params)
-        const float v_dwr = pbf.volume * k.dW_over_r_sq(r2);
-        grad += v_dwr * r;
-        ux += v_dwr * std::fabs(r.x);
-        uy += v_dwr * std::fabs(r.y);
-        uz += v_dwr * std::fabs(r.z);
-      }
+      // V_j = m / rho0: the volume the lobes are normalised with (make_pbf_params)
+      if (WithPresence) lobes.add(pbf.volume * k.dW_over_r_sq(r2), r);
     });
     float wall_volume = 0.0f;
     if (with_mesh_walls(P) && near_mesh)
@@ -274,7 +282,7 @@ struct Finish {
     // Weighed by the rest volume, not m / rho_i: the summed density falls by
     // the kernel's deficit at a free surface, and dividing by it would count
     // a flat surface's lateral neighbours as a full lattice (presence.h).
-    if (WithPresence) write_presence_lobes(presence, n, i, pbf.presence_scale, grad, ux, uy, uz);
+    if (WithPresence) lobes.write(presence, n, i, pbf.presence_scale);
     const Vec3f v = vi + (pbf.xsph * pbf.volume) * smooth;
     pos_out[i] = {xi.x, xi.y, xi.z, rho};
     vel_out[i] = {v.x, v.y, v.z, 0.0f};
@@ -315,8 +323,8 @@ struct CorrectFinish {
     const Vec3f x0 = xyz(pos[i]);
     const Vec3f vi = inv_dt * (xi - x0);
     float w_sum = k.W(0.0f);
-    Vec3f dx = {0.0f, 0.0f, 0.0f}, smooth = {0.0f, 0.0f, 0.0f}, grad = {0.0f, 0.0f, 0.0f};
-    float ux = 0.0f, uy = 0.0f, uz = 0.0f;
+    Vec3f dx = {0.0f, 0.0f, 0.0f}, smooth = {0.0f, 0.0f, 0.0f};
+    PresenceSums lobes;
     // A neighbour's velocity and lambda; an image's are its original's (i's own: vi, lambda_i).
     auto fetch = [&](uint32_t j, Float4 pj) {
       const Vec3f v = inv_dt * (xyz(pj) - xyz(load(pos + j)));
@@ -328,35 +336,16 @@ struct CorrectFinish {
       const float w = k.W(r2);
       const float v_dwr = pbf.volume * k.dW_over_r_sq(r2);
       w_sum += w;
-      float scale = pi.w;  // as Correct: an image pushes with lambda_i and, mirrored, its original's
       if (set != 0u) {
-        if (pbf.mirrored_images) {
-          scale += a.w;
-          smooth += w * (Mirrors::flip(xyz(a), set) - vi);
-        }
+        if (pbf.mirrored_images) smooth += w * (Mirrors::flip(xyz(a), set) - vi);
       } else {
-        scale += a.w;
-        if (pbf.scorr_coef != 0.0f) {
-          const float q = k.W(r2) * pbf.inv_w_dq;
-          float qn = 1.0f;
-          for (int e = 0; e < pbf.scorr_n; ++e) qn *= q;
-          scale -= pbf.scorr_coef * qn;
-        }
         smooth += w * (xyz(a) - vi);
-        if (WithPresence) {
-          grad += v_dwr * r;
-          ux += v_dwr * std::fabs(r.x);
-          uy += v_dwr * std::fabs(r.y);
-          uz += v_dwr * std::fabs(r.z);
-        }
+        if (WithPresence) lobes.add(v_dwr, r);
       }
-      dx += (scale * v_dwr) * r;
+      dx += (correction_scale(pbf, r2, pi.w, a.w, set) * v_dwr) * r;
     });
-    const float len2 = length2(dx);
-    if (pbf.max_correction > 0.0f && len2 > pbf.max_correction * pbf.max_correction)
-      dx = (pbf.max_correction / std::sqrt(len2)) * dx;
-    const Vec3f x = inside_tank(prm, xi + dx, pbf.wall_margin);
-    if (WithPresence) write_presence_lobes(presence, n, i, pbf.presence_scale, grad, ux, uy, uz);
+    const Vec3f x = corrected(prm, pbf, xi, dx);
+    if (WithPresence) lobes.write(presence, n, i, pbf.presence_scale);
     const Vec3f v = inv_dt * (x - x0) + (pbf.xsph * pbf.volume) * smooth;
     pos_out[i] = {x.x, x.y, x.z, prm.rest_density * pbf.volume * w_sum};
     vel_out[i] = {v.x, v.y, v.z, 0.0f};

@@ -28,4 +28,20 @@ SPHRAY_HD SPHRAY_FORCEINLINE void write_presence_lobes(float* presence, uint32_t
   presence[5 * n + i] = std::fmin(1.0f, std::fmax(0.0f, -s * (grad.z + uz)));
 }
 
+// The neighbour sums of the lobes as a loop gathers them, with the weight
+// v_dwr = V_j (dW/dr / r) of each neighbour at offset r = x_i - x_j.
+struct PresenceSums {
+  Vec3f grad = {0.0f, 0.0f, 0.0f};
+  float ux = 0.0f, uy = 0.0f, uz = 0.0f;
+  SPHRAY_HD SPHRAY_FORCEINLINE void add(float v_dwr, Vec3f r) {
+    grad += v_dwr * r;
+    ux += v_dwr * std::fabs(r.x);
+    uy += v_dwr * std::fabs(r.y);
+    uz += v_dwr * std::fabs(r.z);
+  }
+  SPHRAY_HD SPHRAY_FORCEINLINE void write(float* presence, uint32_t n, uint32_t i, float s) const {
+    write_presence_lobes(presence, n, i, s, grad, ux, uy, uz);
+  }
+};
+
 }  // namespace sphray
