@@ -57,8 +57,9 @@ class FieldBuilderImpl final : public FieldBuilder {
     if (pv.backend != kBackend)
       throw std::invalid_argument(std::string("field builder on the ") + backend_name(kBackend) +
                                   " backend was given particles of the " + backend_name(pv.backend) + " backend");
-    if (group == 0) group = setup_.kernel == FieldKernel::ZhuBridson ? zhu_bridson_group(setup_) : default_group(kind, pv.n);
-    if (setup_.kernel == FieldKernel::ZhuBridson && group > 1 && kBackend != Backend::Cuda)
+    const bool zb = setup_.kernel == FieldKernel::ZhuBridson, aniso = setup_.kernel == FieldKernel::Anisotropic;
+    if (group == 0) group = zb ? zhu_bridson_group(setup_) : default_group(kind, pv.n);
+    if (zb && group > 1 && kBackend != Backend::Cuda)
       throw std::invalid_argument("field builder: the CPU builds Zhu & Bridson's surface with one thread per voxel (got " +
                                   std::to_string(group) + ")");
     if (!valid_group(group))
@@ -66,10 +67,12 @@ class FieldBuilderImpl final : public FieldBuilder {
     const VolumeGeom& vol = setup_.geom;
     const FieldShape& shape = setup_.shape;
     const uint32_t voxels = uint32_t(vol.num_voxels());
-    const uint64_t items64 = kind == FieldKind::Gather ? uint64_t(voxels) * uint64_t(setup_.kernel == FieldKernel::ZhuBridson ? group : 1)
+    const uint64_t items64 = kind == FieldKind::Gather ? uint64_t(voxels) * uint64_t(zb ? group : 1)
                                                        : uint64_t(pv.n) * uint64_t(group);
-    if (items64 > 0xffffffffull - 31u) throw std::invalid_argument("field builder: too many " + std::string(kind == FieldKind::Gather ? "voxels" : "particles") +
-                                  " for " + std::to_string(group) + " threads each");
+    if (items64 > 0xffffffffull - 31u)
+      throw std::invalid_argument(std::string("field builder: too many ") +
+                                  (kind == FieldKind::Gather ? "voxels" : "particles") + " for " +
+                                  std::to_string(group) + " threads each");
     const uint32_t items = uint32_t(items64);
     CounterSink sink{nullptr, items};
     if (count) {
@@ -77,8 +80,7 @@ class FieldBuilderImpl final : public FieldBuilder {
       sink.counts = raw(counters_);
     }
     float* f = raw(field_);
-    const bool aniso = setup_.kernel == FieldKernel::Anisotropic;
-    if (setup_.kernel == FieldKernel::ZhuBridson && kind != FieldKind::Gather)
+    if (zb && kind != FieldKind::Gather)
       throw std::invalid_argument("field builder: Zhu & Bridson's surface is built by the gather builder only");
     if (aniso && kind == FieldKind::Gather)
       throw std::invalid_argument("field builder: the gather builder splats spheres only (anisotropic kernels: naive or presence)");
@@ -143,7 +145,7 @@ class FieldBuilderImpl final : public FieldBuilder {
         });
         break;
       case FieldKind::Gather:
-        if (setup_.kernel == FieldKernel::ZhuBridson) {
+        if (zb) {
           const GridGeom zg = sort_by_radius(pv, field_sort_radius(setup_));
           const uint32_t launched = group > 1 ? (items + 31u) / 32u * 32u : items;  // whole warps (ZhuBridsonGather)
           launch_variant("zhu_bridson_field", launched, count, group, false, [&](auto c, auto g, auto) {
