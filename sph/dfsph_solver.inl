@@ -202,7 +202,7 @@ class DfsphSolverImpl final : public Solver {
   // the ghosts' owners (GhostRefresh).
   void sort_and_mask() {
     static constexpr const char* kNames[2] = {"dfsph_keys", "dfsph_gather"};
-    const FlowSort r = sort_flow_particles(kNames, grid_, prm_.open_top, n_, pos_, presence_valid_, arrays(), keys_,
+    const FlowSort r = sort_flow_particles(kNames, grid_, prm_.open_top, n_, pos_, {presence_valid_}, arrays(), keys_,
                                            order_, fine_offsets_, &offsets_, gone_);
     gone_ = false;
     removed_ += r.dropped_owned;

@@ -19,17 +19,30 @@ struct FlowSort {
   uint32_t dropped_ghosts = 0;  // another rank's ghosts dropped with them
 };
 
+// What a sort carries besides positions, ids and states, and whether its
+// keys are computed already.
+struct FlowSortCarry {
+  bool presence = false;
+  // PBF's step sort leaves the velocities out: its finishing pass writes
+  // every particle's anew, and nothing reads them before (pbf_solver.inl).
+  bool velocity = true;
+  // keys[] already holds each particle's slab key on this grid (PBF's
+  // Predict computes it where it places the particle).
+  bool keys_given = false;
+};
+
 // Sorts every array by the cell of `by` (one of them, read before the
-// gather), carrying presence when `carry_presence`, into the slab table
-// `fine_offsets` and, if given, the cell table `offsets`, and drops the particles
-// outside the grid (an open top only) and, after an exchange (`exchanged`:
-// exchange_impl.inl), those it sent away (kStatusGone).
+// gather), carrying what `carry` says, into the slab table `fine_offsets`
+// and, if given, the cell table `offsets`, and drops the particles outside
+// the grid (an open top only) and, after an exchange (`exchanged`:
+// exchange_impl.inl), those it sent away (kStatusGone). Without the
+// velocities carried, vel keeps the order before the sort.
 inline FlowSort sort_flow_particles(const char* const (&names)[2], const GridGeom& grid, bool open_top, uint32_t n,
-                                    const Vector<Float4>& by, bool carry_presence, FlowArrays a, Vector<uint32_t>& keys,
+                                    const Vector<Float4>& by, FlowSortCarry carry, FlowArrays a, Vector<uint32_t>& keys,
                                     Vector<uint32_t>& order, Vector<uint32_t>& fine_offsets, Vector<uint32_t>* offsets,
                                     bool exchanged = false) {
   if (exchanged) parallel_for(names[0], n, KeyOfStaying{grid, raw(by), raw(a.status), raw(keys)});
-  else parallel_for(names[0], n, KeyOf<Float4>{grid, raw(by), raw(keys)});
+  else if (!carry.keys_given) parallel_for(names[0], n, KeyOf<Float4>{grid, raw(by), raw(keys)});
   sort_and_offsets(grid, n, keys, order, fine_offsets, offsets);
   FlowSort r;
   r.active = open_top || exchanged ? read_one(fine_offsets, grid.num_fine_cells()) : n;
@@ -40,14 +53,15 @@ inline FlowSort sort_flow_particles(const char* const (&names)[2], const GridGeo
     const uint32_t sent = uint32_t(thrust::count(policy(), dropped, dropped + (n - r.active), uint8_t(kStatusGone)));
     r.dropped_owned -= r.dropped_ghosts + sent;
   }
-  const ConstParticleArrays in{raw(a.pos), raw(a.vel), raw(a.flow), raw(a.id), raw(a.status),
-                               carry_presence ? raw(a.presence) : nullptr};
+  const ConstParticleArrays in{raw(a.pos), carry.velocity ? raw(a.vel) : nullptr, raw(a.flow), raw(a.id),
+                               raw(a.status), carry.presence ? raw(a.presence) : nullptr};
   const ParticleArrays out{raw(a.pos_tmp), raw(a.vel_tmp), raw(a.flow_tmp), raw(a.id_tmp), raw(a.status_tmp),
                            raw(a.presence_tmp)};
   parallel_for(names[1], r.active, GatherParticles{raw(order), in, n, out, r.active});
-  a.pos.swap(a.pos_tmp); a.vel.swap(a.vel_tmp); a.flow.swap(a.flow_tmp); a.id.swap(a.id_tmp);
+  a.pos.swap(a.pos_tmp); a.flow.swap(a.flow_tmp); a.id.swap(a.id_tmp);
   a.status.swap(a.status_tmp);
-  if (carry_presence) a.presence.swap(a.presence_tmp);
+  if (carry.velocity) a.vel.swap(a.vel_tmp);
+  if (carry.presence) a.presence.swap(a.presence_tmp);
   return r;
 }
 

@@ -65,7 +65,8 @@
 
 namespace sphray {
 
-// v* = v + dt g and x* = x + dt v* in the tank, into pred (w: 0).
+// v* = v + dt g and x* = x + dt v* in the tank, into pred (w: 0), and
+// where `keys` is given x*'s slab key on `grid`, for the step's sort.
 struct Predict {
   SphParams prm;
   const FlowControl* control;
@@ -74,12 +75,15 @@ struct Predict {
   Float4* pred;
   Obstacles obstacles;  // the path is stopped at them (obstacles.h)
   float margin;         // pbf.wall_margin [m]
+  GridGeom grid;
+  uint32_t* keys;       // or null
   SPHRAY_HD void operator()(uint32_t i) const {
     const float dt = float(control->limits.dt);
     const Vec3f v = xyz(vel[i]) + dt * prm.gravity;
     Vec3f x = inside_tank(prm, xyz(pos[i]) + dt * v, margin);
     if (stop_at_obstacles(obstacles, xyz(pos[i]), x, obstacles.time, obstacles.time + dt).hit()) x = inside_tank(prm, x, margin);
     pred[i] = {x.x, x.y, x.z, 0.0f};
+    if (keys) keys[i] = grid.fine_key_of(x);
   }
 };
 

@@ -106,7 +106,10 @@ class PbfSolverImpl final : public Solver {
                                std::max(until - t_, 0.0), control, double(pbf_.step_error),
                                double(pbf_.step_error_flow), double(pbf_.flow_speed)});
     walls_.move(obstacles_.view, control);  // to the step's end, where the corrections meet them
-    parallel_for("pbf_predict", n_, Predict{prm_, control, raw(pos_), raw(vel_), raw(pred_), obstacles_.view, pbf_.wall_margin});
+    // The sort's keys with the prediction, except where an exchange moves
+    // the particles between the two.
+    parallel_for("pbf_predict", n_, Predict{prm_, control, raw(pos_), raw(vel_), raw(pred_), obstacles_.view,
+                                            pbf_.wall_margin, step_grid_, transport_ ? nullptr : raw(keys_)});
     if (transport_) {
       exchange(pred_);
       clock_.end_of("exchange");
@@ -181,11 +184,15 @@ class PbfSolverImpl final : public Solver {
   // Sorts every particle array by the cell of `by` (pos_ or pred_), on the
   // step's grid (`step`) or the scene's (the view's), and drops the
   // particles outside the grid (an open top only) and those the step's
-  // exchange sent away.
+  // exchange sent away. The step's sort (at x*, keyed by Predict unless an
+  // exchange came between) carries neither velocities nor presence: the
+  // finishing pass writes every particle's velocity, and its presence or
+  // none (presence_valid_), and nothing reads either before it.
   void sort_by(const Vector<Float4>& by, bool step) {
     static constexpr const char* kNames[2] = {"pbf_keys", "pbf_gather"};
-    const FlowSort r = sort_flow_particles(kNames, step ? step_grid_ : grid_, prm_.open_top, n_, by, presence_valid_,
-                                           arrays(), keys_, order_, fine_offsets_, step ? nullptr : &offsets_, gone_);
+    const FlowSortCarry carry = step ? FlowSortCarry{false, false, transport_ == nullptr} : FlowSortCarry{presence_valid_};
+    const FlowSort r = sort_flow_particles(kNames, step ? step_grid_ : grid_, prm_.open_top, n_, by, carry, arrays(),
+                                           keys_, order_, fine_offsets_, step ? nullptr : &offsets_, gone_);
     gone_ = false;
     removed_ += r.dropped_owned;
     ghosts_ -= r.dropped_ghosts;

@@ -18,7 +18,8 @@
 // The particle data into the new sorted order, one kernel for all of it
 // (one read of the order): out[i] = in[order[i]] for the first n_new sorted
 // particles. Presence and the covariance sums, when there are any, [6][n_old]
-// -> [6][n_new] and [3][n_old] -> [3][n_new].
+// -> [6][n_new] and [3][n_old] -> [3][n_new]; the velocities unless in.vel
+// is null.
 struct GatherParticles {
   const uint32_t* order;
   ConstParticleArrays in;  // presence null: none to carry
@@ -28,7 +29,7 @@ struct GatherParticles {
   SPHRAY_HD void operator()(uint32_t i) const {
     const uint32_t j = order[i];
     out.pos[i] = in.pos[j];
-    out.vel[i] = in.vel[j];
+    if (in.vel) out.vel[i] = in.vel[j];
     out.flow[i] = in.flow[j];
     out.id[i] = in.id[j];
     out.status[i] = in.status[j];
