@@ -120,8 +120,9 @@ struct DfsphDensity {
     const Vec3f xi = xyz(pos[i]), vi = xyz(vel[i]);
     const Mirrors mirrors = mirrors_of(prm, k.support(), xi);
     const bool near_mesh = walls.near_point(xi);
-    float w_sum = k.W(0.0f), g2 = 0.0f, rate = 0.0f, ux = 0.0f, uy = 0.0f, uz = 0.0f;
-    Vec3f grad = {0.0f, 0.0f, 0.0f}, lobes = {0.0f, 0.0f, 0.0f};
+    float w_sum = k.W(0.0f), g2 = 0.0f, rate = 0.0f;
+    Vec3f grad = {0.0f, 0.0f, 0.0f};
+    PresenceSums lobes;
     uint32_t count = 0;
     // Images move with their originals' mirrored velocity.
     auto velocity = [&](uint32_t j, Float4) { return xyz(load(vel + j)); };
@@ -134,12 +135,7 @@ struct DfsphDensity {
       g2 += length2(g);
       rate += dot(vi - Mirrors::flip(vj, set), g);
       ++count;
-      if (WithPresence && set == 0u) {  // the liquid itself, not its images
-        lobes += vdw * r;
-        ux += vdw * std::fabs(r.x);
-        uy += vdw * std::fabs(r.y);
-        uz += vdw * std::fabs(r.z);
-      }
+      if (WithPresence && set == 0u) lobes.add(vdw, r);  // the liquid itself, not its images
     });
     float d = df.volume * w_sum;
     Vec3f wall_grad = {0.0f, 0.0f, 0.0f};
@@ -161,7 +157,7 @@ struct DfsphDensity {
       rate += dot(vi, ws.grad) - ws.rate;
       wall_grad = ws.grad;
     }
-    if (WithPresence) write_presence_lobes(presence, n, i, df.presence_scale, lobes, ux, uy, uz);  // rest volume: presence.h
+    if (WithPresence) lobes.write(presence, n, i, df.presence_scale);  // rest volume: presence.h
     // p_i's own coefficient in (A p)_i: its acceleration -p_i (grad + 2 G_w) against the density's gradient grad + G_w.
     const float denom = dot(grad + 2.0f * wall_grad, grad + wall_grad) + g2;
     const bool thin = float(count) < df.sparse_neighbours;
