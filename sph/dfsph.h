@@ -81,14 +81,6 @@ struct WallSum {
   float rate;
 };
 
-// A pass with its flag fixed, as a template of the launch alone (the solver
-// launches every neighbour pass the same way, mirror_walls.h).
-template <bool B, template <bool, int> class Pass>
-struct WithFlag {
-  template <int P>
-  using pass = Pass<B, P>;
-};
-
 // The density, the DFSPH factor, the density rate of the divergence solve and,
 // when asked for, presence, at the current positions (sorted, masks built).
 //   pos_out[i] = {x_i, rho_i}; factor[i]; source[i] = max(Dd_i/Dt, 0), 0 where

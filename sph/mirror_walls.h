@@ -104,6 +104,15 @@ constexpr int kMirrorPassRegisters = 64;
 // slower.
 enum MirrorPass { kInterior = 0, kNearWalls = 1, kDirect = 2, kNearMesh = 3 };
 
+// A pass with its flag fixed (presence, a solve's variant), as a template
+// of the launch alone: the solvers launch every neighbour pass the same way
+// (flow_solver.inl, mirror_pass_launches).
+template <bool B, template <bool, int> class Pass>
+struct WithFlag {
+  template <int P>
+  using pass = Pass<B, P>;
+};
+
 // The launch that serves a particle over the passes that share its grid.
 enum LaunchClass : uint8_t { kClassInterior = 0, kClassNearWalls = 1, kClassDirect = 2 };
 

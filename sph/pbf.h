@@ -356,20 +356,6 @@ struct CorrectFinish {
   }
 };
 
-template <bool WithPresence>
-struct CorrectFinishOf {
-  template <int P>
-  using pass = CorrectFinish<WithPresence, P>;
-};
-
-// Finish with presence fixed, as a template of the pass alone (the solver
-// launches every neighbour pass the same way).
-template <bool WithPresence>
-struct FinishOf {
-  template <int P>
-  using pass = Finish<WithPresence, P>;
-};
-
 // Vorticity confinement (Macklin & Mueller 2013, after Fedkiw et al. 2001),
 // off unless pbf.vorticity > 0: after the finishing pass,
 //   omega_i = sum_j (m / rho0) grad_i W_ij x (v_j - v_i)        (Vorticity)

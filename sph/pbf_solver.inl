@@ -268,7 +268,7 @@ class PbfSolverImpl final : public Solver {
   // The constraint iterations; returns how many corrections were applied
   // (with fused_finish(), counting the one finish() applies).
   int solve() {
-    const bool stop = obstacles_.view.count > 0;
+    const bool stop = !fused_finish();  // the obstacles' stop after each Correct
     for (int k = 0; k < pbf_.iterations; ++k) {
       const float rest_weight = pbf_.rest_weights > 0 ? pbf_.rest_weight[k % pbf_.rest_weights] : 1.0f;
       iteration_pass<Lambda>(kLambdaNames, pred_tmp_, false, prm_, pbf_, step_grid_, raw(fine_offsets_), pairs(),
@@ -361,15 +361,14 @@ class PbfSolverImpl final : public Solver {
     const FlowControl* control = raw(control_);
     float* presence = Presence ? raw(presence_) : nullptr;
     if (fused_finish()) {
-      mirror_pass_launches<CorrectFinishOf<Presence>::template pass>(
+      mirror_pass_launches<WithFlag<Presence, CorrectFinish>::template pass>(
           kCorrectFinishNames, lists_, false, prm_, pbf_, step_grid_, raw(fine_offsets_), pairs(), control, raw(pred_),
           raw(pos_), raw(pos_tmp_), raw(vel_tmp_), presence, n_);
       return;
     }
-    mirror_pass_launches<FinishOf<Presence>::template pass>(kFinishNames, lists_, walls_.size() > 0, prm_, pbf_, step_grid_,
-                                                            raw(fine_offsets_), pairs(), control, raw(pred_), raw(pos_),
-                                                            raw(pos_tmp_), raw(vel_tmp_), raw(error_), presence, n_,
-                                                            walls_.view());
+    mirror_pass_launches<WithFlag<Presence, Finish>::template pass>(
+        kFinishNames, lists_, walls_.size() > 0, prm_, pbf_, step_grid_, raw(fine_offsets_), pairs(), control,
+        raw(pred_), raw(pos_), raw(pos_tmp_), raw(vel_tmp_), raw(error_), presence, n_, walls_.view());
   }
 
   // Speed, density error and finiteness of the current state, into the
