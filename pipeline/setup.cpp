@@ -252,7 +252,7 @@ PbfParams make_pbf_params(const Scene& s) {
   if (c.rest_chebyshev) {
     // Over more iterations than kRestWeights the schedule of kRestWeights repeats.
     const double top = PbfRestSpectrum::top(
-        pbf_lattice_spectrum_bound(k.support(), dx, [&](double r) { return k.dW_over_r(r); }), c.relaxation);
+        lattice_spectrum_bound(k.support(), dx, [&](double r) { return k.dW_over_r(r); }), c.relaxation);
     const std::vector<double> w = pbf_rest_weights(std::min(c.iterations, PbfParams::kRestWeights), top);
     p.rest_weights = int(w.size());
     for (size_t i = 0; i < w.size(); ++i) p.rest_weight[i] = float(w[i]);
@@ -312,6 +312,8 @@ DfsphParams make_dfsph_params(const Scene& s) {
   p.speed_floor = float(expected_flow_speed(s));
   p.max_dt_viscous = nu > 0 ? float(0.125 * k.h * k.h / nu) : std::numeric_limits<float>::max();
   p.sparse_neighbours = float(0.5 * neighbours);
+  const double spectrum = lattice_spectrum_bound(k.support(), dx, [&](double r) { return k.dW_over_r(r); });
+  p.jacobi_weight = float(std::min(0.5, DfsphParams::kJacobiTop / spectrum));
   p.tolerance = float(c.tolerance);
   p.divergence_tolerance = float(c.divergence_tolerance);
   p.min_iterations = c.min_iterations;

@@ -16,8 +16,9 @@
 //             made divergence-free, so that the next step starts without
 //             the compression it would otherwise carry            (DfsphUpdate<true>)
 // Both solves are relaxed Jacobi iterations on the pressure itself, as in
-// SPlisHSPlasH's DFSPH (Bender et al., from 2020): p_i <- max(p_i + 0.5 r_i
-// factor_i / dt^2, 0) with the residual r_i = (A p)_i - s_i, until the mean
+// SPlisHSPlasH's DFSPH (Bender et al., from 2020): p_i <- max(p_i + w r_i
+// factor_i / dt^2, 0) with the residual r_i = (A p)_i - s_i (w = 0.5, less for
+// wide supports: DfsphParams::jacobi_weight), until the mean
 // residual (compression only) is below the tolerance, with at least
 // dfsph.min_iterations pressure iterations and one divergence iteration.
 // Each starts from half the pressure it ended with the step before (warm
@@ -217,7 +218,8 @@ struct DfsphAccel {
 
 // One relaxed Jacobi iteration of either solve: with (A p)_i = dt^2 sum_j V
 // (a_i - a_j).grad W_ij (the images with their originals' mirrored a) and s_i = 1 - d*_i (pressure) or -dt Dd_i/Dt
-// (divergence), r_i = (A p)_i - s_i; p_i <- max(p_i + 0.5 r_i factor_i / dt^2, 0);
+// (divergence), r_i = (A p)_i - s_i; p_i <- max(p_i + w r_i factor_i / dt^2, 0)
+// (w: DfsphParams::jacobi_weight);
 // residual[i] = max(-(s_i - (A p)_i), 0) = max(r_i, 0): the compression left
 // (0 at a sparse particle in the divergence solve).
 template <bool Divergence, int P>
@@ -255,7 +257,7 @@ struct DfsphUpdate {
     const float dt = float(control->limits.dt), dt2 = dt * dt;
     const float s = Divergence ? -dt * source[i] : 1.0f - source[i];
     const float r = dt2 * ap - s;
-    press[i] = fmaxf(press[i] + 0.5f * r * factor[i] / dt2, 0.0f);
+    press[i] = fmaxf(press[i] + df.jacobi_weight * r * factor[i] / dt2, 0.0f);
     residual[i] = Divergence && sparse[i] ? 0.0f : fmaxf(r, 0.0f);
   }
 };

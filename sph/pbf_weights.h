@@ -34,42 +34,6 @@
 
 namespace sphray {
 
-// The largest eigenvalue of D^-1 A on a cubic lattice of spacing dx for a
-// kernel with support s and gradient dW_over_r(r) (grad W(d) = d dW_over_r):
-// the maximum of p(k) over a grid of `n` steps per axis on [0, pi / dx]^3
-// (p is even in each component of k), of its points with k_x >= k_y >= k_z
-// (the lattice's neighbours, and so p, do not change when the axes are
-// permuted).
-template <class DwOverR>
-double pbf_lattice_spectrum_bound(double s, double dx, DwOverR dW_over_r, int n = 24) {
-  struct Term {
-    double d[3], g[3];
-  };
-  std::vector<Term> terms;
-  double g2 = 0;
-  for_lattice_neighbours(s, dx, [&](int x, int y, int z, double r) {
-    const double f = dW_over_r(r);
-    Term t{{x * dx, y * dx, z * dx}, {x * dx * f, y * dx * f, z * dx * f}};
-    g2 += (t.g[0] * t.g[0] + t.g[1] * t.g[1] + t.g[2] * t.g[2]);
-    terms.push_back(t);
-  });
-  if (g2 <= 0) return 0;
-  const double pi = std::acos(-1.0), step = pi / (dx * n);
-  double best = 0;
-  for (int a = 0; a <= n; ++a)
-    for (int b = 0; b <= a; ++b)
-      for (int c = 0; c <= b; ++c) {
-        const double k[3] = {a * step, b * step, c * step};
-        double h[3] = {0, 0, 0};
-        for (const Term& t : terms) {
-          const double sn = std::sin(k[0] * t.d[0] + k[1] * t.d[1] + k[2] * t.d[2]);
-          for (int i = 0; i < 3; ++i) h[i] += sn * t.g[i];
-        }
-        best = std::max(best, (h[0] * h[0] + h[1] * h[1] + h[2] * h[2]) / g2);
-      }
-  return best;
-}
-
 // The relaxed spectrum's bound P that the weights cover: the lattice's bound
 // times kDisorder (a disordered liquid's modes reach 1.1-1.15x the lattice's),
 // over 1 + relaxation (D gains the relaxation, a share of the lattice's D).

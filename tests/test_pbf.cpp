@@ -37,8 +37,10 @@ double plane_integral(double s, double z, W w) {
 // constraints C_i = sum_j V W(x_i - x_j) of L^3 particles in a periodic box
 // (nominal spacing 1, jittered by up to `jitter` per axis), D = diag(A) and
 // eps = relaxation x (the lattice's D): dense, with Eigen (V = 1: the
-// spectrum does not depend on it).
-Eigen::VectorXd dense_spectrum(const PbfKernel<double>& k, int L, double jitter, double relaxation) {
+// spectrum does not depend on it). DFSPH's pressure system has the same
+// operator (its D^-1 the DFSPH factor, no relaxation), with its own kernel.
+template <class K>
+Eigen::VectorXd dense_spectrum(const K& k, int L, double jitter, double relaxation) {
   const int n = L * L * L;
   std::vector<Eigen::Vector3d> x(n);
   std::mt19937 rng(7);
@@ -275,7 +277,7 @@ TEST_CASE("pbf: with mirrored images a free-slip wall corrects as the liquid mir
 TEST_CASE("pbf rest weights: the spectrum they cover is the constraint operator's, and K iterations leave every mode in (-1/3, 1]",
           "[sph][cpu]") {
   const PbfKernel<double> k = PbfKernel<double>::make(2.1);  // the default support, spacing 1
-  const double bound = pbf_lattice_spectrum_bound(k.support(), 1.0, [&](double r) { return k.dW_over_r(r); });
+  const double bound = lattice_spectrum_bound(k.support(), 1.0, [&](double r) { return k.dW_over_r(r); });
   // The lattice's modes on a periodic 6^3 box are a subset of the k grid's
   // continuum (its largest, 3.03, lies near k = (0.29, 0.29, 0.33) pi).
   const double lattice = dense_spectrum(k, 6, 0.0, 0.0).maxCoeff();
@@ -307,6 +309,33 @@ TEST_CASE("pbf rest weights: the spectrum they cover is the constraint operator'
       CHECK(highest <= 1.0 + 1e-9);
     }
   }
+}
+
+TEST_CASE("dfsph's Jacobi weight: no mode of the pressure system grows in an iteration, at supports of 1.5-4 "
+          "spacings with either kernel",
+          "[sph][cpu]") {
+  // An iteration leaves a mode of eigenvalue p of D^-1 A at 1 - w p: it grows
+  // where w p > 2. The reference: the dense spectrum of 512 particles on a
+  // lattice jittered by up to 0.1 spacing (a disordered liquid's), against
+  // the weight the scene gets from the lattice's k-space bound.
+  for (const KernelType type : {KernelType::CubicSpline, KernelType::WendlandC2})
+    for (const double support : {1.5, 2.1, 2.5, 3.0, 4.0}) {
+      Scene s = parse_scene(R"({"tank": {"min": [0,0,0], "max": [1,1,1]}, "fluid": [{"min": [0,0,0], "max": [0.5,0.5,0.5]}],
+        "sph": {"spacing": 0.1, "solver": "dfsph"}})", "wide.json");
+      s.sph.dfsph.kernel = type;
+      s.sph.dfsph.support = support;
+      const double w = resolve_scene(s).dfsph.jacobi_weight;
+      const SmoothingKernel<double> k = SmoothingKernel<double>::make(type, 0.5 * support);  // spacing 1
+      const double top = dense_spectrum(k, 8, 0.1, 0.0).maxCoeff();
+      INFO((type == KernelType::CubicSpline ? "cubic spline" : "Wendland C2") << ", support " << support
+                                                                               << ": weight " << w << ", dense spectrum up to "
+                                                                               << top);
+      CHECK(w <= 0.5f);
+      CHECK(w * top < 2.0);
+      if (support == 2.1 && type == KernelType::CubicSpline) CHECK(w == 0.5f);  // the default: SPlisHSPlasH's weight
+      // Where the fixed 0.5 made modes grow (and a liquid under gravity blow up).
+      if (support >= 3.0) CHECK(0.5 * top > 2.0);
+    }
 }
 
 TEST_CASE("pbf rest weights: a flowing liquid's iterations take lambda as is, a liquid at rest the weights", "[sph][cpu]") {
