@@ -16,7 +16,7 @@ struct DfsphParams {
   uint32_t no_slip_faces;  // bit 2a + side: the tank face is no-slip for the viscosity (-x, +x, -y, +y, -z, +z)
   float presence_scale;  // 1 / (2 K) with this kernel (interaction.h)
   float speed_floor;     // [m/s] the CFL's speed is at least this (ChooseFlowStep)
-  float max_dt_viscous;  // [s] the explicit viscosity's stability limit, 0.125 h^2 / nu
+  float max_dt_viscous;  // [s] the explicit viscosity's stability limit, 2 / (nu lambda), lambda its largest decay rate beside a wall (setup.cpp)
   float wall_margin;     // [m] the projection into the tank keeps this far inside its walls
   // A particle with fewer neighbours (wall images included) than this is at
   // a free surface or alone: the divergence solve leaves its density rate

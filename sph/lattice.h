@@ -4,6 +4,7 @@
 // constraint's Jacobi iteration (PBF's rest weights, DFSPH's relaxation).
 #pragma once
 
+#include <Eigen/Dense>
 #include <algorithm>
 #include <cmath>
 #include <vector>
@@ -59,6 +60,36 @@ double lattice_spectrum_bound(double s, double dx, DwOverR dW_over_r, int n = 24
           for (int i = 0; i < 3; ++i) h[i] += sn * t.g[i];
         }
         best = std::max(best, (h[0] * h[0] + h[1] * h[1] + h[2] * h[2]) / g2);
+      }
+  return best;
+}
+
+// The largest decay rate, per unit kinematic viscosity nu, of the explicit
+// SPH viscosity a_i = 2 (d + 2) nu sum_j V (v_ij . x_ij) / (|x_ij|^2 + eta2)
+// grad W_ij (DFSPH's, Monaghan 2005) on a cubic lattice of spacing dx
+// [1 / m^2]: a velocity mode e exp(i k.x) decays at the eigenvalues of
+//   M(k) = -2 (d + 2) V sum_d (1 - cos k.d) dW_over_r(|d|) / (|d|^2 + eta2) d d^T,
+// and an explicit step of dt grows it where dt nu lambda > 2. The maximum
+// over a grid of `n` steps per axis on [0, pi / dx]^3 (as lattice_spectrum_bound).
+template <class DwOverR>
+double lattice_viscous_rate_bound(double s, double dx, double volume, double eta2, DwOverR dW_over_r, int n = 24) {
+  struct Term {
+    Eigen::Vector3d d;
+    double f;
+  };
+  std::vector<Term> terms;
+  for_lattice_neighbours(s, dx, [&](int x, int y, int z, double r) {
+    terms.push_back({Eigen::Vector3d(x * dx, y * dx, z * dx), -10.0 * volume * dW_over_r(r) / (r * r + eta2)});
+  });
+  const double pi = std::acos(-1.0), step = pi / (dx * n);
+  double best = 0;
+  for (int a = 0; a <= n; ++a)
+    for (int b = 0; b <= a; ++b)
+      for (int c = 0; c <= b; ++c) {
+        const Eigen::Vector3d k(a * step, b * step, c * step);
+        Eigen::Matrix3d m = Eigen::Matrix3d::Zero();
+        for (const Term& t : terms) m += ((1.0 - std::cos(k.dot(t.d))) * t.f) * t.d * t.d.transpose();
+        best = std::max(best, Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d>(m, Eigen::EigenvaluesOnly).eigenvalues().maxCoeff());
       }
   return best;
 }

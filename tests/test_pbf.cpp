@@ -338,6 +338,46 @@ TEST_CASE("dfsph's Jacobi weight: no mode of the pressure system grows in an ite
     }
 }
 
+TEST_CASE("dfsph's viscous step limit: no velocity mode of a disordered liquid grows in an explicit viscous step",
+          "[sph][cpu]") {
+  // The explicit viscosity a_i = 10 nu sum_j V (v_ij . x_ij) / (|x_ij|^2 +
+  // eta2) grad W_ij of 512 particles in a periodic box (a lattice jittered by
+  // up to 0.1 spacing, spacing 1) is dv/dt = -nu M v, M symmetric: a step of
+  // dt grows the modes with dt nu lambda > 2. The reference: M's largest
+  // eigenvalue, dense; the limit: the scene's max_dt_viscous.
+  for (const KernelType type : {KernelType::CubicSpline, KernelType::WendlandC2})
+    for (const double support : {2.1, 3.0}) {
+      Scene s = parse_scene(R"({"tank": {"min": [0,0,0], "max": [10,10,10]}, "fluid": [{"min": [0,0,0], "max": [5,5,5]}],
+        "sph": {"spacing": 1, "solver": "dfsph"}, "dfsph": {"viscosity": 1}})", "viscous.json");
+      s.sph.dfsph.kernel = type;
+      s.sph.dfsph.support = support;
+      const DfsphParams df = resolve_scene(s).dfsph;
+      const SmoothingKernel<double> k = SmoothingKernel<double>::make(type, 0.5 * support);
+      const int L = 8, n = L * L * L;
+      std::vector<Eigen::Vector3d> x(n);
+      std::mt19937 rng(11);
+      std::uniform_real_distribution<double> u(-0.1, 0.1);
+      for (int i = 0; i < n; ++i) x[i] = Eigen::Vector3d(i % L, (i / L) % L, i / (L * L)) + Eigen::Vector3d(u(rng), u(rng), u(rng));
+      const double eta2 = 0.01 * k.h * k.h, V = df.volume;
+      Eigen::MatrixXd M = Eigen::MatrixXd::Zero(3 * n, 3 * n);
+      for (int i = 0; i < n; ++i)
+        for (int j = 0; j < n; ++j) {
+          if (i == j) continue;
+          Eigen::Vector3d d = x[i] - x[j];
+          for (int c = 0; c < 3; ++c) d[c] -= L * std::round(d[c] / L);
+          const double r = d.norm();
+          if (r >= k.support()) continue;
+          const Eigen::Matrix3d b = (-10.0 * V * k.dW_over_r(r) / (r * r + eta2)) * d * d.transpose();
+          M.block<3, 3>(3 * i, 3 * i) += b;  // v_i's own term
+          M.block<3, 3>(3 * i, 3 * j) -= b;  // v_j's
+        }
+      const double top = Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd>(M, Eigen::EigenvaluesOnly).eigenvalues().maxCoeff();
+      INFO((type == KernelType::CubicSpline ? "cubic spline" : "Wendland C2") << ", support " << support << ": dt nu lambda = "
+                                                                               << df.max_dt_viscous * top);
+      CHECK(df.max_dt_viscous * top < 2.0);
+    }
+}
+
 TEST_CASE("pbf rest weights: a flowing liquid's iterations take lambda as is, a liquid at rest the weights", "[sph][cpu]") {
   // The dam break's column, thrown at 3 m/s or at rest, five steps; flowing
   // above pbf.flow_speed x 3 m/s = 1.5 m/s (the scene's flow speed is its
