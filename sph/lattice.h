@@ -1,7 +1,8 @@
 // The neighbours of a node in a cubic lattice: the sums over a full lattice
 // that set the solvers' constants (the particle volume, the presence lobe,
-// PBF's relaxation scale), and the spectrum bound of the density
-// constraint's Jacobi iteration (PBF's rest weights, DFSPH's relaxation).
+// PBF's relaxation scale), and two spectrum bounds: the density
+// constraint's Jacobi iteration (PBF's rest weights, DFSPH's Jacobi weight)
+// and DFSPH's explicit viscosity (its step limit).
 #pragma once
 
 #include <Eigen/Dense>
