@@ -30,8 +30,6 @@
 #include <functional>
 #include <vector>
 
-#include "lattice.h"
-
 namespace sphray {
 
 // The relaxed spectrum's bound P that the weights cover: the lattice's bound

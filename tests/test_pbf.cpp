@@ -11,6 +11,7 @@
 #include "catch.h"
 #include "helpers.h"
 #include "nsearch_probe.h"
+#include "sph/lattice.h"
 #include "sph/pbf.h"
 #include "sph/pbf_kernel.h"
 #include "sph/pbf_weights.h"
