@@ -29,8 +29,8 @@ struct DfsphParams {
   // lattice_spectrum_bound). A mode of eigenvalue p of D^-1 A is left at
   // 1 - w p by an iteration and grows past w p = 2: the cubic spline's p
   // reaches 3.04 at the default support of 2.1 spacings (w p = 1.52) and 4
-  // at 2.44 spacings, Wendland C2's 4 at 2.55, beyond which w = 0.5 made a
-  // liquid under gravity blow up within a few steps. kJacobiTop keeps
+  // at 2.44 spacings, Wendland C2's 4 at 2.55, beyond which 0.5 would let
+  // the fastest modes grow. kJacobiTop keeps
   // the default's margin for a disordered liquid, whose modes reach
   // 1.1-1.15 p (pbf_weights.h): 1.6 x 1.15 = 1.84 < 2.
   static constexpr double kJacobiTop = 1.6;
