@@ -106,10 +106,8 @@ class PbfSolverImpl final : public Solver {
                                std::max(until - t_, 0.0), control, double(pbf_.step_error),
                                double(pbf_.step_error_flow), double(pbf_.flow_speed)});
     walls_.move(obstacles_.view, control);  // to the step's end, where the corrections meet them
-    // The sort's keys with the prediction, except where an exchange moves
-    // the particles between the two.
     parallel_for("pbf_predict", n_, Predict{prm_, control, raw(pos_), raw(vel_), raw(pred_), obstacles_.view,
-                                            pbf_.wall_margin, step_grid_, transport_ ? nullptr : raw(keys_)});
+                                            pbf_.wall_margin, step_grid_, predict_keys() ? raw(keys_) : nullptr});
     if (transport_) {
       exchange(pred_);
       clock_.end_of("exchange");
@@ -173,6 +171,9 @@ class PbfSolverImpl final : public Solver {
 
  private:
   PairMask pairs() { return {raw(pairs_), raw(pair_count_), n_, mask_words_}; }
+  // Whether Predict writes the step sort's keys with the prediction: not
+  // where an exchange moves the particles between the two.
+  bool predict_keys() const { return transport_ == nullptr; }
   // The ghosts of a decomposed run take their owners' values of `values`.
   void refresh(Vector<Float4>& values) {
     if (transport_) refresh_.refresh(values, *transport_);
@@ -190,7 +191,7 @@ class PbfSolverImpl final : public Solver {
   // none (presence_valid_), and nothing reads either before it.
   void sort_by(const Vector<Float4>& by, bool step) {
     static constexpr const char* kNames[2] = {"pbf_keys", "pbf_gather"};
-    const FlowSortCarry carry = step ? FlowSortCarry{false, false, transport_ == nullptr} : FlowSortCarry{presence_valid_};
+    const FlowSortCarry carry = step ? FlowSortCarry{false, false, predict_keys()} : FlowSortCarry{presence_valid_};
     const FlowSort r = sort_flow_particles(kNames, step ? step_grid_ : grid_, prm_.open_top, n_, by, carry, arrays(),
                                            keys_, order_, fine_offsets_, step ? nullptr : &offsets_, gone_);
     gone_ = false;
