@@ -15,6 +15,7 @@
 #include "nsearch/pair_masks.h"
 #include "sph/eos.h"
 #include "sph/lattice.h"
+#include "sph/pbf_lattice.h"
 #include "sph/pbf_weights.h"
 #include "sph/skin.h"
 
@@ -246,17 +247,9 @@ PbfParams make_pbf_params(const Scene& s) {
   const PbfConfig& c = s.sph.pbf;
   const double dx = s.sph.spacing;
   const PbfKernel<double> k = PbfKernel<double>::make(c.support * dx);
-  // The particle volume m / rho0 that gives a full lattice exactly the rest
-  // density with this kernel (poly6 sums to about, not exactly, 1 / dx^3),
-  // and G0 = sum_j |grad_j C_i|^2 there: the scale of the constraint's
-  // denominator, which the relaxation and s_corr are given as shares of.
-  double w_sum = 0, g2_sum = 0;
-  for_lattice_neighbours(k.support(), dx, [&](int, int, int, double r) {
-    w_sum += k.W(r * r);
-    g2_sum += r * r * k.dW_over_r(r) * k.dW_over_r(r);
-  });
-  const double volume = 1.0 / (k.W(0) + w_sum);
-  const double g0 = volume * volume * g2_sum;
+  // The relaxation and s_corr are given as shares of G0 (pbf_lattice.h).
+  const PbfLatticeScales scales = pbf_lattice_scales(k, dx);
+  const double volume = scales.volume, g0 = scales.g0;
   const double dq = c.scorr_dq * k.support();
   PbfParams p{};
   p.kernel = PbfKernel<float>::make(float(k.support()));

@@ -1,7 +1,10 @@
 #include "config.h"
 
 #include <cmath>
+#include <sstream>
 #include <string>
+
+#include "pbf_lattice.h"
 
 namespace sphray {
 
@@ -45,6 +48,16 @@ PbfConfig read_pbf_config(const ConfigReader& r) {
   c.scorr_k = r.number("scorr_k", c.scorr_k, 0, 1);
   c.scorr_dq = r.number("scorr_dq", c.scorr_dq, 0, 1, false, true);
   c.scorr_n = r.integer("scorr_n", c.scorr_n, 1, 8);
+  const double push = scorr_surface_push(c.support, c.scorr_k, c.scorr_dq, c.scorr_n);
+  if (push > kMaxScorrPush) {
+    const char* key = r.has("scorr_dq") ? "scorr_dq" : r.has("scorr_n") ? "scorr_n" : "scorr_k";
+    std::ostringstream os;
+    os << "makes s_corr push a flat free surface by " << push << " spacings per iteration (pbf.scorr_k " << c.scorr_k
+       << ", pbf.scorr_dq " << c.scorr_dq << ", pbf.scorr_n " << c.scorr_n << ", pbf.support " << c.support
+       << "), above " << kMaxScorrPush
+       << ": the surface would be thrown off. Lower pbf.scorr_k or pbf.scorr_dq (docs/method.md, \"s_corr\")";
+    r.fail(key, r.at(key), os.str());
+  }
   c.depth_error = r.number("depth_error", c.depth_error, 0, 1);
   c.step_error = r.number("step_error", c.step_error, 0, 1);
   c.step_error_flow = r.number("step_error_flow", c.step_error_flow, 0, 1);

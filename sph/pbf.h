@@ -94,14 +94,15 @@ SPHRAY_HD SPHRAY_FORCEINLINE Vec3f volume_grad(const PbfParams& pbf, Vec3f r, fl
 }
 
 // A neighbour's share of the correction, the factor of (m / rho0) grad W_ij:
-// lambda_i + lambda_j (less s_corr) for a neighbour; for an image (set != 0)
-// lambda_i and, mirrored, its original's lambda (i's own images: lambda_i
-// again), no s_corr.
+// lambda_i + lambda_j, less s_corr, for a neighbour and for a mirrored image
+// (set != 0, pbf.mirrored_images: the liquid across the wall, lambda_j its
+// original's, i's own images lambda_i again), so that s_corr pushes a
+// particle beside a wall as in the mirrored liquid; lambda_i alone for a
+// static image.
 SPHRAY_HD SPHRAY_FORCEINLINE float correction_scale(const PbfParams& pbf, float r2, float lambda_i, float lambda_j,
                                                     uint32_t set) {
   float scale = lambda_i;
-  if (set != 0u && pbf.mirrored_images) scale += lambda_j;
-  if (set == 0u) {
+  if (set == 0u || pbf.mirrored_images) {
     scale += lambda_j;
     if (pbf.scorr_coef != 0.0f) {  // off by default: the same for every thread, no divergence
       const float q = pbf.kernel.W(r2) * pbf.inv_w_dq;

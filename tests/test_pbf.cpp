@@ -14,6 +14,7 @@
 #include "sph/lattice.h"
 #include "sph/pbf.h"
 #include "sph/pbf_kernel.h"
+#include "sph/pbf_lattice.h"
 #include "sph/pbf_weights.h"
 
 using namespace sphray;
@@ -155,6 +156,41 @@ TEST_CASE("pbf and dfsph: a block in a corner without gravity has the rest densi
   CHECK(solver->last_solve().density_error_max < 0.01);
 }
 
+TEST_CASE("pbf s_corr: one iteration moves a flat free surface's particles by the push the scene check bounds",
+          "[sph][cpu]") {
+  // The block in the corner of the test above, released without gravity:
+  // every lambda is zero (the lattice at rest density, its surface below
+  // it), so one iteration moves a particle of the top face, away from the
+  // block's free sides, by s_corr alone: scorr_surface_push spacings up.
+  const auto [k, n] = GENERATE(std::pair<double, int>{1.0, 4}, std::pair<double, int>{0.1, 1},
+                               std::pair<double, int>{0.25, 2});
+  INFO("pbf.scorr_k " << k << ", pbf.scorr_n " << n);
+  Scene s = pbf_scene("scenes/stress/zero_gravity.json",
+                      {"pbf.iterations=1", "pbf.scorr_k=" + std::to_string(k), "pbf.scorr_n=" + std::to_string(n)});
+  s.fluid[0].box = {{0.0, 0.0, 0.0}, {0.08, 0.08, 0.08}};
+  const ResolvedScene r = resolve_scene(s);
+  auto solver = make_cpu_solver(make_solver_input(r, PresenceMode::Off));
+  const HostParticles before = solver->download();
+  solver->step(1.0);
+  const HostParticles after = solver->download();
+  const double dx = s.sph.spacing, support = r.pbf.kernel.s;
+  const double push = scorr_surface_push(s.sph.pbf.support, k, s.sph.pbf.scorr_dq, n);
+  CHECK(push > 0.02);
+  CHECK(push <= kMaxScorrPush);
+  std::vector<Vec3f> start(before.pos.size());
+  for (size_t i = 0; i < before.pos.size(); ++i) start[before.id[i]] = before.pos[i];
+  size_t checked = 0;
+  for (size_t i = 0; i < after.pos.size(); ++i) {
+    const Vec3f p0 = start[after.id[i]];
+    if (p0.z < 0.08 - dx || std::max(p0.x, p0.y) > 0.08 - support) continue;
+    const Vec3f d = after.pos[i] - p0;
+    CHECK(d.z / dx == Approx(push).epsilon(1e-3));
+    CHECK(std::hypot(d.x, d.y) < 1e-4 * dx);
+    ++checked;
+  }
+  CHECK(checked == 36);  // the top face's 6 x 6 within a support of no free side
+}
+
 TEST_CASE("pbf and dfsph keep the ids they are given (a resumed run's, a rank's share)", "[sph][cpu]") {
   for (const char* solver : {"pbf", "dfsph"}) {
     INFO(solver);
@@ -248,7 +284,11 @@ TEST_CASE("pbf: with mirrored images a free-slip wall corrects as the liquid mir
     test::run_until(*solver, 0.02);  // 6 steps: beyond them round-off grows, as between any two orders of the sums
     return solver->download();
   };
-  Scene wall = pbf_scene("scenes/stress/zero_gravity.json", {"gravity=[0,0,-9.81]", "run.end_time=0.02"});
+  // With s_corr (pbf.scorr_k 1) the images push as the mirrored liquid too.
+  const double scorr = GENERATE(0.0, 1.0);
+  INFO("pbf.scorr_k " << scorr);
+  Scene wall = pbf_scene("scenes/stress/zero_gravity.json",
+                         {"gravity=[0,0,-9.81]", "run.end_time=0.02", "pbf.scorr_k=" + std::to_string(scorr)});
   wall.tank = {{0.0, 0.0, 0.0}, {0.3, 0.1, 0.2}};
   wall.fluid[0].box = {{0.0, 0.0, 0.0}, {0.1, 0.1, 0.1}};
   Scene mirrored = wall;
@@ -278,8 +318,8 @@ TEST_CASE("pbf: with mirrored images a free-slip wall corrects as the liquid mir
   INFO("largest move " << moved << " spacings; from the mirrored run: mirrored images " << as_mirror
                        << ", static images " << as_static << " spacings");
   CHECK(moved > 0.3);
-  CHECK(as_mirror < 1e-3);  // 3e-5 measured
-  CHECK(as_static > 0.05);  // 0.22 measured
+  CHECK(as_mirror < 1e-3);  // 3e-5 measured (3e-4 with s_corr)
+  CHECK(as_static > 0.05);  // 0.25 measured (1.6 with s_corr)
 }
 
 TEST_CASE("pbf rest weights: the spectrum they cover is the constraint operator's, and K iterations leave every mode in (-1/3, 1]",
@@ -648,6 +688,17 @@ TEST_CASE("pbf scene options: refused by name where they do not apply or are out
   CHECK(error_of(R"("sph": {"spacing": 0.1, "solver": "pbf"}, "pbf": {"rest_weights": "chebychev"}})")
             .find("pbf.rest_weights") != std::string::npos);
   CHECK(error_of(R"("sph": {"spacing": 0.1, "solver": "pbf"}, "pbf": {"rest_weights": "uniform"}})").empty());
+  // s_corr that would throw a free surface off: W(dq) = 0 at the support,
+  // a flat falloff (n = 1) at full strength, a wide support's many close
+  // neighbours; full strength at the default dq and n is allowed.
+  CHECK(error_of(R"("sph": {"spacing": 0.1, "solver": "pbf"}, "pbf": {"scorr_k": 1, "scorr_dq": 1}})")
+            .find("pbf.scorr_dq = 1: makes s_corr push a flat free surface by inf") != std::string::npos);
+  CHECK(error_of(R"("sph": {"spacing": 0.1, "solver": "pbf"}, "pbf": {"scorr_k": 1, "scorr_n": 1}})")
+            .find("pbf.scorr_n") != std::string::npos);
+  CHECK(error_of(R"("sph": {"spacing": 0.1, "solver": "pbf"}, "pbf": {"scorr_k": 0.1, "support": 4}})")
+            .find("pbf.scorr_k") != std::string::npos);
+  CHECK(error_of(R"("sph": {"spacing": 0.1, "solver": "pbf"}, "pbf": {"scorr_k": 1}})").empty());
+  CHECK(error_of(R"("sph": {"spacing": 0.1, "solver": "pbf"}, "pbf": {"scorr_k": 0, "scorr_dq": 1}})").empty());
   CHECK(error_of(R"("sph": {"spacing": 0.1, "solver": "pbf"}, "run": {"min_dt": 0.01, "max_dt": 0.001}})")
             .find("run.max_dt") != std::string::npos);
   CHECK(error_of(R"("sph": {"spacing": 0.1, "solver": "pbf"}, "pbf": {"iterations": 4}})").empty());
