@@ -7,6 +7,7 @@
 #include <iostream>
 #include <optional>
 #include <set>
+#include <sstream>
 
 #include "cli.h"
 #include "commands.h"
@@ -184,11 +185,43 @@ void write_stopped_summary(std::ofstream& summary, const std::string& error, con
           << "\n";
 }
 
+// Refuses an export whose scene fills another lattice than `scene` (another
+// spacing or other fluid blocks): a frame's particle ids are indices into
+// the lattice of the scene that wrote it, and in this one they would name
+// other particles (or look like particles that left the run).
+void check_same_lattice(const std::string& path, const std::string& exported_json, const Scene& scene) {
+  const std::string other = "--resume: " + path + " was exported from another scene or spacing: ";
+  nlohmann::json e;
+  try {
+    e = nlohmann::json::parse(exported_json);
+  } catch (const nlohmann::json::exception&) {
+    throw std::runtime_error("--resume: " + path + ": its scene attribute is not JSON");
+  }
+  const nlohmann::json& mine = scene.json;
+  const nlohmann::json::json_pointer at("/sph/spacing");
+  const nlohmann::json spacing = e.contains(at) ? e[at] : nlohmann::json();
+  if (!spacing.is_number() || spacing.get<double>() != scene.sph.spacing) {
+    std::ostringstream os;
+    os << other << "its sph.spacing is " << spacing.dump() << ", this scene's " << scene.sph.spacing
+       << " (resume at the spacing that wrote it)";
+    throw std::runtime_error(os.str());
+  }
+  auto boxes = [](const nlohmann::json& j) {
+    std::vector<nlohmann::json> b;
+    if (j.contains("fluid") && j["fluid"].is_array())
+      for (const auto& f : j["fluid"]) b.push_back({f.value("min", nlohmann::json()), f.value("max", nlohmann::json())});
+    return b;
+  };
+  if (boxes(e) != boxes(mine))
+    throw std::runtime_error(other + "its fluid blocks (min, max) are not this scene's");
+}
+
 // The last frame of an export, to resume from (--resume).
-Frame last_frame(const std::string& path) {
+Frame last_frame(const std::string& path, const Scene& scene) {
   try {
     const FrameReader reader(path);
     if (reader.frames().empty()) throw std::runtime_error("--resume: " + path + " holds no frame");
+    check_same_lattice(path, reader.header().scene_json, scene);
     return reader.read(reader.frames().size() - 1);
   } catch (const FrameFileError& e) {
     throw std::runtime_error(std::string("--resume: ") + e.what());
@@ -273,7 +306,7 @@ int cmd_run(RunArgs a) {
   }
   const Backend b = choose_backend(a.backend, std::cout);
   std::optional<Frame> resume;
-  if (!a.resume.empty()) resume = last_frame(a.resume);
+  if (!a.resume.empty()) resume = last_frame(a.resume, scene);
   // The sinks say what they need; the stages follow from that.
   const StageNeeds needs = needs_of(scene, out.sinks());
   std::unique_ptr<Solver> solver;

@@ -351,6 +351,34 @@ TEST_CASE("sphray run --export and sphray inspect: bad paths and bad files exit 
   CHECK(has(r.output, "sphray render --from " + tmp + "/sphray_cli.h5"));
 }
 
+TEST_CASE("sphray run --resume refuses an export of another spacing or other fluid blocks, naming what differs",
+          "[cli][cpu]") {
+  // A frame's ids index the lattice of the scene that wrote it: at a finer
+  // spacing every id exists (PBF said particles had left the run; WCSPH
+  // resumed with the new spacing's mass), at other blocks they are other
+  // particles.
+  const std::string scene = sphray::test::source_path("scenes/stress/one_cell.json");
+  const std::string from = tmp + "/sphray_cli_resume.h5";
+  for (const char* solver : {"wcsph", "pbf"}) {
+    INFO(solver);
+    const std::string base = "run " + scene + " --backend cpu --quiet --set sph.solver=" + solver;
+    Result r = run_cli(base + " --set run.end_time=0.02 --export " + from + " --export-fields velocity,density");
+    REQUIRE(r.code == 0);
+    r = run_cli(base + " --set run.end_time=0.04 --resume " + from);
+    CHECK(r.code == 0);
+    r = run_cli(base + " --set run.end_time=0.04 --set sph.spacing=0.005 --resume " + from);
+    CHECK(r.code == 2);
+    CHECK(has(r.output, "--resume: " + from + " was exported from another scene or spacing: its sph.spacing is 0.01, "
+                        "this scene's 0.005"));
+    r = run_cli(base + " --set run.end_time=0.04 --set fluid.0.max=[0.07,0.06,0.06] --resume " + from);
+    CHECK(r.code == 2);
+    CHECK(has(r.output, "its fluid blocks (min, max) are not this scene's"));
+    // The blocks' velocity is not the lattice: the frame's velocities replace it.
+    r = run_cli(base + " --set run.end_time=0.04 --set fluid.0.velocity=[1,0,0] --resume " + from);
+    CHECK(r.code == 0);
+  }
+}
+
 TEST_CASE("sphray run --frames-dir and sphray render write PNGs of the liquid; render --from an export matches",
           "[cli][render]") {
   const std::string scene = sphray::test::source_path("scenes/dam_break.json");
