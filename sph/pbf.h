@@ -151,15 +151,22 @@ struct Lambda {
     const Vec3f xi = xyz(pred[i]);
     const Mirrors mirrors = mirrors_of(prm, k.s, xi);
     const bool near_mesh = walls.near_point(xi);
-    float w_sum = k.W(0.0f), g2 = 0.0f;
+    // Per neighbour the GPU pass issues an instruction nearly every cycle
+    // (docs/notebook/benchmarks-history.md), so its arithmetic is folded:
+    // poly6 once after the loop (W_over_poly6), the volume into the
+    // gradient's constant, and |g|^2 = gs^2 r2 instead of from g's
+    // components, which leaves g itself to one FMA per component.
+    const float v_spiky = pbf.volume * k.spiky;
+    float cubes = k.W_over_poly6(0.0f), g2 = 0.0f;
     Vec3f grad = {0.0f, 0.0f, 0.0f};
     for_each_neighbour_and_image<P>(grid, offsets, pairs, pred, i, xi, s2, mirrors, 0, [](uint32_t, Float4) { return 0; },
                                     [&](Vec3f r, float r2, int, uint32_t set) {
-      w_sum += k.W(r2);
-      const Vec3f g = volume_grad(pbf, r, r2);  // grad_j C_i = -g
-      grad += g;
-      if (set == 0u || pbf.mirrored_images) g2 += length2(g);
+      cubes += k.W_over_poly6(r2);
+      const float gs = k.scaled_dW_over_r_sq(r2, v_spiky);  // (m / rho0) dW/dr / r: grad_j C_i = -gs r
+      grad += gs * r;
+      if (set == 0u || pbf.mirrored_images) g2 += gs * gs * r2;
     });
+    const float w_sum = k.poly6 * cubes;
     float wall_volume = 0.0f;
     if (with_mesh_walls(P) && near_mesh) {
       Vec3f gw = {0.0f, 0.0f, 0.0f};
@@ -200,11 +207,12 @@ struct Correct {
     const Mirrors mirrors = mirrors_of(prm, k.s, xi);
     const bool near_mesh = walls.near_point(xi);
     Vec3f dx = {0.0f, 0.0f, 0.0f};
+    const float v_spiky = pbf.volume * k.spiky;  // folded once (Lambda)
     auto lambda = [](uint32_t, Float4 pj) { return pj.w; };
     for_each_neighbour_and_image<P>(grid, offsets, pairs, pred, i, xi, s2, mirrors, pi.w, lambda,
                                     [&](Vec3f r, float r2, float lambda_j, uint32_t set) {
       const float scale = correction_scale(pbf, r2, pi.w, lambda_j, set);
-      dx += (scale * pbf.volume * k.dW_over_r_sq(r2)) * r;
+      dx += (scale * k.scaled_dW_over_r_sq(r2, v_spiky)) * r;
     });
     if (with_mesh_walls(P) && near_mesh) dx += pi.w * xyz(wall_grad[i]);  // lambda_i only: static wall particles
     const Vec3f x = corrected(prm, pbf, xi, dx);
@@ -327,7 +335,10 @@ struct CorrectFinish {
     const float inv_dt = float(1.0 / control->limits.dt);
     const Vec3f x0 = xyz(pos[i]);
     const Vec3f vi = inv_dt * (xi - x0);
-    float w_sum = k.W(0.0f);
+    // poly6 applied once after the loop, the volume folded into the
+    // gradient's constant (Lambda).
+    const float v_spiky = pbf.volume * k.spiky;
+    float cubes = k.W_over_poly6(0.0f);
     Vec3f dx = {0.0f, 0.0f, 0.0f}, smooth = {0.0f, 0.0f, 0.0f};
     PresenceSums lobes;
     // A neighbour's velocity and lambda; an image's are its original's (i's own: vi, lambda_i).
@@ -338,9 +349,9 @@ struct CorrectFinish {
     const Float4 self{vi.x, vi.y, vi.z, pi.w};
     for_each_neighbour_and_image<P>(grid, offsets, pairs, pred, i, xi, k.s * k.s, mirrors, self, fetch,
                                     [&](Vec3f r, float r2, Float4 a, uint32_t set) {
-      const float w = k.W(r2);
-      const float v_dwr = pbf.volume * k.dW_over_r_sq(r2);
-      w_sum += w;
+      const float w = k.W_over_poly6(r2);
+      const float v_dwr = k.scaled_dW_over_r_sq(r2, v_spiky);
+      cubes += w;
       if (set != 0u) {
         if (pbf.mirrored_images) smooth += w * (Mirrors::flip(xyz(a), set) - vi);
       } else {
@@ -351,8 +362,8 @@ struct CorrectFinish {
     });
     const Vec3f x = corrected(prm, pbf, xi, dx);
     if (WithPresence) lobes.write(presence, n, i, pbf.presence_scale);
-    const Vec3f v = inv_dt * (x - x0) + (pbf.xsph * pbf.volume) * smooth;
-    pos_out[i] = {x.x, x.y, x.z, prm.rest_density * pbf.volume * w_sum};
+    const Vec3f v = inv_dt * (x - x0) + (pbf.xsph * pbf.volume * k.poly6) * smooth;
+    pos_out[i] = {x.x, x.y, x.z, prm.rest_density * pbf.volume * k.poly6 * cubes};
     vel_out[i] = {v.x, v.y, v.z, 0.0f};
   }
 };

@@ -28,6 +28,15 @@ struct PbfKernel {
     const T a = s * s - r2;
     return a > T(0) ? poly6 * a * a * a : T(0);
   }
+  // W / poly6 = (s^2 - r^2)^3, 0 beyond the support: for a neighbour sum
+  // that multiplies by poly6 (and the volume) once, after its loop. A clamp
+  // and a cube, no select: two instructions fewer per neighbour on the GPU
+  // than W.
+  SPHRAY_HD SPHRAY_FORCEINLINE T W_over_poly6(T r2) const {
+    T a = s * s - r2;
+    a = a > T(0) ? a : T(0);
+    return a * a * a;
+  }
   // The spiky kernel's dW/dr divided by r, so that grad W = r_vec * dW_over_r.
   // Zero at r = 0, where the direction is undefined (coincident particles
   // exert nothing on each other rather than a NaN).
@@ -42,11 +51,14 @@ struct PbfKernel {
   // IEEE sequence; selects, no branch. The same values as dW_over_r to a few
   // ulps (tests/test_pbf.cpp); zero at r2 = 0 and below the smallest normal
   // float, where inv_sqrt (flushing) gives no direction.
-  SPHRAY_HD SPHRAY_FORCEINLINE T dW_over_r_sq(T r2) const {
+  SPHRAY_HD SPHRAY_FORCEINLINE T dW_over_r_sq(T r2) const { return scaled_dW_over_r_sq(r2, spiky); }
+  // c dW_over_r_sq(r2) / spiky for a constant c_spiky = c spiky that the
+  // caller folds once (the particle volume: one multiply fewer per neighbour).
+  SPHRAY_HD SPHRAY_FORCEINLINE T scaled_dW_over_r_sq(T r2, T c_spiky) const {
     const T inv = inv_sqrt_or_zero(r2);
     const T r = r2 * inv;
     const T a = r < s ? s - r : T(0);
-    return spiky * a * a * inv;
+    return c_spiky * a * a * inv;
   }
   SPHRAY_HD SPHRAY_FORCEINLINE T support() const { return s; }
 };
