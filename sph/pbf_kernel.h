@@ -29,9 +29,7 @@ struct PbfKernel {
     return a > T(0) ? poly6 * a * a * a : T(0);
   }
   // W / poly6 = (s^2 - r^2)^3, 0 beyond the support: for a neighbour sum
-  // that multiplies by poly6 (and the volume) once, after its loop. A clamp
-  // and a cube, no select: two instructions fewer per neighbour on the GPU
-  // than W.
+  // that multiplies by poly6 (and the volume) once, after its loop.
   SPHRAY_HD SPHRAY_FORCEINLINE T W_over_poly6(T r2) const {
     T a = s * s - r2;
     a = a > T(0) ? a : T(0);

@@ -106,6 +106,12 @@ TEST_CASE("pbf kernels: poly6 integrates to one, the spiky gradient is the deriv
   }
   CHECK(k.dW_over_r(0.0) == 0.0);
   CHECK(k.dW_over_r(s) == 0.0);
+  // The loops' folded forms: poly6 taken out of W, a constant into the gradient.
+  for (double r : {0.0, 0.3 * s, 0.99 * s, s, 1.5 * s}) {
+    CHECK(k.poly6 * k.W_over_poly6(r * r) == Approx(k.W(r * r)).epsilon(1e-14).margin(1e-14 * k.W(0)));
+    CHECK(k.scaled_dW_over_r_sq(r * r, 3.0 * k.spiky) == Approx(3.0 * k.dW_over_r_sq(r * r)).epsilon(1e-14));
+  }
+  CHECK(k.W_over_poly6(1.5 * s * s) == 0.0);
   // The loops' form on the squared distance, in float, against the double one on r.
   const PbfKernel<float> kf = PbfKernel<float>::make(float(s));
   const double peak = std::abs(k.dW_over_r(1e-3 * s));
