@@ -143,6 +143,16 @@ void read_run(const ConfigReader& run, Scene::Run& r, SolverKind solver) {
   r.min_dt = run.number("min_dt", r.min_dt, 0, 1, false, true);
   r.max_dt = run.number("max_dt", r.max_dt, 0, 1, false, true);
   if (r.max_dt < r.min_dt) run.fail("max_dt", json(r.max_dt), "must not be below run.min_dt");
+  // Steps land on the output times (no step is cut short just before one),
+  // so an interval below the floor would make every step shorter than the
+  // floor allows: 1e-9 s ran 1e8 steps to t = 0.1 s instead of stopping.
+  if (r.output_interval < r.min_dt) {
+    std::ostringstream os;
+    os << "is below run.min_dt = " << r.min_dt
+       << " s: the steps land on every output time, so each would be shorter than the floor (raise "
+          "run.output_interval or lower run.min_dt)";
+    run.fail("output_interval", json(r.output_interval), os.str());
+  }
 }
 
 // The tank against the spacing: wide enough, and near enough the origin.

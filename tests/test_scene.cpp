@@ -113,6 +113,10 @@ TEST_CASE("bad scenes get a message naming file, key and value", "[scene][cpu]")
   CHECK(contains(e, "unknown key"));
 
   CHECK(test::scene_error(R"({"tank": {"min": [0,0,0], "max": [1,1,1]}, "sph": {"spacing": 0.1}})", {"run.end_time=2"}).empty());
+  // Output times closer than the smallest step allowed: every step would land below the floor.
+  e = test::scene_error(kGood, {"run.output_interval=1e-9"});
+  CHECK(contains(e, "run.output_interval = 1e-09: is below run.min_dt = 1e-08 s"));
+  CHECK(test::scene_error(kGood, {"run.output_interval=1e-9", "run.min_dt=1e-10"}).empty());
 
   e = test::scene_error(kGood, {"fluid.5.min=[0,0,0]"});  // one block: index 5 is past the end, not "fluid.1"
   CHECK(contains(e, "--set fluid.5.min"));
