@@ -35,11 +35,11 @@ inline PbfLatticeScales pbf_lattice_scales(const PbfKernel<double>& k, double dx
 //   dx_i = V sum_j s_corr(r_ij) grad W_ij,  s_corr = -(k / G0) (W(r_ij) / W(dq))^n,
 // outward. Infinite where W(dq) = 0 (dq at the support).
 inline double scorr_surface_push(double support, double k, double dq, int n) {
+  if (k == 0) return 0;  // s_corr off (the default)
   const PbfKernel<double> kernel = PbfKernel<double>::make(support);
-  const PbfLatticeScales scales = pbf_lattice_scales(kernel, 1.0);
   const double w_dq = kernel.W(dq * dq * support * support);
-  if (k == 0) return 0;
   if (!(w_dq > 0)) return HUGE_VAL;
+  const PbfLatticeScales scales = pbf_lattice_scales(kernel, 1.0);
   double up = 0;
   for_lattice_neighbours(support, 1.0, [&](int, int, int z, double r) {
     if (z > 0) return;  // above the surface: no particle
