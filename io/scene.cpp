@@ -145,7 +145,7 @@ void read_run(const ConfigReader& run, Scene::Run& r, SolverKind solver) {
   if (r.max_dt < r.min_dt) run.fail("max_dt", json(r.max_dt), "must not be below run.min_dt");
   // Steps land on the output times (no step is cut short just before one),
   // so an interval below the floor would make every step shorter than the
-  // floor allows: 1e-9 s ran 1e8 steps to t = 0.1 s instead of stopping.
+  // floor allows: 1e-9 s would take 1e8 steps to t = 0.1 s.
   if (r.output_interval < r.min_dt) {
     std::ostringstream os;
     os << "is below run.min_dt = " << r.min_dt

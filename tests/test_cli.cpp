@@ -354,9 +354,8 @@ TEST_CASE("sphray run --export and sphray inspect: bad paths and bad files exit 
 TEST_CASE("sphray run --resume refuses an export of another spacing or other fluid blocks, naming what differs",
           "[cli][cpu]") {
   // A frame's ids index the lattice of the scene that wrote it: at a finer
-  // spacing every id exists (PBF said particles had left the run; WCSPH
-  // resumed with the new spacing's mass), at other blocks they are other
-  // particles.
+  // spacing every id exists but names another particle, with another mass;
+  // at other blocks they are other particles too.
   const std::string scene = sphray::test::source_path("scenes/stress/one_cell.json");
   const std::string from = tmp + "/sphray_cli_resume.h5";
   for (const char* solver : {"wcsph", "pbf"}) {
