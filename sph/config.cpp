@@ -1,6 +1,7 @@
 #include "config.h"
 
 #include <cmath>
+#include <limits>
 #include <sstream>
 #include <string>
 
@@ -72,6 +73,24 @@ PbfConfig read_pbf_config(const ConfigReader& r) {
   return c;
 }
 
+// PBF's kernels are single precision (sph/pbf_kernel.h), and poly6's
+// constant, 315 / (64 pi s^9), exceeds the largest float below a support of
+// 55 um: every density would be infinite. Refused by sph.spacing, naming the
+// smallest spacing that fits at the scene's pbf.support.
+void refuse_pbf_scale(const ConfigReader& r, const SphConfig& c) {
+  constexpr double kPi = 3.14159265358979323846;
+  const double float_max = double(std::numeric_limits<float>::max());
+  const double s = c.pbf.support * c.spacing;
+  if (315.0 / (64.0 * kPi * std::pow(s, 9)) < float_max) return;
+  const double s_min = std::pow(315.0 / (64.0 * kPi * float_max), 1.0 / 9.0);
+  std::ostringstream os;
+  os << "gives PBF a support of " << s << " m (pbf.support " << c.pbf.support
+     << " spacings), where its single-precision density kernel overflows (poly6, 315 / (64 pi s^9), above "
+     << float_max << " below a support of " << s_min << " m); PBF needs sph.spacing >= " << s_min / c.pbf.support
+     << " m at this support";
+  r.fail("spacing", r.has("spacing") ? r.at("spacing") : ConfigReader::json(c.spacing), os.str());
+}
+
 DfsphConfig read_dfsph_config(const ConfigReader& r) {
   r.only({"tolerance", "divergence_tolerance", "min_iterations", "max_iterations", "max_divergence_iterations",
           "kernel", "support", "viscosity", "wall_margin"});
@@ -121,6 +140,7 @@ SphConfig read_sph_config(const ConfigReader& r, const ConfigReader& pbf, const 
     // A CFL above 1 is allowed for studies of the step size (docs/validation.md).
     c.cfl = r.number("cfl", SphConfig::kPbfCfl, 0, 10, false, true);
     c.pbf = read_pbf_config(pbf);
+    refuse_pbf_scale(r, c);
   } else if (c.solver == SolverKind::Dfsph) {
     refuse_wcsph_options(r, c.solver);
     c.cfl = r.number("cfl", SphConfig::kDfsphCfl, 0, 10, false, true);

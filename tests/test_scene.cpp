@@ -118,6 +118,20 @@ TEST_CASE("bad scenes get a message naming file, key and value", "[scene][cpu]")
   CHECK(contains(e, "run.output_interval = 1e-09: is below run.min_dt = 1e-08 s"));
   CHECK(test::scene_error(kGood, {"run.output_interval=1e-9", "run.min_dt=1e-10"}).empty());
 
+  // PBF's single-precision poly6 overflows below a support of 55 um: refused
+  // by sph.spacing, not run into infinite densities.
+  const std::vector<std::string> small = {"sph.solver=pbf", "tank.max=[0.002,0.002,0.002]", "fluid.0.max=[0.001,0.001,0.001]"};
+  auto with = [&](std::vector<std::string> v, std::string a) { v.push_back(a); return v; };
+  e = test::scene_error(kGood, with(small, "sph.spacing=2e-5"));
+  CHECK(contains(e, "sph.spacing = 2e-05: gives PBF a support of 4.2e-05 m"));
+  CHECK(contains(e, "PBF needs sph.spacing >= 2.6"));
+  CHECK(test::scene_error(kGood, with(small, "sph.spacing=2.7e-5")).empty());
+  e = test::scene_error(kGood, with(with(small, "sph.spacing=2.7e-5"), "pbf.support=1.6"));
+  CHECK(contains(e, "sph.spacing = 2.7e-05: gives PBF a support of 4.32e-05 m (pbf.support 1.6 spacings)"));
+  CHECK(contains(e, "PBF needs sph.spacing >= 3.4"));
+  CHECK(test::scene_error(kGood, {"sph.solver=wcsph", "tank.max=[0.002,0.002,0.002]", "fluid.0.max=[0.001,0.001,0.001]",
+                                  "sph.spacing=2e-5"}).empty());
+
   e = test::scene_error(kGood, {"fluid.5.min=[0,0,0]"});  // one block: index 5 is past the end, not "fluid.1"
   CHECK(contains(e, "--set fluid.5.min"));
   CHECK(contains(e, "fluid has 1 element(s)"));
