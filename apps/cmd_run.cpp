@@ -109,6 +109,8 @@ nlohmann::json completed_json(const RunSummary& r, const RunArgs& a, const Scene
                       {"mean_dt_s", r.mean_dt},          {"max_speed_m_s", r.max_speed},
                       {"realtime_factor", r.realtime_factor()}, {"solver", r.solver}};
   j["max_speed_time_s"] = r.max_speed_time;
+  // The steps that each limit held (docs/formats.md).
+  for (int b = 0; b < kStepBounds; ++b) j["step_bounds"][step_bound_key(b)] = r.bound_steps[b];
   if (r.max_speed_id != kNoBadParticle) {  // one rank: where the largest speed was
     j["max_speed_particle"] = r.max_speed_id;
     j["max_speed_position_m"] = {r.max_speed_at.x, r.max_speed_at.y, r.max_speed_at.z};

@@ -83,6 +83,7 @@ struct StepTally {
       ++free_steps;
       r.min_dt = std::min(r.min_dt, double(l.dt));
     }
+    if (l.bound < kStepBounds) ++r.bound_steps[l.bound];
     if (l.max_speed > r.max_speed) {  // the limits are the state's the step started from
       r.max_speed = l.max_speed;
       r.max_speed_time = solver.time() - l.dt;
@@ -253,6 +254,44 @@ RunSummary run_scene(const Scene& s, Solver& solver, const RunOptions& opt, std:
   return r;
 }
 
+const char* step_bound_name(const std::string& solver, int bound) {
+  switch (bound) {
+    case kBoundCfl: return solver == "wcsph" ? "the CFL (sound and flow speed, sph.cfl)" : "the flow CFL (sph.cfl)";
+    case kBoundSolver:
+      return solver == "wcsph" ? "the force limit"
+             : solver == "pbf" ? "the density error and depth limits (pbf.step_error, pbf.step_error_flow, pbf.depth_error)"
+                               : "the explicit viscosity's limit (dfsph.viscosity)";
+    case kBoundViscous: return "the viscous limit (sph.viscosity_alpha)";
+    default: return "run.max_dt";
+  }
+}
+
+const char* step_bound_key(int bound) {
+  static constexpr const char* kKeys[kStepBounds] = {"cfl", "solver", "viscous", "max_dt"};
+  return kKeys[bound];
+}
+
+namespace {
+
+// "  step size      held by A in 76% of the steps, B in 24%": the limits that
+// held the steps (a step shortened to land on an output time counts the
+// limit of the step it was shortened from), the most frequent first.
+void print_step_bounds(const RunSummary& r, std::ostream& log) {
+  uint64_t total = 0;
+  for (uint64_t c : r.bound_steps) total += c;
+  if (total == 0) return;
+  int order[kStepBounds] = {0, 1, 2, 3};
+  std::stable_sort(order, order + kStepBounds, [&](int a, int b) { return r.bound_steps[a] > r.bound_steps[b]; });
+  log << "  step size      held by ";
+  for (int k = 0; k < kStepBounds && r.bound_steps[order[k]] > 0; ++k)
+    log << (k ? ", " : "") << step_bound_name(r.solver, order[k]) << " in " << std::setprecision(3)
+        << 100.0 * double(r.bound_steps[order[k]]) / double(total)
+        << (k ? "%" : "% of the steps");
+  log << std::setprecision(4) << "\n";
+}
+
+}  // namespace
+
 void print_summary(const RunSummary& r, std::ostream& log) {
   log << std::defaultfloat << std::setprecision(4);
   log << "summary (" << backend_name(r.backend) << ", " << r.solver << "):\n"
@@ -291,8 +330,9 @@ void print_summary(const RunSummary& r, std::ostream& log) {
       log << ", particle " << r.max_speed_id << " (initial index) at (" << r.max_speed_at.x << ", "
           << r.max_speed_at.y << ", " << r.max_speed_at.z << ") m";
   }
-  log << "\n"
-      << "  ms per step    grid (with the pair masks) " << r.mean_stage_ms.grid
+  log << "\n";
+  print_step_bounds(r, log);
+  log << "  ms per step    grid (with the pair masks) " << r.mean_stage_ms.grid
       << ", pairs (forces, density rate, presence where needed) " << r.mean_stage_ms.pairs << ", integrate "
       << r.mean_stage_ms.integrate;
   if (r.mean_stage_ms.skin > 0) log << ", obstacle skins " << r.mean_stage_ms.skin;

@@ -111,6 +111,10 @@ struct RunSummary {
   // Simulated seconds per wall second (1: the run keeps pace with real time).
   double realtime_factor() const { return wall_seconds > 0 ? sim_time / wall_seconds : 0.0; }
   double mean_dt = 0, min_dt = 1e300;
+  // The steps that each limit held (StepBound, sph/integrate.h; a step
+  // shortened to land on an output time: the limit of the step it was
+  // shortened from).
+  uint64_t bound_steps[kStepBounds] = {};
   StageTimes mean_stage_ms;
   double max_speed = 0;
   // Where max_speed was reached: the time the step started from, the
@@ -160,5 +164,10 @@ FrameAdvance advance_to(Solver& solver, double until, bool presence,
 
 RunSummary run_scene(const Scene& s, Solver& solver, const RunOptions& opt, std::ostream& log);
 void print_summary(const RunSummary& r, std::ostream& log);
+
+// A StepBound (sph/integrate.h) as the summary names it for `solver`
+// (sph.solver's name), and its key in the summary JSON's "step_bounds".
+const char* step_bound_name(const std::string& solver, int bound);
+const char* step_bound_key(int bound);
 
 }  // namespace sphray

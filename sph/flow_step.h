@@ -107,6 +107,7 @@ struct ChooseFlowStep {
     const double limit = max_dt < l.dt_force ? max_dt : l.dt_force;
     const double dt = l.dt_cfl < limit ? l.dt_cfl : limit;
     l.dt = dt;
+    l.bound = l.dt_cfl < limit ? kBoundCfl : max_dt < l.dt_force ? kBoundMaxDt : kBoundSolver;
     if (dt < min_dt) { c.outcome = kStepBelowFloor; return; }
     c.outcome = kStepOk;
     c.dt_chosen = dt;

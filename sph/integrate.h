@@ -71,9 +71,17 @@ constexpr uint32_t kNoBadParticle = 0xffffffffu;
 // The reduction's start: no speed, no acceleration, no bad particle, no clamp.
 constexpr StepStats kEmptyStepStats{0.0f, 0.0f, kNoBadParticle, 0u, kNoBadParticle};
 
+// Which limit held a step's size (StepLimits::bound; the run summary counts
+// them): the CFL, the solver's own limit (WCSPH: the force limit; PBF: the
+// density error and depth limits; DFSPH: its explicit viscosity's,
+// ChooseFlowStep's dt_force), WCSPH's viscous limit, or run.max_dt.
+enum StepBound : uint8_t { kBoundCfl = 0, kBoundSolver = 1, kBoundViscous = 2, kBoundMaxDt = 3 };
+constexpr int kStepBounds = 4;
+
 // The last step's size and what bounded it (Solver::last_limits).
 struct StepLimits {
   double dt = 0, dt_cfl = 0, dt_force = 0, dt_viscous = 0;
+  uint8_t bound = kBoundCfl;  // StepBound: the limit dt took (before a step shortened to land on an output time)
   double max_speed = 0, max_accel = 0;
   // The particle that moved at max_speed: its id (initial index) and where it
   // was. fastest_id is kNoBadParticle where it is not known (a run over
@@ -97,6 +105,10 @@ struct StepRule {
     const double bound = l.dt_cfl < l.dt_force ? l.dt_cfl : l.dt_force;
     const double dt = cfl * (bound < l.dt_viscous ? bound : l.dt_viscous);
     l.dt = dt < max_dt ? dt : max_dt;
+    l.bound = !(dt < max_dt) ? kBoundMaxDt
+              : !(bound < l.dt_viscous) ? kBoundViscous
+              : l.dt_cfl < l.dt_force ? kBoundCfl
+                                      : kBoundSolver;
     return l;
   }
 };

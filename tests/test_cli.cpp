@@ -129,6 +129,44 @@ TEST_CASE("sphray run warns when the wall guard, not the walls, held the liquid"
   }
 }
 
+TEST_CASE("the summary names the limit that held the steps", "[cli][cpu]") {
+  // A block thrown at 1.5 m/s without gravity: WCSPH's steps are held by its
+  // CFL (the speed of sound: about 1 ms at this spacing), or by run.max_dt
+  // set below it, PBF's by its flow CFL (13 ms at 1.5 m/s) below a large
+  // run.max_dt, and DFSPH's by its explicit viscosity's limit at a large
+  // dfsph.viscosity (microseconds).
+  std::ofstream(tmp + "/sphray_bounds.json") << R"({"tank": {"min": [0,0,0], "max": [0.4,0.2,0.2]},
+    "fluid": [{"min": [0.1,0.06,0.06], "max": [0.18,0.14,0.14], "velocity": [1.5,0,0]}],
+    "gravity": [0,0,0], "sph": {"spacing": 0.02}, "run": {"end_time": 0.02}})";
+  struct Case {
+    const char* solver;
+    const char* set;
+    const char* key;
+    const char* name;
+  };
+  const Case cases[] = {
+      {"wcsph", "", "cfl", "the CFL (sound and flow speed, sph.cfl)"},
+      {"wcsph", " --set run.max_dt=1e-4", "max_dt", "run.max_dt"},
+      {"pbf", " --set run.max_dt=1 --set run.end_time=0.1", "cfl", "the flow CFL (sph.cfl)"},
+      {"dfsph", " --set dfsph.viscosity=10 --set run.end_time=0.001", "solver",
+       "the explicit viscosity's limit (dfsph.viscosity)"}};
+  for (const Case& c : cases) {
+    INFO(c.solver << c.set);
+    const std::string json = tmp + "/sphray_bounds_summary.json";
+    const Result r = run_cli("run " + tmp + "/sphray_bounds.json --backend cpu --quiet --set sph.solver=" + c.solver +
+                             c.set + " --summary-json " + json);
+    INFO(r.output);
+    REQUIRE(r.code == 0);
+    const nlohmann::json j = nlohmann::json::parse(slurp(json));
+    const nlohmann::json& b = j.at("step_bounds");
+    uint64_t sum = 0;
+    for (const char* k : {"cfl", "solver", "viscous", "max_dt"}) sum += b.at(k).get<uint64_t>();
+    CHECK(sum == j.at("steps").get<uint64_t>());
+    CHECK(b.at(c.key).get<uint64_t>() == sum);
+    CHECK(has(r.output, std::string("step size      held by ") + c.name + " in 100% of the steps\n"));
+  }
+}
+
 TEST_CASE("the summary says where and when the largest speed was reached", "[cli][cpu]") {
   // Without gravity a small block thrown at 1.5 m/s beside a block at rest
   // holds the largest speed: the summary's particle lies in the thrown block
