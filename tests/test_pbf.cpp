@@ -583,6 +583,45 @@ TEST_CASE("pbf: a density tolerance ends the iterations early", "[sph][cpu]") {
   CHECK(b->last_solve().density_error_mean > 1e-9);
 }
 
+TEST_CASE("pbf: iterations ended by the tolerance are the steps of that many iterations, bit for bit", "[sph][cpu]") {
+  // The iterations end after the Lambda pass whose mean error is within
+  // the tolerance, and the finishing pass applies its multipliers
+  // (PbfSolverImpl::solve). So a run whose every step ends after its first
+  // Lambda pass is the run of one iteration, and one whose tolerance is
+  // never met the run without one. Uniform weights and no
+  // depth limit: the rest weights' schedule and the depth limit depend on
+  // the iteration count.
+  auto run = [](std::vector<std::string> set, std::vector<int>& iterations) {
+    set.insert(set.end(), {"sph.spacing=0.04", "pbf.rest_weights=uniform", "pbf.depth_error=0"});
+    auto solver = make_cpu_solver(make_solver_input(resolve_scene(pbf_scene("scenes/dam_break.json", set)), PresenceMode::Off));
+    for (int k = 0; k < 8; ++k) {
+      solver->step(1.0);
+      iterations.push_back(solver->last_solve().iterations);
+    }
+    return solver->download();
+  };
+  auto same = [](const HostParticles& a, const HostParticles& b) {
+    REQUIRE(a.pos.size() == b.pos.size());
+    for (size_t i = 0; i < a.pos.size(); ++i) {
+      REQUIRE(a.id[i] == b.id[i]);
+      REQUIRE(a.pos[i].x == b.pos[i].x);
+      REQUIRE(a.pos[i].y == b.pos[i].y);
+      REQUIRE(a.pos[i].z == b.pos[i].z);
+      REQUIRE(a.vel[i].z == b.vel[i].z);
+    }
+  };
+  std::vector<int> ended_k, one_k, tight_k, plain_k;
+  const HostParticles ended = run({"pbf.iterations=5", "pbf.tolerance=0.5"}, ended_k);
+  const HostParticles one = run({"pbf.iterations=1"}, one_k);
+  CHECK(ended_k == std::vector<int>(8, 1));
+  CHECK(one_k == std::vector<int>(8, 1));
+  same(ended, one);
+  const HostParticles tight = run({"pbf.iterations=3", "pbf.tolerance=1e-9"}, tight_k);
+  const HostParticles plain = run({"pbf.iterations=3"}, plain_k);
+  CHECK(tight_k == std::vector<int>(8, 3));
+  same(tight, plain);
+}
+
 TEST_CASE("pbf: a diverging run stops with the step named", "[sph][cpu]") {
   // A block thrown at a wall at 200 m/s with one iteration and steps of ten
   // spacings piles onto the wall: the density error runs far past 100%.
