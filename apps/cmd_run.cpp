@@ -93,6 +93,17 @@ void print_start(const ResolvedScene& rs, const std::string& scene_path, const S
               << 100 * (v / scene.sph.speed_of_sound) * (v / scene.sph.speed_of_sound)
               << "% here, and the run stops if a particle outruns c0\n" << std::setprecision(6);
   if (const std::string note = cpu_scale_note(rs, solver.backend()); !note.empty()) std::cout << "  note: " << note << "\n";
+  // DFSPH's explicit viscosity bounds its step (dfsph_params.h); a large
+  // dfsph.viscosity makes that bound, not the flow, set the run's length.
+  if (solver.kind() == SolverKind::Dfsph) {
+    const double cfl_dt = std::min(scene.run.max_dt, scene.sph.cfl * scene.sph.spacing / double(rs.dfsph.speed_floor));
+    if (double(rs.dfsph.max_dt_viscous) < 0.25 * cfl_dt)
+      std::cout << std::setprecision(3) << "  note: dfsph.viscosity = " << rs.dfsph.viscosity / 10
+                << " m^2/s limits the step to " << rs.dfsph.max_dt_viscous << " s (the explicit viscous force's "
+                << "stability), " << cfl_dt / double(rs.dfsph.max_dt_viscous) << "x below the flow's "
+                << cfl_dt << " s: about " << scene.run.end_time / double(rs.dfsph.max_dt_viscous)
+                << " steps to t = " << scene.run.end_time << " s\n" << std::setprecision(6);
+  }
   if (const int layers = scene.sph.auto_boundary_layers(), given = scene.sph.boundary_layers; given > 0 && given < layers)
     std::cout << "  note: sph.boundary_layers = " << given << " is thinner than the kernel support (" << layers
               << " layers, \"auto\"): near a wall part of a particle's kernel is empty and the walls may not hold "
