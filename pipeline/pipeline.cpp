@@ -4,6 +4,7 @@
 #include <chrono>
 #include <cmath>
 #include <iomanip>
+#include <numeric>
 #include <ostream>
 #include <sstream>
 #include <stdexcept>
@@ -280,7 +281,8 @@ void print_step_bounds(const RunSummary& r, std::ostream& log) {
   uint64_t total = 0;
   for (uint64_t c : r.bound_steps) total += c;
   if (total == 0) return;
-  int order[kStepBounds] = {0, 1, 2, 3};
+  int order[kStepBounds];
+  std::iota(order, order + kStepBounds, 0);
   std::stable_sort(order, order + kStepBounds, [&](int a, int b) { return r.bound_steps[a] > r.bound_steps[b]; });
   log << "  step size      held by ";
   for (int k = 0; k < kStepBounds && r.bound_steps[order[k]] > 0; ++k)

@@ -5,6 +5,7 @@
 #include <sstream>
 #include <string>
 
+#include "pbf_kernel.h"
 #include "pbf_lattice.h"
 
 namespace sphray {
@@ -78,11 +79,11 @@ PbfConfig read_pbf_config(const ConfigReader& r) {
 // 55 um: every density would be infinite. Refused by sph.spacing, naming the
 // smallest spacing that fits at the scene's pbf.support.
 void refuse_pbf_scale(const ConfigReader& r, const SphConfig& c) {
-  constexpr double kPi = 3.14159265358979323846;
   const double float_max = double(std::numeric_limits<float>::max());
   const double s = c.pbf.support * c.spacing;
-  if (315.0 / (64.0 * kPi * std::pow(s, 9)) < float_max) return;
-  const double s_min = std::pow(315.0 / (64.0 * kPi * float_max), 1.0 / 9.0);
+  const double poly6 = PbfKernel<double>::make(s).poly6;
+  if (poly6 < float_max) return;
+  const double s_min = s * std::pow(poly6 / float_max, 1.0 / 9.0);  // poly6 falls as s^-9
   std::ostringstream os;
   os << "gives PBF a support of " << s << " m (pbf.support " << c.pbf.support
      << " spacings), where its single-precision density kernel overflows (poly6, 315 / (64 pi s^9), above "
