@@ -115,8 +115,7 @@ def main():
         else:
             print(f"{name} (x = {x} m): the reflected wave returns {t1:.2f} s, within a period of the "
                   f"wave train's arrival: left out")
-    print("| run | gauge | window [s] | crest to trough [mm] | 2 sqrt(2) std over a period [mm] | theory [mm] |")
-    print("| --- | --- | --- | ---: | ---: | ---: |")
+    table = []  # printed once every run is read: a bad file leaves no partial table
     for arg in sys.argv[2:]:
         label, _, path = arg.partition("=")
         try:
@@ -134,8 +133,11 @@ def main():
             crest_trough = max(y for _, y in window) - min(y for _, y in window)
             mean = sum(period) / len(period)
             spread = 2 * math.sqrt(2) * math.sqrt(sum((y - mean) ** 2 for y in period) / len(period))
-            print(f"| {label} | {name} | {t0:.2f}-{t1:.2f} | {crest_trough * 1000:.1f} ({crest_trough / H - 1:+.0%}) "
-                  f"| {spread * 1000:.1f} ({spread / H - 1:+.0%}) | {H * 1000:.1f} |")
+            table.append(f"| {label} | {name} | {t0:.2f}-{t1:.2f} | {crest_trough * 1000:.1f} ({crest_trough / H - 1:+.0%}) "
+                         f"| {spread * 1000:.1f} ({spread / H - 1:+.0%}) | {H * 1000:.1f} |")
+    print("| run | gauge | window [s] | crest to trough [mm] | 2 sqrt(2) std over a period [mm] | theory [mm] |")
+    print("| --- | --- | --- | ---: | ---: | ---: |")
+    print("\n".join(table))
 
 
 if __name__ == "__main__":
