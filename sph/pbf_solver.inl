@@ -270,7 +270,7 @@ class PbfSolverImpl final : public Solver {
   // (with fused_finish(), counting the one finish() applies).
   int solve() {
     const bool stop = !fused_finish();  // the obstacles' stop after each Correct
-    int may_end = -1;  // whether pbf.tolerance may end this step's iterations: -1 not read yet
+    bool may_end = false;  // whether pbf.tolerance may end this step's iterations (read with the first error)
     for (int k = 0; k < pbf_.iterations; ++k) {
       const float rest_weight = pbf_.rest_weights > 0 ? pbf_.rest_weight[k % pbf_.rest_weights] : 1.0f;
       iteration_pass<Lambda>(kLambdaNames, pred_tmp_, false, prm_, pbf_, step_grid_, raw(fine_offsets_), pairs(),
@@ -284,12 +284,11 @@ class PbfSolverImpl final : public Solver {
       // holds a pool still only when run to its end, and a step held by the
       // error-sized limit is one sized to the compression its iterations
       // leave (docs/validation.md, "Iterations ended by the tolerance").
-      if (pbf_.tolerance > 0 && may_end < 0) {
+      if (k == 0 && pbf_.tolerance > 0) {
         const FlowControl c = read_one(control_, 0);
-        may_end = c.flowing && c.limits.bound != kBoundSolver ? 1 : 0;
+        may_end = c.flowing && c.limits.bound != kBoundSolver;
       }
-      const bool converged =
-          may_end == 1 && mean_over_run(error_, n_, ghosts_, status_, transport_) <= pbf_.tolerance;
+      const bool converged = may_end && mean_over_run(error_, n_, ghosts_, status_, transport_) <= pbf_.tolerance;
       if (fused_finish() && (converged || k + 1 == pbf_.iterations)) return k + 1;
       if (converged) return k;
       iteration_pass<Correct>(kCorrectNames, pred_tmp_, stop, prm_, pbf_, step_grid_, raw(fine_offsets_), pairs(),
