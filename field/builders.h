@@ -500,13 +500,16 @@ struct GatherField {
 // Zhu & Bridson's surface ("Animating Sand as a Fluid", 2005), built by the
 // gather builder: at each voxel centre x the particles within R give their
 // weighted mean position m = sum_i k_i x_i / sum_i k_i, k_i = (1 - |x -
-// x_i|^2 / R^2)^3, and phi(x) = |x - m| - r, negative inside. A lone
-// particle is a ball of radius r; over a flat surface m follows the top
+// x_i|^2 / R^2)^3, and phi(x) = |x - m| - r, negative inside, r the
+// particle radius where the voxel sees four or more particles' worth of
+// weight and a lone particle's radius (at least sqrt(3)/2 voxel) where it
+// sees two or fewer (ZhuBridsonParams::radius_at). A lone
+// particle is a ball of that radius; over a flat surface m follows the top
 // layers, so phi moves with them continuously, and with slope about 1 it is
 // resolved at any place of the surface within its voxel (a sum of
 // metaballs steps from saturated to empty within a voxel there: docs/field.md).
 // Stored as iso (1 - phi / (R - r)), clamped to [0, clip]: the surface is at
-// iso, and the value falls to 0 where a lone particle's support ends, so the
+// iso, and the value falls to 0 where a lone particle's reach ends, so the
 // field is continuous as particles enter and leave a voxel's reach
 // (ZhuBridsonParams: volume.h). G threads per voxel over the particles
 // sorted by a grid of cells of at least R / 2 (anisotropy_grid, as the
@@ -596,8 +599,9 @@ struct ZhuBridsonGather {
     if (lane != 0) return;
     float f = 0.0f;
     if (w > 0.0f) {
-      const float phi = R * std::sqrt(mx * mx + my * my + mz * mz) / w - zb.particle_radius;
-      f = shape.iso * (1.0f - phi / (R - zb.particle_radius));
+      const float r = zb.radius_at(w);
+      const float phi = R * std::sqrt(mx * mx + my * my + mz * mz) / w - r;
+      f = shape.iso * (1.0f - phi / (R - r));
       f = f < 0.0f ? 0.0f : (f > shape.clip ? shape.clip : f);
     }
     field[v] = f;

@@ -1,6 +1,9 @@
 #include "config.h"
+#include "volume.h"
 
+#include <algorithm>
 #include <iterator>
+#include <sstream>
 #include <stdexcept>
 #include <string>
 
@@ -72,10 +75,19 @@ FieldConfig read_field_config(const ConfigReader& r) {
   ZhuBridsonConfig& z = c.zhu_bridson;
   z.radius = zb.number("radius", z.radius, 1.0, 8.0);
   z.particle_radius = zb.number("particle_radius", z.particle_radius, 0.05, 8.0);
-  if (z.particle_radius > z.radius - 0.5) {
-    const std::string why = "the field falls to zero over radius - particle_radius, at least half a voxel";
-    if (zb.has("particle_radius")) zb.fail("particle_radius", zb.at("particle_radius"), "must be at most radius - 0.5: " + why);
-    zb.fail("radius", zb.at("radius"), "must be at least particle_radius + 0.5: " + why);
+  // A lone particle's radius is at least ZhuBridsonParams::kLoneRadius, whatever particle_radius.
+  const double lone = std::max(z.particle_radius, double(ZhuBridsonParams::kLoneRadius));
+  if (lone > z.radius - 0.5) {
+    auto text = [](double v) {
+      std::ostringstream os;
+      os << v;
+      return os.str();
+    };
+    const std::string why = "the field falls to zero over radius less the particle radius (a lone particle's at least " +
+                            text(ZhuBridsonParams::kLoneRadius) + "), at least half a voxel";
+    if (zb.has("particle_radius") && z.particle_radius > ZhuBridsonParams::kLoneRadius)
+      zb.fail("particle_radius", zb.at("particle_radius"), "must be at most radius - 0.5: " + why);
+    zb.fail("radius", zb.at("radius"), "must be at least " + text(lone + 0.5) + ": " + why);
   }
   const ConfigReader a = r.child("anisotropy");
   a.only({"radius", "stretch", "smoothing", "min_neighbours"});

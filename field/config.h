@@ -30,7 +30,7 @@ struct AnisotropyConfig {
 
 struct ZhuBridsonConfig {
   double radius = 3.0;            // R: the neighbours' reach [voxels]
-  double particle_radius = 0.95;  // r: the surface lies r from their weighted mean [voxels]
+  double particle_radius = 0.78;  // r: the surface lies r from their weighted mean [voxels] (a lone particle's: at least 0.95)
 };
 
 struct FieldConfig {

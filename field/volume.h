@@ -46,8 +46,25 @@ struct FieldShape {
 // Zhu & Bridson's surface instead of a sum of falloffs (FieldKernel::ZhuBridson;
 // builders.h, ZhuBridsonGather).
 struct ZhuBridsonParams {
+  // A lone particle's radius [voxels], whatever r: sqrt(3)/2 and a margin, so
+  // that the centre of the voxel holding it is inside and trilinear sampling,
+  // which shrinks a ball by up to a quarter voxel, never loses it.
+  static constexpr float kLoneRadius = 0.95f;
   float radius = 0;           // R: the neighbours' reach [voxels]
   float particle_radius = 0;  // r: the surface's distance from their weighted mean [voxels]
+  float lone_radius = 0;      // max(r, kLoneRadius)
+
+  // The surface's distance from the weighted mean at a voxel whose weights
+  // sum to w (each particle's at most 1): r from four particles' worth of
+  // weight up, the lone radius at two and below (a lone particle or a pair,
+  // which a ball of r below sqrt(3)/2 could leave between the voxel
+  // centres), linear between. A liquid's surface voxels see tens of
+  // particles' worth (docs/field.md), so r alone places its surface.
+  SPHRAY_HD SPHRAY_FORCEINLINE float radius_at(float w) const {
+    float t = 0.5f * (4.0f - w);
+    t = t < 0.0f ? 0.0f : (t > 1.0f ? 1.0f : t);
+    return particle_radius + t * (lone_radius - particle_radius);
+  }
 };
 
 struct VolumeGeom {
