@@ -505,7 +505,7 @@ struct GatherField {
 // weight and a lone particle's radius (at least sqrt(3)/2 voxel) where it
 // sees two or fewer (ZhuBridsonParams::radius_at). A lone
 // particle is a ball of that radius; over a flat surface m follows the top
-// layers, so phi moves with them continuously, and with slope about 1 it is
+// layers, so phi moves with them continuously, and with its smooth slope it is
 // resolved at any place of the surface within its voxel (a sum of
 // metaballs steps from saturated to empty within a voxel there: docs/field.md).
 // Stored as iso (1 - phi / (R - r)), clamped to [0, clip]: the surface is at

@@ -1,7 +1,6 @@
 #include "config.h"
 #include "volume.h"
 
-#include <algorithm>
 #include <iterator>
 #include <sstream>
 #include <stdexcept>
@@ -76,7 +75,7 @@ FieldConfig read_field_config(const ConfigReader& r) {
   z.radius = zb.number("radius", z.radius, 1.0, 8.0);
   z.particle_radius = zb.number("particle_radius", z.particle_radius, 0.05, 8.0);
   // A lone particle's radius is at least ZhuBridsonParams::kLoneRadius, whatever particle_radius.
-  const double lone = std::max(z.particle_radius, double(ZhuBridsonParams::kLoneRadius));
+  const double lone = ZhuBridsonParams::lone_radius_of(float(z.particle_radius));
   if (lone > z.radius - 0.5) {
     auto text = [](double v) {
       std::ostringstream os;

@@ -52,14 +52,17 @@ struct ZhuBridsonParams {
   static constexpr float kLoneRadius = 0.95f;
   float radius = 0;           // R: the neighbours' reach [voxels]
   float particle_radius = 0;  // r: the surface's distance from their weighted mean [voxels]
-  float lone_radius = 0;      // max(r, kLoneRadius)
+  float lone_radius = 0;      // lone_radius_of(particle_radius)
+  static constexpr float lone_radius_of(float r) { return r > kLoneRadius ? r : kLoneRadius; }
 
   // The surface's distance from the weighted mean at a voxel whose weights
   // sum to w (each particle's at most 1): r from four particles' worth of
   // weight up, the lone radius at two and below (a lone particle or a pair,
   // which a ball of r below sqrt(3)/2 could leave between the voxel
-  // centres), linear between. A liquid's surface voxels see tens of
-  // particles' worth (docs/field.md), so r alone places its surface.
+  // centres), linear between. A voxel centre half a spacing above a flat
+  // lattice's top layer sees about nine, one and a half spacings above it
+  // 2.3: the ramp reaches only the voxels beyond a liquid's surface, and r
+  // places that surface (docs/field.md).
   SPHRAY_HD SPHRAY_FORCEINLINE float radius_at(float w) const {
     float t = 0.5f * (4.0f - w);
     t = t < 0.0f ? 0.0f : (t > 1.0f ? 1.0f : t);
