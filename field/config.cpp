@@ -77,16 +77,14 @@ FieldConfig read_field_config(const ConfigReader& r) {
   // A lone particle's radius is at least ZhuBridsonParams::kLoneRadius, whatever particle_radius.
   const double lone = ZhuBridsonParams::lone_radius_of(float(z.particle_radius));
   if (lone > z.radius - 0.5) {
-    auto text = [](double v) {
-      std::ostringstream os;
-      os << v;
-      return os.str();
-    };
-    const std::string why = "the field falls to zero over radius less the particle radius (a lone particle's at least " +
-                            text(ZhuBridsonParams::kLoneRadius) + "), at least half a voxel";
+    std::ostringstream why;
+    why << "the field falls to zero over radius less the particle radius (a lone particle's at least "
+        << ZhuBridsonParams::kLoneRadius << "), at least half a voxel";
     if (zb.has("particle_radius") && z.particle_radius > ZhuBridsonParams::kLoneRadius)
-      zb.fail("particle_radius", zb.at("particle_radius"), "must be at most radius - 0.5: " + why);
-    zb.fail("radius", zb.at("radius"), "must be at least " + text(lone + 0.5) + ": " + why);
+      zb.fail("particle_radius", zb.at("particle_radius"), "must be at most radius - 0.5: " + why.str());
+    std::ostringstream os;
+    os << "must be at least " << lone + 0.5 << ": " << why.str();
+    zb.fail("radius", zb.at("radius"), os.str());
   }
   const ConfigReader a = r.child("anisotropy");
   a.only({"radius", "stretch", "smoothing", "min_neighbours"});

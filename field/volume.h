@@ -52,7 +52,7 @@ struct ZhuBridsonParams {
   static constexpr float kLoneRadius = 0.95f;
   float radius = 0;           // R: the neighbours' reach [voxels]
   float particle_radius = 0;  // r: the surface's distance from their weighted mean [voxels]
-  float lone_radius = 0;      // lone_radius_of(particle_radius)
+  // A lone particle's radius for r: r, or kLoneRadius where r is smaller.
   static constexpr float lone_radius_of(float r) { return r > kLoneRadius ? r : kLoneRadius; }
 
   // The surface's distance from the weighted mean at a voxel whose weights
@@ -66,7 +66,7 @@ struct ZhuBridsonParams {
   SPHRAY_HD SPHRAY_FORCEINLINE float radius_at(float w) const {
     float t = 0.5f * (4.0f - w);
     t = t < 0.0f ? 0.0f : (t > 1.0f ? 1.0f : t);
-    return particle_radius + t * (lone_radius - particle_radius);
+    return particle_radius + t * (lone_radius_of(particle_radius) - particle_radius);
   }
 };
 

@@ -203,8 +203,9 @@ TEST_CASE("zhu_bridson: a lone particle is a ball of the lone radius", "[field]"
   // The lone radius, not the liquid's smaller r (below sqrt(3)/2 voxel a
   // ball can fall between the voxel centres).
   CHECK(fs.zhu_bridson.particle_radius < 0.866f);
-  CHECK(fs.zhu_bridson.lone_radius == Approx(0.95f));
-  const double vox = fs.geom.voxel, r = fs.zhu_bridson.lone_radius * vox;
+  const float lone = ZhuBridsonParams::lone_radius_of(fs.zhu_bridson.particle_radius);
+  CHECK(lone == Approx(0.95f));
+  const double vox = fs.geom.voxel, r = lone * vox;
   std::mt19937 rng(8);
   std::uniform_real_distribution<double> u(0.0, 1.0);
   for (int trial = 0; trial < 5; ++trial) {
