@@ -67,21 +67,39 @@ struct Mirrors {
   }
 };
 
-SPHRAY_HD SPHRAY_FORCEINLINE Mirrors mirrors_of(const SphParams& prm, float support, Vec3f x) {
+// The tank's planes within `reach` of x (inside the tank), the nearer one
+// per axis; an open top is no mirror.
+SPHRAY_HD SPHRAY_FORCEINLINE Mirrors mirrors_near(const Aabb& tank, bool open_top, float reach, Vec3f x) {
   Mirrors m;
   const float p[3] = {x.x, x.y, x.z};
-  const float lo[3] = {prm.tank.min.x, prm.tank.min.y, prm.tank.min.z};
-  const float hi[3] = {prm.tank.max.x, prm.tank.max.y, prm.tank.max.z};
+  const float lo[3] = {tank.min.x, tank.min.y, tank.min.z};
+  const float hi[3] = {tank.max.x, tank.max.y, tank.max.z};
   for (int a = 0; a < 3; ++a) {
     const float d_lo = p[a] - lo[a];
-    const float d_hi = (a == 2 && prm.open_top) ? support : hi[a] - p[a];
-    // An image lies at least as far as the wall: walls beyond the support have none in reach.
-    const bool near_lo = d_lo < support, near_hi = d_hi < support;
+    const float d_hi = (a == 2 && open_top) ? reach : hi[a] - p[a];
+    // An image lies at least as far as the wall: walls beyond the reach have none in it.
+    const bool near_lo = d_lo < reach, near_hi = d_hi < reach;
     if (near_lo && (!near_hi || d_lo <= d_hi)) { m.plane[a] = lo[a]; m.axes |= 1u << a; }
     else if (near_hi) { m.plane[a] = hi[a]; m.axes |= 1u << a; m.upper |= 1u << a; }
     else m.plane[a] = 0.0f;
   }
   return m;
+}
+
+SPHRAY_HD SPHRAY_FORCEINLINE Mirrors mirrors_of(const SphParams& prm, float support, Vec3f x) {
+  return mirrors_near(prm.tank, prm.open_top, support, x);
+}
+
+// x beyond a wall of the tank (an open top is none) reflected across it:
+// across both walls of an edge and the three of a corner where x lies beyond them.
+SPHRAY_HD SPHRAY_FORCEINLINE Vec3f reflect_into(const Aabb& tank, bool open_top, Vec3f x) {
+  if (x.x < tank.min.x) x.x = 2.0f * tank.min.x - x.x;
+  else if (x.x > tank.max.x) x.x = 2.0f * tank.max.x - x.x;
+  if (x.y < tank.min.y) x.y = 2.0f * tank.min.y - x.y;
+  else if (x.y > tank.max.y) x.y = 2.0f * tank.max.y - x.y;
+  if (x.z < tank.min.z) x.z = 2.0f * tank.min.z - x.z;
+  else if (x.z > tank.max.z && !open_top) x.z = 2.0f * tank.max.z - x.z;
+  return x;
 }
 
 // Registers per thread of the neighbour passes on the GPU
