@@ -8,6 +8,7 @@
 
 #include "anisotropy.h"
 #include "core/atomics.h"
+#include "sph/mirror_walls.h"
 #include "sph/params.h"
 #include "volume.h"
 
@@ -554,9 +555,25 @@ struct ZhuBridsonGather {
     const uint32_t v = real ? t / uint32_t(G) : 0u, lane = t % uint32_t(G);
     int i, j, k;
     voxel_coords(vol, v, i, j, k);
+    const float h = vol.voxel;
+    // The voxel's centre: a voxel beyond a mirroring wall takes its image's value.
+    float cx = float(i) + 0.5f, cy = float(j) + 0.5f, cz = float(k) + 0.5f;
+    Vec3f x{vol.origin.x + cx * h, vol.origin.y + cy * h, vol.origin.z + cz * h};
+    const bool walls = zb.walls.mirror;
+    if (walls) {
+      const Vec3f in = reflect_into(zb.walls.tank, zb.walls.open_top, x);
+      if (in.x != x.x || in.y != x.y || in.z != x.z) {
+        x = in;
+        cx = (x.x - vol.origin.x) / h;
+        cy = (x.y - vol.origin.y) / h;
+        cz = (x.z - vol.origin.z) / h;
+      }
+    }
+    // No particle within R: none of their images either (an image lies
+    // beyond the wall that x lies inside of, farther from x than its original).
     bool any = false;
     if (real)
-      for_each_row_near(vol, view, float(i) + 0.5f, float(j) + 0.5f, float(k) + 0.5f, zb.radius,
+      for_each_row_near(vol, view, cx, cy, cz, zb.radius,
                         [&](uint32_t row, uint32_t x0, uint32_t x1) { any |= view_offsets[row + x1 + 1u] > view_offsets[row + x0]; });
     // Most voxels: nothing within reach, written at once (with G > 1 every
     // lane goes on to the shuffles, and `any` skips the rows).
@@ -565,28 +582,37 @@ struct ZhuBridsonGather {
       if (Count) sink.put(t, 0, 1, 0, 0);
       return;
     }
-    const float h = vol.voxel;
-    const Vec3f x{vol.origin.x + (float(i) + 0.5f) * h, vol.origin.y + (float(j) + 0.5f) * h,
-                  vol.origin.z + (float(k) + 0.5f) * h};
     const float R = zb.radius, inv_Rw = 1.0f / (R * h);
-    // Offsets of the particles from x in units of R: their weighted mean is (m - x) / R.
+    // Offsets of the particles (and their images) from x in units of R: their weighted mean is (m - x) / R.
     float w = 0.0f, mx = 0.0f, my = 0.0f, mz = 0.0f;
     uint32_t pairs = 0;
-    for (int row = 0; any && row < candidate_rows<kSpan>(); ++row) {
-      uint32_t begin = 0, end = 0;
-      if (!candidate_row<kSpan>(grid, fine_offsets, x, row, begin, end, R * h)) continue;
-      for (uint32_t q = begin + lane; q < end; q += uint32_t(G)) {
-        const Vec3f p = xyz(pos[q]);
-        const float dx = (p.x - x.x) * inv_Rw, dy = (p.y - x.y) * inv_Rw, dz = (p.z - x.z) * inv_Rw;
-        if (Count) ++pairs;
-        const float s = 1.0f - (dx * dx + dy * dy + dz * dz);
-        if (s <= 0.0f) continue;
-        const float kq = s * s * s;
-        w += kq;
-        mx += kq * dx;
-        my += kq * dy;
-        mz += kq * dz;
+    // The particles within R of `at`: x itself (set 0) or x's image across
+    // the walls of `set`, whose particles' offsets from it are those of
+    // their images from x reflected.
+    auto gather = [&](Vec3f at, uint32_t set) {
+      for (int row = 0; row < candidate_rows<kSpan>(); ++row) {
+        uint32_t begin = 0, end = 0;
+        if (!candidate_row<kSpan>(grid, fine_offsets, at, row, begin, end, R * h)) continue;
+        for (uint32_t q = begin + lane; q < end; q += uint32_t(G)) {
+          const Vec3f p = xyz(pos[q]);
+          float dx = (p.x - at.x) * inv_Rw, dy = (p.y - at.y) * inv_Rw, dz = (p.z - at.z) * inv_Rw;
+          if (Count) ++pairs;
+          const float s = 1.0f - (dx * dx + dy * dy + dz * dz);
+          if (s <= 0.0f) continue;
+          if (set & 1u) dx = -dx;
+          if (set & 2u) dy = -dy;
+          if (set & 4u) dz = -dz;
+          const float kq = s * s * s;
+          w += kq;
+          mx += kq * dx;
+          my += kq * dy;
+          mz += kq * dz;
+        }
       }
+    };
+    if (any) {
+      gather(x, 0u);
+      if (walls) mirrors_near(zb.walls.tank, zb.walls.open_top, R * h, x).images(x, gather);
     }
     if (G > 1) {
       w = group_sum(w);

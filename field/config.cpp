@@ -70,10 +70,11 @@ FieldConfig read_field_config(const ConfigReader& r) {
   if (r.has("zhu_bridson") && c.kernel != FieldKernel::ZhuBridson)
     r.fail("zhu_bridson", r.at("zhu_bridson"), "is read only with \"kernel\": \"zhu_bridson\"");
   const ConfigReader zb = r.child("zhu_bridson");
-  zb.only({"radius", "particle_radius"});
+  zb.only({"radius", "particle_radius", "mirror_walls"});
   ZhuBridsonConfig& z = c.zhu_bridson;
   z.radius = zb.number("radius", z.radius, 1.0, 8.0);
   z.particle_radius = zb.number("particle_radius", z.particle_radius, 0.05, 8.0);
+  z.mirror_walls = zb.boolean("mirror_walls", z.mirror_walls);
   // A lone particle's radius is at least ZhuBridsonParams::kLoneRadius, whatever particle_radius.
   const double lone = ZhuBridsonParams::lone_radius_of(float(z.particle_radius));
   if (lone > z.radius - 0.5) {

@@ -31,6 +31,7 @@ struct AnisotropyConfig {
 struct ZhuBridsonConfig {
   double radius = 3.0;            // R: the neighbours' reach [voxels]
   double particle_radius = 0.78;  // r: the surface lies r from their weighted mean [voxels] (a lone particle's: at least 0.95)
+  bool mirror_walls = true;       // the tank's walls as mirrors: the liquid meets them instead of pulling back (volume.h)
 };
 
 struct FieldConfig {

@@ -703,6 +703,7 @@ FieldSetup make_field_setup(const ResolvedScene& r) {
   an.min_neighbours = uint32_t(f.anisotropy.min_neighbours);
   out.zhu_bridson.radius = float(f.zhu_bridson.radius);
   out.zhu_bridson.particle_radius = float(f.zhu_bridson.particle_radius);
+  out.zhu_bridson.walls = {f.zhu_bridson.mirror_walls, s.open_top, {to_f(s.tank.min), to_f(s.tank.max)}};
   // With ellipsoids a particle's own voxel need not be inside (a flat kernel
   // is thinner than a voxel): only full cells are filled, and each particle's
   // voxel is marked only where its own kernel reaches the iso value there.

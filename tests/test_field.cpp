@@ -19,6 +19,7 @@
 #include "field/field.h"
 #include "io/metrics.h"
 #include "io/surface_error.h"
+#include "render/raycast.h"
 
 using namespace sphray;
 
@@ -49,10 +50,12 @@ double brute_force(const FieldSetup& fs, const std::vector<Vec3f>& pts, int i, i
   return sum;
 }
 
-std::vector<Vec3f> random_points(const Scene& s, size_t n, unsigned seed) {
+// n points uniform in `box` (the tank where none is given).
+std::vector<Vec3f> random_points(const Scene& s, size_t n, unsigned seed, const Box* box = nullptr) {
+  const Box& b = box ? *box : s.tank;
   std::mt19937 rng(seed);
-  std::uniform_real_distribution<float> ux(float(s.tank.min.x), float(s.tank.max.x)),
-      uy(float(s.tank.min.y), float(s.tank.max.y)), uz(float(s.tank.min.z), float(s.tank.max.z));
+  std::uniform_real_distribution<float> ux(float(b.min.x), float(b.max.x)), uy(float(b.min.y), float(b.max.y)),
+      uz(float(b.min.z), float(b.max.z));
   std::vector<Vec3f> pts(n);
   for (auto& p : pts) p = {ux(rng), uy(rng), uz(rng)};
   return pts;
@@ -127,17 +130,45 @@ namespace {
 
 // Zhu & Bridson's field at a voxel centre in double: the definition in
 // builders.h (ZhuBridsonGather); `weight` returns the sum of the weights.
+// With mirroring walls (ZhuBridsonParams::Walls) the particles' images are
+// made explicitly: a centre beyond a wall is first reflected into the tank,
+// then every particle is reflected across each subset of the walls within R
+// of it (the nearer wall per axis) and summed with the originals.
 double zhu_bridson_ref(const FieldSetup& fs, const std::vector<Vec3f>& pts, int i, int j, int k, double& weight) {
-  const double R = fs.zhu_bridson.radius, r = fs.zhu_bridson.particle_radius;
+  const double R = fs.zhu_bridson.radius, r = fs.zhu_bridson.particle_radius, h = fs.geom.voxel;
+  const ZhuBridsonParams::Walls& walls = fs.zhu_bridson.walls;
+  const double lo[3] = {walls.tank.min.x, walls.tank.min.y, walls.tank.min.z},
+               hi[3] = {walls.tank.max.x, walls.tank.max.y, walls.tank.max.z};
+  const double o[3] = {fs.geom.origin.x, fs.geom.origin.y, fs.geom.origin.z};
+  double x[3] = {o[0] + (i + 0.5) * h, o[1] + (j + 0.5) * h, o[2] + (k + 0.5) * h};
+  double plane[3] = {0, 0, 0};
+  bool mirrored[3] = {false, false, false};
+  for (int a = 0; a < 3; ++a) {
+    const bool low = walls.mirror, high = walls.mirror && !(a == 2 && walls.open_top);
+    if (low && x[a] < lo[a]) x[a] = 2 * lo[a] - x[a];
+    else if (high && x[a] > hi[a]) x[a] = 2 * hi[a] - x[a];
+    const double d_lo = x[a] - lo[a], d_hi = hi[a] - x[a];
+    const bool near_lo = low && d_lo < R * h, near_hi = high && d_hi < R * h;
+    if (near_lo && (!near_hi || d_lo <= d_hi)) { plane[a] = lo[a]; mirrored[a] = true; }
+    else if (near_hi) { plane[a] = hi[a]; mirrored[a] = true; }
+  }
   double w = 0, m[3] = {0, 0, 0};
   for (const Vec3f& p : pts) {
-    const double d[3] = {(double(p.x) - fs.geom.origin.x) / fs.geom.voxel - (i + 0.5),
-                         (double(p.y) - fs.geom.origin.y) / fs.geom.voxel - (j + 0.5),
-                         (double(p.z) - fs.geom.origin.z) / fs.geom.voxel - (k + 0.5)};
-    const double s = 1.0 - (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]) / (R * R);
-    if (s <= 0) continue;
-    w += s * s * s;
-    for (int a = 0; a < 3; ++a) m[a] += s * s * s * d[a];
+    for (int set = 0; set < 8; ++set) {
+      bool ok = true;
+      double q[3] = {p.x, p.y, p.z};
+      for (int a = 0; a < 3; ++a) {
+        if (!(set >> a & 1)) continue;
+        ok = ok && mirrored[a];
+        q[a] = 2 * plane[a] - q[a];
+      }
+      if (!ok) continue;
+      const double d[3] = {(q[0] - x[0]) / h, (q[1] - x[1]) / h, (q[2] - x[2]) / h};
+      const double s = 1.0 - (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]) / (R * R);
+      if (s <= 0) continue;
+      w += s * s * s;
+      for (int a = 0; a < 3; ++a) m[a] += s * s * s * d[a];
+    }
   }
   weight = w;
   if (w == 0) return 0;
@@ -161,21 +192,32 @@ std::vector<Vec3f> lattice_pool(double dx, int layers, double lift) {
 }  // namespace
 
 TEST_CASE("zhu_bridson: the field is |x - weighted mean| - r in double, mapped to the iso value", "[field]") {
-  const Scene s = small_scene({"field.kernel=zhu_bridson"});
+  // With the walls' images (the default) and without.
+  const bool mirrored = GENERATE(true, false);
+  const Scene s =
+      small_scene({"field.kernel=zhu_bridson", std::string("field.zhu_bridson.mirror_walls=") + (mirrored ? "true" : "false")});
   CHECK(s.field.builder == FieldKind::Gather);  // its builder when none is named
   const FieldSetup fs = make_field_setup(resolve_scene(s));
   REQUIRE(fs.kernel == FieldKernel::ZhuBridson);
-  // Dense enough that most voxels see several particles, sparse enough for lone ones.
-  const std::vector<Vec3f> pts = random_points(s, 6000, 5);
+  REQUIRE(fs.zhu_bridson.walls.mirror == mirrored);
+  // In the fluid block at its three walls (x = 0, y = 0 and 0.2, z = 0),
+  // dense enough that most voxels there see several particles, sparse enough
+  // for lone ones; the far wall and the lid see none.
+  const Box block{{0.0, 0.0, 0.0}, {0.12, 0.2, 0.2}};
+  const std::vector<Vec3f> pts = random_points(s, 2500, 5, &block);
   const HostParticleSet ps(measure_scene(s).grid, pts);
   const std::vector<float> f = test::cpu_field(fs, ps.view(), FieldKind::Gather);
   double worst = 0;
-  int inside = 0, outside = 0, empty = 0;
+  int inside = 0, outside = 0, empty = 0, near_wall = 0;
   std::mt19937 rng(6);
   for (int t = 0; t < 3000; ++t) {
     const int i = int(rng() % fs.geom.nx), j = int(rng() % fs.geom.ny), k = int(rng() % fs.geom.nz);
+    const Vec3f c = fs.geom.origin + fs.geom.voxel * Vec3f{i + 0.5f, j + 0.5f, k + 0.5f};
+    const float wall = std::min({c.x - float(s.tank.min.x), float(s.tank.max.x) - c.x, c.y - float(s.tank.min.y),
+                                 float(s.tank.max.y) - c.y, c.z - float(s.tank.min.z), float(s.tank.max.z) - c.z});
     double w = 0;
     const double ref = zhu_bridson_ref(fs, pts, i, j, k, w);
+    near_wall += w > 0 && wall < fs.zhu_bridson.radius * fs.geom.voxel ? 1 : 0;  // beyond a wall too (wall < 0)
     const float got = f[fs.geom.index(i, j, k)];
     if (w == 0) {
       CHECK(got == 0.0f);
@@ -187,8 +229,10 @@ TEST_CASE("zhu_bridson: the field is |x - weighted mean| - r in double, mapped t
     if (w > 1e-4) worst = std::max(worst, std::abs(got - ref) / fs.shape.iso);
     (ref >= fs.shape.iso ? inside : outside) += 1;
   }
-  INFO("worst difference " << worst << " iso; " << inside << " inside, " << outside << " outside, " << empty << " empty");
+  INFO("worst difference " << worst << " iso; " << inside << " inside, " << outside << " outside, " << empty << " empty, "
+                            << near_wall << " of them within R of a wall or beyond it");
   CHECK(worst < 1e-4);
+  CHECK(near_wall > 300);
   CHECK(inside > 100);
   CHECK(outside > 100);
   CHECK(empty > 100);
@@ -301,6 +345,98 @@ TEST_CASE("zhu_bridson: a flat lattice's surface keeps its place at every place 
   INFO("over the lifts: zhu_bridson " << lo << " .. " << hi << ", spheres " << sphere_lo << " .. " << sphere_hi);
   CHECK(hi - lo < 0.05);
   CHECK(sphere_hi - sphere_lo > 4 * (hi - lo));
+}
+
+TEST_CASE("zhu_bridson: the liquid meets the tank's walls, where their mirror images place it", "[field]") {
+  // A lattice block in the tank's corner, its particles half a spacing from
+  // the walls as the scenes fill it. Without the walls' images the surface
+  // pulls back from a wall as from a free side, to about the outer layer;
+  // with them (the default) the liquid reaches the wall: its plane is inside
+  // over the block's faces there. Farther than R from every wall the two
+  // fields are the same.
+  const double dx = 0.01;
+  std::vector<Vec3f> pts;
+  for (int k = 0; k < 10; ++k)
+    for (int j = 0; j < 12; ++j)
+      for (int i = 0; i < 20; ++i) pts.push_back({float((i + 0.5) * dx), float((j + 0.5) * dx), float((k + 0.5) * dx)});
+  std::vector<float> field[2];
+  FieldSetup setup[2];
+  for (int mirrored = 0; mirrored < 2; ++mirrored) {
+    const Scene s = small_scene({"field.kernel=zhu_bridson", mirrored ? "field.zhu_bridson.mirror_walls=true"
+                                                                      : "field.zhu_bridson.mirror_walls=false"});
+    setup[mirrored] = make_field_setup(resolve_scene(s));
+    REQUIRE(setup[mirrored].geom.voxel == Approx(dx));
+    CHECK(setup[mirrored].zhu_bridson.walls.mirror == bool(mirrored));
+    CHECK(!setup[mirrored].zhu_bridson.walls.open_top);  // a closed tank: its lid mirrors too
+    const HostParticleSet ps(measure_scene(s).grid, pts);
+    field[mirrored] = test::cpu_field(setup[mirrored], ps.view(), FieldKind::Gather);
+  }
+  const VolumeGeom& g = setup[0].geom;
+  const float iso = setup[0].shape.iso;
+  // The share of points on each wall's plane over the block's face (a
+  // spacing of margin from its edges, 1/4 spacing apart) that is inside, and
+  // the height of the block's top surface (the block's middle in y) at
+  // x = 0.05 spacing from the x = 0 wall against its middle, x = 10 spacings:
+  // where the free surface meets the wall.
+  struct Walls {
+    double inside[3];
+    double top_at_wall, top_middle;
+  } got[2];
+  for (int mirrored = 0; mirrored < 2; ++mirrored) {
+    const TrilinearField f{field[mirrored].data(), g.nx, g.ny, g.nz};
+    auto at = [&](double x, double y, double z) { return f(g.to_voxels(Vec3f{float(x), float(y), float(z)})); };
+    const double face_hi[3] = {20 * dx, 12 * dx, 10 * dx};
+    for (int a = 0; a < 3; ++a) {
+      const int b = (a + 1) % 3, c = (a + 2) % 3;
+      int n = 0, in = 0;
+      for (double u = dx; u <= face_hi[b] - dx + 1e-9; u += 0.25 * dx)
+        for (double v = dx; v <= face_hi[c] - dx + 1e-9; v += 0.25 * dx) {
+          double p[3];
+          p[a] = 0.0;
+          p[b] = u;
+          p[c] = v;
+          ++n;
+          in += at(p[0], p[1], p[2]) >= iso ? 1 : 0;
+        }
+      got[mirrored].inside[a] = double(in) / n;
+    }
+    auto top = [&](double x) {
+      double z = 5 * dx;
+      while (z < 15 * dx && at(x, 6 * dx, z) >= iso) z += 0.001 * dx;
+      return z;
+    };
+    got[mirrored].top_at_wall = top(0.05 * dx);
+    got[mirrored].top_middle = top(10 * dx);
+  }
+  INFO("on the walls x, y, z = 0: inside " << got[1].inside[0] << ", " << got[1].inside[1] << ", " << got[1].inside[2]
+                                          << " with the images, " << got[0].inside[0] << ", " << got[0].inside[1] << ", "
+                                          << got[0].inside[2] << " without; the top at the wall "
+                                          << (got[1].top_at_wall - got[1].top_middle) / dx << " / "
+                                          << (got[0].top_at_wall - got[0].top_middle) / dx
+                                          << " spacings from its middle's, which is " << got[1].top_middle / dx << " / "
+                                          << got[0].top_middle / dx << " spacings high");
+  for (int a = 0; a < 3; ++a) {
+    CHECK(got[1].inside[a] == 1.0);
+    CHECK(got[0].inside[a] < 0.1);
+  }
+  CHECK(std::abs(got[1].top_at_wall - got[1].top_middle) < 0.05 * dx);
+  CHECK(got[0].top_at_wall < got[0].top_middle - 0.3 * dx);
+  CHECK(got[1].top_middle == got[0].top_middle);  // R and more from the walls
+  // Beyond R of every wall the images change nothing, bit for bit.
+  const ZhuBridsonParams::Walls& w = setup[1].zhu_bridson.walls;
+  const double R = setup[1].zhu_bridson.radius * dx;
+  int far = 0, differ = 0;
+  for (int k = 0; k < g.nz; ++k)
+    for (int j = 0; j < g.ny; ++j)
+      for (int i = 0; i < g.nx; ++i) {
+        const double x = g.origin.x + (i + 0.5) * dx, y = g.origin.y + (j + 0.5) * dx, z = g.origin.z + (k + 0.5) * dx;
+        if (std::min({x - w.tank.min.x, w.tank.max.x - x, y - w.tank.min.y, w.tank.max.y - y, z - w.tank.min.z, w.tank.max.z - z}) <= R + 1e-6)
+          continue;
+        ++far;
+        differ += field[1][g.index(i, j, k)] != field[0][g.index(i, j, k)] ? 1 : 0;
+      }
+  CHECK(far > 1000);
+  CHECK(differ == 0);
 }
 
 TEST_CASE("presence builder without presence classifies exactly as naive, and never passes the clip value", "[field]") {
