@@ -671,4 +671,5 @@ TEST_CASE("field scene values are validated", "[field][scene]") {
   zb("field.zhu_bridson.radius=1.4", "field.zhu_bridson.radius");  // the default r = 0.95 needs R >= 1.45
   zb("field.zhu_bridson.radius=0.5", "field.zhu_bridson.radius");
   zb("field.zhu_bridson.core=1", "unknown key");
+  zb("field.zhu_bridson.mirror_walls=1", "field.zhu_bridson.mirror_walls");  // a number, not true or false
 }
