@@ -556,7 +556,8 @@ struct ZhuBridsonGather {
     int i, j, k;
     voxel_coords(vol, v, i, j, k);
     const float h = vol.voxel;
-    // The voxel's centre: a voxel beyond a mirroring wall takes its image's value.
+    // The voxel's centre: a voxel beyond a mirroring wall takes its image's
+    // value (the others keep their centres exactly, as without the walls).
     float cx = float(i) + 0.5f, cy = float(j) + 0.5f, cz = float(k) + 0.5f;
     Vec3f x{vol.origin.x + cx * h, vol.origin.y + cy * h, vol.origin.z + cz * h};
     const bool walls = zb.walls.mirror;

@@ -349,11 +349,12 @@ TEST_CASE("zhu_bridson: a flat lattice's surface keeps its place at every place 
 
 TEST_CASE("zhu_bridson: the liquid meets the tank's walls, where their mirror images place it", "[field]") {
   // A lattice block in the tank's corner, its particles half a spacing from
-  // the walls as the scenes fill it. Without the walls' images the surface
-  // pulls back from a wall as from a free side, to about the outer layer;
-  // with them (the default) the liquid reaches the wall: its plane is inside
-  // over the block's faces there. Farther than R from every wall the two
-  // fields are the same.
+  // the walls as the scenes fill it. Without the walls' images a wall is a
+  // free side: its plane lies outside the liquid, and the top surface rounds
+  // over where it meets the wall; with them (the default) the liquid reaches
+  // the wall: its plane is inside over the block's faces there, and the top
+  // stays level up to it. Farther than R from every wall the two fields are
+  // the same.
   const double dx = 0.01;
   std::vector<Vec3f> pts;
   for (int k = 0; k < 10; ++k)
