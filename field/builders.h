@@ -587,33 +587,30 @@ struct ZhuBridsonGather {
     // Offsets of the particles (and their images) from x in units of R: their weighted mean is (m - x) / R.
     float w = 0.0f, mx = 0.0f, my = 0.0f, mz = 0.0f;
     uint32_t pairs = 0;
-    // The particles within R of `at`: x itself (set 0) or x's image across
-    // the walls of `set`, whose particles' offsets from it are those of
-    // their images from x reflected.
-    auto gather = [&](Vec3f at, uint32_t set) {
-      for (int row = 0; row < candidate_rows<kSpan>(); ++row) {
-        uint32_t begin = 0, end = 0;
-        if (!candidate_row<kSpan>(grid, fine_offsets, at, row, begin, end, R * h)) continue;
-        for (uint32_t q = begin + lane; q < end; q += uint32_t(G)) {
-          const Vec3f p = xyz(pos[q]);
-          float dx = (p.x - at.x) * inv_Rw, dy = (p.y - at.y) * inv_Rw, dz = (p.z - at.z) * inv_Rw;
-          if (Count) ++pairs;
-          const float s = 1.0f - (dx * dx + dy * dy + dz * dz);
-          if (s <= 0.0f) continue;
-          if (set & 1u) dx = -dx;
-          if (set & 2u) dy = -dy;
-          if (set & 4u) dz = -dz;
-          const float kq = s * s * s;
-          w += kq;
-          mx += kq * dx;
-          my += kq * dy;
-          mz += kq * dz;
-        }
-      }
+    auto add = [&](Vec3f p) {
+      const float dx = (p.x - x.x) * inv_Rw, dy = (p.y - x.y) * inv_Rw, dz = (p.z - x.z) * inv_Rw;
+      const float s = 1.0f - (dx * dx + dy * dy + dz * dz);
+      if (s <= 0.0f) return;
+      const float kq = s * s * s;
+      w += kq;
+      mx += kq * dx;
+      my += kq * dy;
+      mz += kq * dz;
     };
-    if (any) {
-      gather(x, 0u);
-      if (walls) mirrors_near(zb.walls.tank, zb.walls.open_top, R * h, x).images(x, gather);
+    // A particle's image across the walls within R of x is no nearer to x
+    // than the particle is (x and the particle lie on the wall's inner
+    // side), so x's candidates hold every particle whose image is within R:
+    // one walk of the rows sums both.
+    const Mirrors mirrors = walls ? mirrors_near(zb.walls.tank, zb.walls.open_top, R * h, x) : Mirrors{};
+    for (int row = 0; any && row < candidate_rows<kSpan>(); ++row) {
+      uint32_t begin = 0, end = 0;
+      if (!candidate_row<kSpan>(grid, fine_offsets, x, row, begin, end, R * h)) continue;
+      for (uint32_t q = begin + lane; q < end; q += uint32_t(G)) {
+        const Vec3f p = xyz(pos[q]);
+        if (Count) ++pairs;
+        add(p);
+        if (mirrors.axes != 0u) mirrors.images(p, [&](Vec3f image, uint32_t) { add(image); });
+      }
     }
     if (G > 1) {
       w = group_sum(w);
