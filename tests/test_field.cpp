@@ -347,19 +347,71 @@ TEST_CASE("zhu_bridson: a flat lattice's surface keeps its place at every place 
   CHECK(sphere_hi - sphere_lo > 4 * (hi - lo));
 }
 
-TEST_CASE("zhu_bridson: the liquid meets the tank's walls, where their mirror images place it", "[field]") {
-  // A lattice block in the tank's corner, its particles half a spacing from
-  // the walls as the scenes fill it. Without the walls' images a wall is a
-  // free side: its plane lies outside the liquid, and the top surface rounds
-  // over where it meets the wall; with them (the default) the liquid reaches
-  // the wall: its plane is inside over the block's faces there, and the top
-  // stays level up to it. Farther than R from every wall the two fields are
-  // the same.
-  const double dx = 0.01;
+namespace {
+
+// A lattice block of 20 x 12 x 10 spacings in the small scene's tank's
+// corner at x, y, z = 0, its particles half a spacing from the walls as the
+// scenes fill it.
+std::vector<Vec3f> corner_block(double dx) {
   std::vector<Vec3f> pts;
   for (int k = 0; k < 10; ++k)
     for (int j = 0; j < 12; ++j)
       for (int i = 0; i < 20; ++i) pts.push_back({float((i + 0.5) * dx), float((j + 0.5) * dx), float((k + 0.5) * dx)});
+  return pts;
+}
+
+// How the corner block's surface meets the walls: the share of points on
+// each wall's plane over the block's face (a spacing of margin from its
+// edges, 1/4 spacing apart) that is inside, and the height of the block's
+// top surface (the block's middle in y) at x = 0.05 spacing from the x = 0
+// wall against its middle, x = 10 spacings: where the free surface meets
+// the wall.
+struct WallReading {
+  double inside[3];
+  double top_at_wall, top_middle;
+};
+
+WallReading read_walls(const FieldSetup& setup, const std::vector<float>& field, double dx) {
+  const VolumeGeom& g = setup.geom;
+  const float iso = setup.shape.iso;
+  const TrilinearField f{field.data(), g.nx, g.ny, g.nz};
+  auto at = [&](double x, double y, double z) { return f(g.to_voxels(Vec3f{float(x), float(y), float(z)})); };
+  WallReading got{};
+  const double face_hi[3] = {20 * dx, 12 * dx, 10 * dx};
+  for (int a = 0; a < 3; ++a) {
+    const int b = (a + 1) % 3, c = (a + 2) % 3;
+    int n = 0, in = 0;
+    for (double u = dx; u <= face_hi[b] - dx + 1e-9; u += 0.25 * dx)
+      for (double v = dx; v <= face_hi[c] - dx + 1e-9; v += 0.25 * dx) {
+        double p[3];
+        p[a] = 0.0;
+        p[b] = u;
+        p[c] = v;
+        ++n;
+        in += at(p[0], p[1], p[2]) >= iso ? 1 : 0;
+      }
+    got.inside[a] = double(in) / n;
+  }
+  auto top = [&](double x) {
+    double z = 5 * dx;
+    while (z < 15 * dx && at(x, 6 * dx, z) >= iso) z += 0.001 * dx;
+    return z;
+  };
+  got.top_at_wall = top(0.05 * dx);
+  got.top_middle = top(10 * dx);
+  return got;
+}
+
+}  // namespace
+
+TEST_CASE("zhu_bridson: the liquid meets the tank's walls, where their mirror images place it", "[field]") {
+  // The corner block. Without the walls' images a wall is a free side: its
+  // plane lies outside the liquid, and the top surface rounds over where it
+  // meets the wall; with them (the default) the liquid reaches the wall: its
+  // plane is inside over the block's faces there, and the top stays level up
+  // to it. Farther than R from every wall the two fields are the same.
+  const double dx = 0.01;
+  const std::vector<Vec3f> pts = corner_block(dx);
   std::vector<float> field[2];
   FieldSetup setup[2];
   for (int mirrored = 0; mirrored < 2; ++mirrored) {
@@ -373,42 +425,7 @@ TEST_CASE("zhu_bridson: the liquid meets the tank's walls, where their mirror im
     field[mirrored] = test::cpu_field(setup[mirrored], ps.view(), FieldKind::Gather);
   }
   const VolumeGeom& g = setup[0].geom;
-  const float iso = setup[0].shape.iso;
-  // The share of points on each wall's plane over the block's face (a
-  // spacing of margin from its edges, 1/4 spacing apart) that is inside, and
-  // the height of the block's top surface (the block's middle in y) at
-  // x = 0.05 spacing from the x = 0 wall against its middle, x = 10 spacings:
-  // where the free surface meets the wall.
-  struct Walls {
-    double inside[3];
-    double top_at_wall, top_middle;
-  } got[2];
-  for (int mirrored = 0; mirrored < 2; ++mirrored) {
-    const TrilinearField f{field[mirrored].data(), g.nx, g.ny, g.nz};
-    auto at = [&](double x, double y, double z) { return f(g.to_voxels(Vec3f{float(x), float(y), float(z)})); };
-    const double face_hi[3] = {20 * dx, 12 * dx, 10 * dx};
-    for (int a = 0; a < 3; ++a) {
-      const int b = (a + 1) % 3, c = (a + 2) % 3;
-      int n = 0, in = 0;
-      for (double u = dx; u <= face_hi[b] - dx + 1e-9; u += 0.25 * dx)
-        for (double v = dx; v <= face_hi[c] - dx + 1e-9; v += 0.25 * dx) {
-          double p[3];
-          p[a] = 0.0;
-          p[b] = u;
-          p[c] = v;
-          ++n;
-          in += at(p[0], p[1], p[2]) >= iso ? 1 : 0;
-        }
-      got[mirrored].inside[a] = double(in) / n;
-    }
-    auto top = [&](double x) {
-      double z = 5 * dx;
-      while (z < 15 * dx && at(x, 6 * dx, z) >= iso) z += 0.001 * dx;
-      return z;
-    };
-    got[mirrored].top_at_wall = top(0.05 * dx);
-    got[mirrored].top_middle = top(10 * dx);
-  }
+  const WallReading got[2] = {read_walls(setup[0], field[0], dx), read_walls(setup[1], field[1], dx)};
   INFO("on the walls x, y, z = 0: inside " << got[1].inside[0] << ", " << got[1].inside[1] << ", " << got[1].inside[2]
                                           << " with the images, " << got[0].inside[0] << ", " << got[0].inside[1] << ", "
                                           << got[0].inside[2] << " without; the top at the wall "
@@ -438,6 +455,29 @@ TEST_CASE("zhu_bridson: the liquid meets the tank's walls, where their mirror im
       }
   CHECK(far > 1000);
   CHECK(differ == 0);
+}
+
+TEST_CASE("spheres and ellipsoids reach the tank's walls without images", "[field]") {
+  // The metaball kernels reach past their particles by more than the half
+  // spacing to a wall, so a wall's plane lies inside the liquid without the
+  // images Zhu & Bridson's surface needs (no air between the glass and the
+  // liquid); where the free surface meets a wall the kernels' sum lacks the
+  // particles beyond it, and the top dips there by less than a spacing.
+  const double dx = 0.01;
+  const std::vector<Vec3f> pts = corner_block(dx);
+  for (const char* kernel : {"isotropic", "anisotropic"}) {
+    const Scene s = small_scene({std::string("field.kernel=") + kernel});
+    const FieldSetup setup = make_field_setup(resolve_scene(s));
+    REQUIRE(setup.geom.voxel == Approx(dx));
+    const HostParticleSet ps(measure_scene(s).grid, pts);
+    const WallReading got = read_walls(setup, test::cpu_field(setup, ps.view(), FieldKind::Naive), dx);
+    INFO(kernel << ": on the walls x, y, z = 0 inside " << got.inside[0] << ", " << got.inside[1] << ", " << got.inside[2]
+                << "; the top at the wall " << (got.top_at_wall - got.top_middle) / dx << " spacings from its middle's, "
+                << got.top_middle / dx << " spacings high");
+    for (int a = 0; a < 3; ++a) CHECK(got.inside[a] == 1.0);
+    CHECK(got.top_at_wall < got.top_middle);
+    CHECK(got.top_at_wall > got.top_middle - dx);
+  }
 }
 
 TEST_CASE("presence builder without presence classifies exactly as naive, and never passes the clip value", "[field]") {
