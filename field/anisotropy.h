@@ -28,6 +28,7 @@
 #include "core/vec.h"
 #include "nsearch/grid.h"
 #include "sph/covariance.h"
+#include "sph/mirror_walls.h"
 #include "volume.h"
 
 namespace sphray {
@@ -37,6 +38,11 @@ struct AnisotropyParams {
   float stretch = 4;             // largest / smallest axis, at most
   float smoothing = 0.9f;        // centre = x + smoothing * mean offset
   uint32_t min_neighbours = 8;   // fewer: a sphere
+  // The tank's walls as mirrors (field.anisotropy.mirror_walls): a particle
+  // within the radius of a wall sums its own and its neighbours' images
+  // across it, so that the wall does not count as a free side: a sheet on a
+  // wall or a layer in a corner keeps the form and centre it has in the open.
+  FieldWalls walls;
 };
 
 // One particle's kernel in voxel units, stored as three Float4 per particle in
@@ -203,6 +209,14 @@ struct ComputeAnisotropy {
     const Vec3f xi = xyz(pos[t]);
     const float inv_r = 1.0f / ap.radius;
     CovarianceSums s;
+    auto add_image = [&](Vec3f p, uint32_t) {
+      const float dx = (p.x - xi.x) * inv_r, dy = (p.y - xi.y) * inv_r, dz = (p.z - xi.z) * inv_r;
+      s.add(dx, dy, dz, dx * dx + dy * dy + dz * dz);
+    };
+    // An image lies beyond the wall, no nearer to xi than its original: the
+    // neighbours within the radius hold every image within it.
+    const Mirrors mirrors = ap.walls.mirror ? mirrors_near(ap.walls.tank, ap.walls.open_top, ap.radius, xi) : Mirrors{};
+    if (mirrors.axes != 0u) mirrors.images(xi, add_image);
     for (int row = 0; row < candidate_rows<kSpan>(); ++row) {
       uint32_t begin = 0, end = 0;
       if (!candidate_row<kSpan>(grid, fine_offsets, xi, row, begin, end, ap.radius)) continue;
@@ -213,6 +227,7 @@ struct ComputeAnisotropy {
         const float q2 = dx * dx + dy * dy + dz * dz;
         if (!(q2 < 1.0f)) continue;
         s.add(dx, dy, dz, q2);
+        if (mirrors.axes != 0u) mirrors.images(pj, add_image);
       }
     }
     return ellipsoid_of(ap, vol, xi, s);

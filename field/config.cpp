@@ -88,12 +88,13 @@ FieldConfig read_field_config(const ConfigReader& r) {
     zb.fail("radius", zb.at("radius"), os.str());
   }
   const ConfigReader a = r.child("anisotropy");
-  a.only({"radius", "stretch", "smoothing", "min_neighbours"});
+  a.only({"radius", "stretch", "smoothing", "min_neighbours", "mirror_walls"});
   AnisotropyConfig& an = c.anisotropy;
   an.radius = a.number("radius", an.radius, 0.5, 4.0);
   an.stretch = a.number("stretch", an.stretch, 1.0, 16.0);
   an.smoothing = a.number("smoothing", an.smoothing, 0.0, 1.0);
   an.min_neighbours = a.integer("min_neighbours", an.min_neighbours, 0, 1000);
+  an.mirror_walls = a.boolean("mirror_walls", an.mirror_walls);
   return c;
 }
 

@@ -26,6 +26,7 @@ struct AnisotropyConfig {
   double stretch = 4.0;    // largest over smallest axis, at most (>= 1; 1: spheres)
   double smoothing = 0.9;  // kernel centre moved this share of the way to the neighbours' weighted mean (0..1)
   int min_neighbours = 8;  // fewer neighbours than this: a sphere (spray, lone particles)
+  bool mirror_walls = true;  // the tank's walls as mirrors: a wall is no free side of the neighbourhood (anisotropy.h)
 };
 
 struct ZhuBridsonConfig {

@@ -109,7 +109,8 @@ class FieldBuilderImpl final : public FieldBuilder {
       float* mark = kind == FieldKind::Presence && setup_.mark_occupied ? f : nullptr;
       // The solver's neighbour loop may have summed the covariance already
       // (ParticleView::covariance): only the ellipsoids are left to compute.
-      if (pv.covariance && pv.covariance_radius == setup_.aniso.radius) {
+      if (pv.covariance && pv.covariance_radius == setup_.aniso.radius &&
+          pv.covariance_mirror_walls == setup_.aniso.walls.mirror) {
         parallel_for("field_anisotropy_from_sums", pv.n,
                      EllipsoidPass<AnisotropyFromSums>{
                          {pv.pos, pv.covariance, pv.n, vol, setup_.aniso, raw(ellipsoids_)}, mark, shape});

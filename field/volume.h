@@ -43,6 +43,16 @@ struct FieldShape {
   }
 };
 
+// The tank's walls as mirrors for the field's neighbour sums (Zhu & Bridson's
+// weighted mean, the ellipsoids' covariance): a point within reach of a wall
+// sees the particles' images across it (across both walls of an edge and the
+// three of a corner, as the solvers' mirrored images: sph/mirror_walls.h).
+struct FieldWalls {
+  bool mirror = false;  // off: no images
+  bool open_top = false;
+  Aabb tank{};  // the fluid side of the tank's walls [m]
+};
+
 // Zhu & Bridson's surface instead of a sum of falloffs (FieldKernel::ZhuBridson;
 // builders.h, ZhuBridsonGather).
 struct ZhuBridsonParams {
@@ -53,17 +63,13 @@ struct ZhuBridsonParams {
   float radius = 0;           // R: the neighbours' reach [voxels]
   float particle_radius = 0;  // r: the surface's distance from their weighted mean [voxels]
   // The tank's walls as mirrors (field.zhu_bridson.mirror_walls): a voxel
-  // within R of a wall sums the particles' images across it as well (across
-  // both walls of an edge and the three of a corner, as the solvers' mirrored
-  // images: sph/mirror_walls.h), and a voxel beyond a wall takes the value at
-  // its mirror image inside. At a wall the weighted mean then lies on the
-  // wall's plane, and the liquid's surface meets the wall at a right angle;
-  // without the images it pulls back from the wall as from a free side.
-  struct Walls {
-    bool mirror = false;  // off: no images
-    bool open_top = false;
-    Aabb tank{};  // the fluid side of the tank's walls [m]
-  } walls;
+  // within R of a wall sums the particles' images across it as well, and a
+  // voxel beyond a wall takes the value at its mirror image inside. At a wall
+  // the weighted mean then lies on the wall's plane, and the liquid's surface
+  // meets the wall at a right angle; without the images it pulls back from
+  // the wall as from a free side.
+  using Walls = FieldWalls;
+  Walls walls;
   // A lone particle's radius for r: r, or kLoneRadius where r is smaller.
   static constexpr float lone_radius_of(float r) { return r > kLoneRadius ? r : kLoneRadius; }
 

@@ -556,6 +556,7 @@ SolverInput make_solver_input(const ResolvedScene& r, PresenceMode presence, con
   in.max_dt = float(s.run.max_dt);
   in.presence = presence;
   in.covariance_radius = pair_loop_covariance_radius(s);
+  in.covariance_mirror_walls = s.field.anisotropy.mirror_walls;
   const double dx = s.sph.spacing;
   const double rho0 = s.sph.rest_density, b_tait = in.params.tait_b, g = length(s.gravity);
   const Vec3d up = up_of(s);
@@ -701,6 +702,7 @@ FieldSetup make_field_setup(const ResolvedScene& r) {
   an.stretch = float(f.anisotropy.stretch);
   an.smoothing = float(f.anisotropy.smoothing);
   an.min_neighbours = uint32_t(f.anisotropy.min_neighbours);
+  an.walls = {f.anisotropy.mirror_walls, s.open_top, {to_f(s.tank.min), to_f(s.tank.max)}};
   out.zhu_bridson.radius = float(f.zhu_bridson.radius);
   out.zhu_bridson.particle_radius = float(f.zhu_bridson.particle_radius);
   out.zhu_bridson.walls = {f.zhu_bridson.mirror_walls, s.open_top, {to_f(s.tank.min), to_f(s.tank.max)}};

@@ -2,7 +2,9 @@
 // Turk 2013): per particle, over its neighbours j within the radius r,
 // w = 1 - q^3 with q = |x_j - x_i| / r, and d = (x_j - x_i) / r,
 //   W = 1 + sum w (the particle itself weighs 1), M = sum w d,
-//   S = sum w d d^T (six terms), and the count of neighbours.
+//   S = sum w d d^T (six terms), and the count of neighbours; with the
+// tank's walls as mirrors (field.anisotropy.mirror_walls), the images of i
+// and of its neighbours across the walls within r count as neighbours.
 // The field builder turns them into an ellipsoid. They are summed either by
 // the field's own pass (ComputeAnisotropy) or, where the solver's neighbour
 // loop already visits every neighbour within r, inside it on the steps that

@@ -55,6 +55,7 @@
 
 #include "boundary.h"
 #include "covariance.h"
+#include "mirror_walls.h"
 #include "nsearch/pair_masks.h"
 #include "presence.h"
 
@@ -76,6 +77,9 @@ struct PairOut {
   float* presence;    // [6][n] direction-major (+x,-x,+y,-y,+z,-z); null without presence
   Float4* covariance = nullptr;  // [3][n] (sph/covariance.h); null without it
   float covariance_inv_radius = 0;  // 1 / the sums' radius [1/m]
+  // The sums' radius [m] where they take the images across the tank's walls
+  // (mirror_walls.h; field.anisotropy.mirror_walls), else 0.
+  float covariance_mirror_reach = 0;
 };
 
 // What the masked loops fetch of a neighbour (for_each_masked).
@@ -157,6 +161,18 @@ struct Interaction {
     // GPU keeps them out of local memory).
     float ux = 0, uy = 0, uz = 0;
     CovarianceSums cov;
+    // The covariance's images across the tank's walls within its radius: i's
+    // own first, then each neighbour's after it (as the field's own pass,
+    // field/anisotropy.h). An image is no nearer to i than its original, so
+    // the neighbours within the support hold every image within the radius.
+    const Mirrors mirrors = WithCovariance && out.covariance_mirror_reach > 0.0f
+                                ? mirrors_near(prm.tank, prm.open_top, out.covariance_mirror_reach, xi)
+                                : Mirrors{};
+    auto add_image = [&](Vec3f image, uint32_t) {
+      const Vec3f d = (image - xi) * out.covariance_inv_radius;
+      cov.add(d.x, d.y, d.z, length2(d));
+    };
+    if (WithCovariance && mirrors.axes != 0u) mirrors.images(xi, add_image);
 
     for_each_pair<Direct>(grid, fluid.offsets, fluid.pos_rho, xi, support2, i, fluid_pairs, i,
                           [&](uint32_t j) { return FluidNeighbour{load(fluid.pos_rho + j), load(fluid.flow + j)}; },
@@ -191,6 +207,7 @@ struct Interaction {
       if (WithCovariance) {  // offsets x_j - x_i in units of the radius
         const float ir = -out.covariance_inv_radius;
         cov.add(ir * r.x, ir * r.y, ir * r.z, r2 * (ir * ir));
+        if (mirrors.axes != 0u) mirrors.images(xyz(pj), add_image);
       }
     });
     if (WithPresence) write_presence(i, prm.presence_scale / pi.w, grad, ux, uy, uz);  // fluid sums only

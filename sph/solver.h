@@ -72,8 +72,11 @@ struct SolverInput {
   // [m] The anisotropic field's neighbourhood radius (field/anisotropy.h)
   // when the solver's neighbour loop sums its covariance on the steps that
   // compute presence (ParticleView::covariance); 0: it does not. WCSPH
-  // only, and only within its support (make_solver_input).
+  // only, and only within its support (make_solver_input). With
+  // covariance_mirror_walls the sums take the images of the particles across
+  // the tank's walls within that radius (field.anisotropy.mirror_walls).
   float covariance_radius = 0;
+  bool covariance_mirror_walls = false;
   // Words per particle kept in each pair mask (nsearch/pair_masks.h); -1:
   // pair_mask_capacity of the support. A particle needing more is served by
   // the direct loop (the tests use 0 and 1 to check that path).
@@ -117,6 +120,7 @@ struct ParticleView {
   // them (SolverInput::covariance_radius); null otherwise.
   const Float4* covariance = nullptr;
   float covariance_radius = 0;
+  bool covariance_mirror_walls = false;  // the sums hold the images across the tank's walls
 };
 
 // Device buffers copied as they are (sorted order, no conversion), for sinks

@@ -71,6 +71,7 @@ class SolverImpl final : public Solver {
   explicit SolverImpl(const SolverInput& in)
       : prm_(in.params), grid_(in.grid), cfl_(in.cfl), min_dt_(in.min_dt), max_dt_(in.max_dt),
         n_(uint32_t(in.fluid_pos_rho.size())), covariance_radius_(in.covariance_radius),
+        covariance_mirror_walls_(in.covariance_mirror_walls),
         obstacles_(make_obstacle_set(kBackend, in.obstacles, in.params.spacing)), walls_(in, in.grid) {
     if (covariance_radius_ > prm_.kernel.support())
       throw std::invalid_argument("WCSPH: the covariance radius exceeds the kernel's support");
@@ -120,6 +121,7 @@ class SolverImpl final : public Solver {
     if (covariance_valid()) {
       v.covariance = raw(covariance_);
       v.covariance_radius = covariance_radius_;
+      v.covariance_mirror_walls = covariance_mirror_walls_;
     }
     return v;
   }
@@ -217,7 +219,8 @@ class SolverImpl final : public Solver {
     const WallsIn walls{walls_.offsets(), walls_.pos(), raw(wall_), walls_.alpha(), walls_.vel()};
     const PairOut out{raw(accel_), raw(rate_grad_), E != kPairPlain ? raw(presence_) : nullptr,
                       E == kPairPresenceCovariance ? raw(covariance_) : nullptr,
-                      covariance_radius_ > 0 ? 1.0f / covariance_radius_ : 0.0f};
+                      covariance_radius_ > 0 ? 1.0f / covariance_radius_ : 0.0f,
+                      covariance_mirror_walls_ ? covariance_radius_ : 0.0f};
     return {prm_, grid_, fluid_in(), walls, fluid_pairs(), boundary_pairs(), out, n_};
   }
 
@@ -410,6 +413,7 @@ class SolverImpl final : public Solver {
   double cfl_, min_dt_, max_dt_;
   uint32_t n_;
   float covariance_radius_;  // [m] SolverInput::covariance_radius
+  bool covariance_mirror_walls_;  // SolverInput::covariance_mirror_walls
   // A decomposed run (set_slab): the transport, the slabs, the exchange's
   // buffers, and how many of the n_ particles are other ranks' ghosts.
   ParticleTransport* transport_ = nullptr;
