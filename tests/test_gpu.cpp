@@ -391,26 +391,33 @@ TEST_CASE("cuda field builders agree with the cpu builders", "[gpu]") {
   // Ellipsoids from the sums of WCSPH's pair loop on both backends (sph/covariance.h).
   CHECK(bool(cpu->view().covariance) == (fs.kernel == FieldKernel::Anisotropic));
   CHECK(bool(gpu->view().covariance) == (fs.kernel == FieldKernel::Anisotropic));
-  for (FieldKind kind : {FieldKind::Naive, FieldKind::Presence, FieldKind::Gather}) {
-    if (fs.kernel == FieldKernel::Anisotropic && kind == FieldKind::Gather) continue;  // spheres only
-    if (fs.kernel == FieldKernel::ZhuBridson && kind != FieldKind::Gather) continue;  // the gather builder's alone
-    auto fc = make_cpu_field_builder(fs, kind), fg = make_cuda_field_builder(fs, kind);
-    fc->build(cpu->view(), true);
-    const std::vector<float> a = fc->download();
-    for (int group : {1, 4, 8, 32}) {  // every thread layout (the sphere gather: one thread per voxel)
-      if (kind == FieldKind::Gather && fs.kernel != FieldKernel::ZhuBridson && group != 1) continue;
-      fg->build(gpu->view(), true, group);
-      const std::vector<float> b = fg->download();
-      double worst = 0;
-      for (size_t v = 0; v < a.size(); ++v) worst = std::max(worst, std::abs(double(a[v]) - b[v]) / (1.0 + a[v]));
-      const FieldError e = compare_fields(fs.geom.nx, fs.geom.ny, fs.geom.nz, a, b, fs.shape.iso);
-      INFO(field_kind_name(kind) << ", " << group << " threads per particle: worst relative difference " << worst
-                                 << ", misclassified " << e.misclassified_band << " of " << e.band);
-      CHECK(e.misclassified_share() < 1e-3);
-      CHECK(e.misclassified_other == 0);
-      if (kind != FieldKind::Presence) CHECK(worst < 1e-3);  // the presence splat's order decides where clipping lands
-      CHECK(fg->last_counts().counted);
-      CHECK(double(fg->last_counts().touched) == Approx(double(fc->last_counts().touched)).epsilon(0.01));
+  // Ellipsoids also from the field's own covariance pass (as under PBF and
+  // DFSPH: the views without the sums), with the walls' images in both.
+  for (int own = 0; own < (fs.kernel == FieldKernel::Anisotropic ? 2 : 1); ++own) {
+    for (FieldKind kind : {FieldKind::Naive, FieldKind::Presence, FieldKind::Gather}) {
+      if (fs.kernel == FieldKernel::Anisotropic && kind == FieldKind::Gather) continue;  // spheres only
+      if (fs.kernel == FieldKernel::ZhuBridson && kind != FieldKind::Gather) continue;  // the gather builder's alone
+      ParticleView vc = cpu->view(), vg = gpu->view();
+      if (own) vc.covariance = vg.covariance = nullptr;
+      INFO((own ? "the field's own covariance pass" : "the solver's sums"));
+      auto fc = make_cpu_field_builder(fs, kind), fg = make_cuda_field_builder(fs, kind);
+      fc->build(vc, true);
+      const std::vector<float> a = fc->download();
+      for (int group : {1, 4, 8, 32}) {  // every thread layout (the sphere gather: one thread per voxel)
+        if (kind == FieldKind::Gather && fs.kernel != FieldKernel::ZhuBridson && group != 1) continue;
+        fg->build(vg, true, group);
+        const std::vector<float> b = fg->download();
+        double worst = 0;
+        for (size_t v = 0; v < a.size(); ++v) worst = std::max(worst, std::abs(double(a[v]) - b[v]) / (1.0 + a[v]));
+        const FieldError e = compare_fields(fs.geom.nx, fs.geom.ny, fs.geom.nz, a, b, fs.shape.iso);
+        INFO(field_kind_name(kind) << ", " << group << " threads per particle: worst relative difference " << worst
+                                   << ", misclassified " << e.misclassified_band << " of " << e.band);
+        CHECK(e.misclassified_share() < 1e-3);
+        CHECK(e.misclassified_other == 0);
+        if (kind != FieldKind::Presence) CHECK(worst < 1e-3);  // the presence splat's order decides where clipping lands
+        CHECK(fg->last_counts().counted);
+        CHECK(double(fg->last_counts().touched) == Approx(double(fc->last_counts().touched)).epsilon(0.01));
+      }
     }
   }
   // Zhu & Bridson's surface at coarser voxels, where the GPU's default is
