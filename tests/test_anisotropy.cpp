@@ -272,10 +272,18 @@ TEST_CASE("WCSPH's pair loop sums the anisotropic covariance of a double brute f
   INFO("largest difference of the two fields " << differ << " (iso " << fs.shape.iso << ")");
   CHECK(differ > 0);
   CHECK(differ < (mirrored ? 0.03 : 0.015) * fs.shape.iso);
-  // Sums made for the other wall setting are not taken: the builder runs its own pass.
+  // Sums made for the other wall setting are not taken: the builder runs its
+  // own pass (the same field to the order of the splat's adds, which the
+  // host's threads vary).
   ParticleView other = pv;
   other.covariance_mirror_walls = !mirrored;
-  CHECK(test::cpu_field(fs, other, FieldKind::Naive) == with_pass);
+  const std::vector<float> with_other = test::cpu_field(fs, other, FieldKind::Naive);
+  double rerun = 0;
+  for (size_t v = 0; v < with_pass.size(); ++v)
+    rerun = std::max(rerun, std::abs(double(with_other[v]) - with_pass[v]) / (1.0 + with_pass[v]));
+  INFO("the own pass again, from sums of the other setting: largest relative difference " << rerun);
+  CHECK(rerun < 1e-5);
+  CHECK(rerun < 1e-3 * differ);
 }
 
 TEST_CASE("anisotropic kernels: spheres inside and alone, flat at a surface, stretch and volume as set", "[field]") {
