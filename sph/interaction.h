@@ -206,8 +206,10 @@ struct Interaction {
       }
       if (WithCovariance) {  // offsets x_j - x_i in units of the radius
         const float ir = -out.covariance_inv_radius;
-        cov.add(ir * r.x, ir * r.y, ir * r.z, r2 * (ir * ir));
-        if (mirrors.axes != 0u) mirrors.images(xyz(pj), add_image);
+        const float q2 = r2 * (ir * ir);
+        cov.add(ir * r.x, ir * r.y, ir * r.z, q2);
+        // A neighbour beyond the radius has its images beyond it too.
+        if (mirrors.axes != 0u && q2 < 1.0f) mirrors.images(xyz(pj), add_image);
       }
     });
     if (WithPresence) write_presence(i, prm.presence_scale / pi.w, grad, ux, uy, uz);  // fluid sums only
