@@ -697,15 +697,17 @@ FieldSetup make_field_setup(const ResolvedScene& r) {
   const double per_cell = std::pow(g.cell_size / s.sph.spacing, 3.0);
   out.full_fill = f.full_value_clip ? sh.clip : sh.coarse;
   out.kernel = f.kernel;
+  // The tank's walls, mirrored where a kernel's setting says so.
+  auto tank_walls = [&](bool mirror) { return FieldWalls{mirror, s.open_top, {to_f(s.tank.min), to_f(s.tank.max)}}; };
   AnisotropyParams& an = out.aniso;
   an.radius = anisotropy_radius(s);
   an.stretch = float(f.anisotropy.stretch);
   an.smoothing = float(f.anisotropy.smoothing);
   an.min_neighbours = uint32_t(f.anisotropy.min_neighbours);
-  an.walls = {f.anisotropy.mirror_walls, s.open_top, {to_f(s.tank.min), to_f(s.tank.max)}};
+  an.walls = tank_walls(f.anisotropy.mirror_walls);
   out.zhu_bridson.radius = float(f.zhu_bridson.radius);
   out.zhu_bridson.particle_radius = float(f.zhu_bridson.particle_radius);
-  out.zhu_bridson.walls = {f.zhu_bridson.mirror_walls, s.open_top, {to_f(s.tank.min), to_f(s.tank.max)}};
+  out.zhu_bridson.walls = tank_walls(f.zhu_bridson.mirror_walls);
   // With ellipsoids a particle's own voxel need not be inside (a flat kernel
   // is thinner than a voxel): only full cells are filled, and each particle's
   // voxel is marked only where its own kernel reaches the iso value there.
