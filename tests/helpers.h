@@ -162,6 +162,39 @@ inline std::vector<float> cpu_field(const FieldSetup& fs, const ParticleView& v,
   return b->download();
 }
 
+// The tank's walls as mirrors, made by hand from their planes (independent of
+// sph/mirror_walls.h) for the double references of the field's sums: the
+// walls within `reach` of x, the nearer one per axis (an open top is none).
+struct HandMirrors {
+  double plane[3] = {0, 0, 0};
+  bool near[3] = {false, false, false};
+  HandMirrors(const FieldWalls& walls, double reach, const double x[3]) {
+    const double lo[3] = {walls.tank.min.x, walls.tank.min.y, walls.tank.min.z},
+                 hi[3] = {walls.tank.max.x, walls.tank.max.y, walls.tank.max.z};
+    for (int a = 0; a < 3; ++a) {
+      const bool low = walls.mirror, high = walls.mirror && !(a == 2 && walls.open_top);
+      const double d_lo = x[a] - lo[a], d_hi = hi[a] - x[a];
+      const bool near_lo = low && d_lo < reach, near_hi = high && d_hi < reach;
+      if (near_lo && (!near_hi || d_lo <= d_hi)) { plane[a] = lo[a]; near[a] = true; }
+      else if (near_hi) { plane[a] = hi[a]; near[a] = true; }
+    }
+  }
+  // f(q) for p itself and for its image across each non-empty subset of the near walls.
+  template <class F>
+  void each(const Vec3f& p, F&& f) const {
+    for (int set = 0; set < 8; ++set) {
+      bool ok = true;
+      double q[3] = {p.x, p.y, p.z};
+      for (int a = 0; a < 3; ++a) {
+        if (!(set >> a & 1)) continue;
+        ok = ok && near[a];
+        q[a] = 2 * plane[a] - q[a];
+      }
+      if (ok) f(q);
+    }
+  }
+};
+
 inline void run_until(Solver& s, double t) {
   while (s.time() < t - 1e-12) s.step(t);
 }

@@ -55,32 +55,13 @@ std::vector<Vec3f> liquid(const Scene& s, double jitter, int loose, unsigned see
 
 // The points whose offsets from x the covariance of x sums, in double: every
 // point (x's own included) and, with mirroring walls (FieldWalls), their
-// images across each subset of the walls within r of x (the nearer wall per
-// axis; an open top is none), made here from the planes.
+// images across each subset of the walls within r of x (test::HandMirrors).
 std::vector<Eigen::Vector3d> seen_from(const std::vector<Vec3f>& pts, const Eigen::Vector3d& x, const FieldWalls& walls,
                                        double r) {
-  const double lo[3] = {walls.tank.min.x, walls.tank.min.y, walls.tank.min.z},
-               hi[3] = {walls.tank.max.x, walls.tank.max.y, walls.tank.max.z};
-  double plane[3] = {0, 0, 0};
-  bool near[3] = {false, false, false};
-  for (int a = 0; a < 3; ++a) {
-    if (!walls.mirror) continue;
-    const double d_lo = x(a) - lo[a], d_hi = (a == 2 && walls.open_top) ? 1e30 : hi[a] - x(a);
-    if (d_lo < r && d_lo <= d_hi) { plane[a] = lo[a]; near[a] = true; }
-    else if (d_hi < r) { plane[a] = hi[a]; near[a] = true; }
-  }
+  const double at[3] = {x(0), x(1), x(2)};
+  const test::HandMirrors mirrors(walls, r, at);
   std::vector<Eigen::Vector3d> out;
-  for (const Vec3f& p : pts)
-    for (int set = 0; set < 8; ++set) {
-      Eigen::Vector3d q(p.x, p.y, p.z);
-      bool ok = true;
-      for (int a = 0; a < 3; ++a)
-        if (set >> a & 1) {
-          ok = ok && near[a];
-          q(a) = 2 * plane[a] - q(a);
-        }
-      if (ok) out.push_back(q);
-    }
+  for (const Vec3f& p : pts) mirrors.each(p, [&](const double q[3]) { out.emplace_back(q[0], q[1], q[2]); });
   return out;
 }
 

@@ -141,35 +141,21 @@ double zhu_bridson_ref(const FieldSetup& fs, const std::vector<Vec3f>& pts, int 
                hi[3] = {walls.tank.max.x, walls.tank.max.y, walls.tank.max.z};
   const double o[3] = {fs.geom.origin.x, fs.geom.origin.y, fs.geom.origin.z};
   double x[3] = {o[0] + (i + 0.5) * h, o[1] + (j + 0.5) * h, o[2] + (k + 0.5) * h};
-  double plane[3] = {0, 0, 0};
-  bool mirrored[3] = {false, false, false};
   for (int a = 0; a < 3; ++a) {
     const bool low = walls.mirror, high = walls.mirror && !(a == 2 && walls.open_top);
     if (low && x[a] < lo[a]) x[a] = 2 * lo[a] - x[a];
     else if (high && x[a] > hi[a]) x[a] = 2 * hi[a] - x[a];
-    const double d_lo = x[a] - lo[a], d_hi = hi[a] - x[a];
-    const bool near_lo = low && d_lo < R * h, near_hi = high && d_hi < R * h;
-    if (near_lo && (!near_hi || d_lo <= d_hi)) { plane[a] = lo[a]; mirrored[a] = true; }
-    else if (near_hi) { plane[a] = hi[a]; mirrored[a] = true; }
   }
+  const test::HandMirrors mirrors(walls, R * h, x);
   double w = 0, m[3] = {0, 0, 0};
-  for (const Vec3f& p : pts) {
-    for (int set = 0; set < 8; ++set) {
-      bool ok = true;
-      double q[3] = {p.x, p.y, p.z};
-      for (int a = 0; a < 3; ++a) {
-        if (!(set >> a & 1)) continue;
-        ok = ok && mirrored[a];
-        q[a] = 2 * plane[a] - q[a];
-      }
-      if (!ok) continue;
+  for (const Vec3f& p : pts)
+    mirrors.each(p, [&](const double q[3]) {
       const double d[3] = {(q[0] - x[0]) / h, (q[1] - x[1]) / h, (q[2] - x[2]) / h};
       const double s = 1.0 - (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]) / (R * R);
-      if (s <= 0) continue;
+      if (s <= 0) return;
       w += s * s * s;
       for (int a = 0; a < 3; ++a) m[a] += s * s * s * d[a];
-    }
-  }
+    });
   weight = w;
   if (w == 0) return 0;
   // r from four particles' worth of weight up, a lone particle's radius at two and below.
@@ -468,20 +454,21 @@ TEST_CASE("spheres and ellipsoids reach the tank's walls; the ellipsoids' images
   // top dips more; with the images (the default) it stays nearly level.
   const double dx = 0.01;
   const std::vector<Vec3f> pts = corner_block(dx);
-  double dip[3] = {0, 0, 0};  // spheres, ellipsoids with images, without
-  const char* const sets[3][2] = {{"field.kernel=isotropic", "field.refine=2"},
-                                  {"field.kernel=anisotropic", "field.anisotropy.mirror_walls=true"},
-                                  {"field.kernel=anisotropic", "field.anisotropy.mirror_walls=false"}};
+  double dip[3] = {0, 0, 0};
+  const char* const names[3] = {"spheres", "ellipsoids with images", "ellipsoids without"};
+  const std::vector<std::string> sets[3] = {{"field.kernel=isotropic"},
+                                            {"field.kernel=anisotropic", "field.anisotropy.mirror_walls=true"},
+                                            {"field.kernel=anisotropic", "field.anisotropy.mirror_walls=false"}};
   for (int c = 0; c < 3; ++c) {
-    const Scene s = small_scene({sets[c][0], sets[c][1]});
+    const Scene s = small_scene(sets[c]);
     const FieldSetup setup = make_field_setup(resolve_scene(s));
     REQUIRE(setup.geom.voxel == Approx(dx));
     const HostParticleSet ps(measure_scene(s).grid, pts);
     const WallReading got = read_walls(setup, test::cpu_field(setup, ps.view(), FieldKind::Naive), dx);
     dip[c] = (got.top_middle - got.top_at_wall) / dx;
-    INFO(sets[c][0] << ", " << sets[c][1] << ": on the walls x, y, z = 0 inside " << got.inside[0] << ", "
-                    << got.inside[1] << ", " << got.inside[2] << "; the top at the wall " << -dip[c]
-                    << " spacings from its middle's, " << got.top_middle / dx << " spacings high");
+    INFO(names[c] << ": on the walls x, y, z = 0 inside " << got.inside[0] << ", " << got.inside[1] << ", "
+                  << got.inside[2] << "; the top at the wall " << -dip[c] << " spacings from its middle's, "
+                  << got.top_middle / dx << " spacings high");
     for (int a = 0; a < 3; ++a) CHECK(got.inside[a] == 1.0);
     CHECK(dip[c] > 0);
     CHECK(dip[c] < 1);
