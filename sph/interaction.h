@@ -128,8 +128,9 @@ struct Interaction {
   // under which both variants spill (presence's three more accumulators; the
   // fetched neighbour structs); measured against 40, 48, 56 and 64 in
   // docs/notebook/benchmarks-history.md.
-  // With the covariance's eleven accumulators it takes 68 (no spills at
-  // 72; it runs on the steps that reach an output frame only).
+  // With the covariance's eleven accumulators and the walls' images it
+  // takes 64-72 (no spills at 72; 12-16 bytes spilled at 64; it runs on the
+  // steps that reach an output frame only).
   static constexpr int kMaxRegisters = WithCovariance ? 72 : WithPresence ? 56 : 48;
   SphParams prm;
   GridGeom grid;
