@@ -4,7 +4,7 @@
 # JSON and the test log under $OUT (at most 8 files come back from the device
 # tool; build logs stay in $B). Steps can be chosen:
 #   tools/gpu-check.sh [build] [test] [sanitize] [main] [bench] [pbf] [pbf-study] [dfsph] [dfsph-study] [kernels] [field] [ncu-field]
-#                      [export] [frame]
+#                      [export] [frame] [look]
 #                      [render] [validate] [viewer] [compare]
 #   (default: build test main bench validate; FIELD_SIZES picks the sizes of `field`; `compare` builds the
 #   source tree in REF_TAR (git archive REV -o .ref/ref.tar, carried) and runs bench sim, field and frame
@@ -121,6 +121,35 @@ if has frame; then
   echo "== bench frame (${FRAME_SIZES:-125k,1M}): substeps + field + render, 1920x1080, 4 interfaces"
   $B/sphray bench frame --backend cuda --sizes "${FRAME_SIZES:-125k,1M}" ${FRAME_ARGS:-} --png-dir "${PNG_DIR:-$OUT}" \
     --json "$OUT/bench_frame${FRAME_TAG:-}.json" 2>&1
+fi
+if has look; then
+  # docs/rendering.md's look figures at one commit: the wide frame at 125k and 1M as a clear film, the
+  # defaults and the defaults with ellipsoids, and the 1M close-up with spheres (clear film) and with
+  # ellipsoids: 8 PNGs (look_<film>_<particles>.png, close_<film>.png) in one $OUT/look.tar (the device
+  # tool brings back 8 files), which tools/look_figures.py crops and stacks into docs/img on the workstation
+  # (tar xf look.tar -C DIR; tools/look_figures.py DIR).
+  echo "== look figures"
+  CLEAR=(--set render.reflections=false --set 'render.absorption=[1.2,0.35,0.2]' --set 'render.tint=[0,0,0]')
+  CLOSE=(--sizes 1M --warmup 0 --frames 2 --set 'render.eye=[1.05,-0.45,0.42]' --set 'render.target=[0.5,0.35,0.02]')
+  look() {  # name, bench frame arguments...
+    local name=$1 d
+    shift
+    d=$(mktemp -d)
+    $B/sphray bench frame --backend cuda --png-dir "$d" "$@" > "$d.log" 2>&1 || { echo "$name: failed"; tail -5 "$d.log"; return; }
+    for f in "$d"/bench_frame_*.png; do
+      n=$(basename "$f" .png)
+      n=${n#bench_frame_}
+      case $name in close_*) cp "$f" "$L/$name.png" ;; *) cp "$f" "$L/look_${name}_$n.png" ;; esac
+    done
+    echo "$name: $(grep -E 'fps' "$d.log" | tail -2 | tr '\n' ' ')"
+  }
+  L=$(mktemp -d)
+  look clear --sizes 125k,1M "${CLEAR[@]}"
+  look defaults --sizes 125k,1M
+  look ellipsoids --sizes 125k,1M --set field.kernel=anisotropic
+  look close_spheres_clear "${CLOSE[@]}" "${CLEAR[@]}"
+  look close_ellipsoids "${CLOSE[@]}" --set field.kernel=anisotropic
+  tar cf "$OUT/look.tar" -C "$L" . && ls "$L"
 fi
 if has render; then
   echo "== bench render: PSNR against a fine reference vs render time (${RENDER_SIZE:-1M})"
