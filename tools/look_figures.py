@@ -40,14 +40,13 @@ def assemble(paths, place, size, out):
     missing = [p for p in paths if not os.path.isfile(p)]
     if missing:
         print(f"{out}: skipped, missing {', '.join(missing)}")
-        return False
+        return
     sheet = Image.new("RGBA", size)
     for i, p in enumerate(paths):
         im = place(p)
         sheet.paste(im, (0, i * im.size[1]) if size[0] == im.size[0] else (i * im.size[0], 0))
     sheet.save(out, optimize=True)
     print(f"{out}: {size[0]}x{size[1]} from {', '.join(os.path.basename(p) for p in paths)}")
-    return True
 
 
 def main():
