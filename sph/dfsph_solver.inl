@@ -88,7 +88,7 @@ class DfsphSolverImpl final : public Solver {
     // Presence on every step that may reach `until` (as PbfSolverImpl::step).
     const bool presence_now =
         presence_mode_ == PresenceMode::EveryStep ||
-        (presence_mode_ == PresenceMode::AtUntil && t_ + ChooseFlowStep::kLandStretch * max_dt_ >= until - 1e-12);
+        (presence_mode_ == PresenceMode::AtUntil && t_ + ChooseFlowStep::kLandSlack * max_dt_ >= until - 1e-12);
     obstacles_.view.time = float(t_);
     clock_.start();
     FlowControl* control = raw(control_);

@@ -94,7 +94,15 @@ struct ChooseFlowStep {
     const double v = l.max_speed > speed_floor ? l.max_speed : speed_floor;
     l.dt_cfl = v > 0 ? cfl_dx / v : HUGE_VAL;
     l.dt_force = max_dt_solver;
-    const double e_now = c.stats.count > 0 ? c.stats.error_sum / c.stats.count : 0.0;
+    // The compression the last step left, as a step of dt_chosen would have
+    // left it: a step landed on an output time (below) was shorter or longer
+    // than the one chosen, and the compression grows as dt^2. Read as it
+    // came, two half steps' quarter of it would grow the step until a single
+    // step lands, whose compression then shrinks it again: the steps would
+    // alternate in length, and with them PBF's velocities.
+    const double taken = l.dt;
+    const double landed = c.dt_chosen > 0 && taken > 0 ? c.dt_chosen / taken : 1.0;
+    const double e_now = c.stats.count > 0 ? c.stats.error_sum / c.stats.count * landed * landed : 0.0;
     c.error_mean = c.dt_chosen > 0 ? kKeep * c.error_mean + (1.0 - kKeep) * e_now : e_now;
     if (error_target > 0 && c.dt_chosen > 0) {
       const double target = error_target_flow > 0 && c.flowing ? error_target_flow : error_target;
@@ -111,17 +119,29 @@ struct ChooseFlowStep {
     if (dt < min_dt) { c.outcome = kStepBelowFloor; return; }
     c.outcome = kStepOk;
     c.dt_chosen = dt;
-    // No short step before an output time: PBF's velocities are position
-    // changes over dt and DFSPH's pressures scale with 1 / dt^2, so a step
-    // much shorter than the one before turns the compression it left into a
-    // large speed or pressure. The time left is split into the fewest equal
-    // steps of at most kLandStretch dt, so that with k steps to go a step is
-    // at most 1 / k shorter than dt.
-    const double k = std::ceil(remaining / (kLandStretch * dt));
+    // Landing on an output time: the time left in k equal steps, k the
+    // count whose step is nearest dt in ratio (the steps as often longer
+    // than dt as shorter: the flow CFL's steps are dt on average, and the
+    // compression read above is that of dt), at most kLandStretch dt (and
+    // not past run.max_dt, nor a solver limit that is a hard cap: DFSPH's
+    // viscous stability limit). No much shorter step: PBF's velocities are
+    // position changes over dt and DFSPH's pressures scale with 1 / dt^2,
+    // so a step much shorter than the one before turns the compression it
+    // left into a large speed or pressure; with k steps to go a step is
+    // within sqrt(1 + 1 / k) of dt (or 1 / kLandStretch).
+    const double hard = error_target > 0 ? max_dt : (max_dt < max_dt_solver ? max_dt : max_dt_solver);
+    const double stretched = kLandStretch * dt < hard ? kLandStretch * dt : hard;
+    const double longest = stretched > kLandSlack * dt ? stretched : kLandSlack * dt;
+    const double n = remaining / dt;
+    double k = std::floor(n);
+    if (k < 1.0 || n * n > k * (k + 1.0)) k += 1.0;  // nearest in ratio: the geometric mean sqrt(k (k + 1)) divides
+    const double fewest = std::ceil(remaining / longest);
+    if (k < fewest) k = fewest;
     l.dt = k <= 1.0 ? remaining : k <= kPlanSteps ? remaining / k : dt;
   }
   static constexpr double kShrink = 0.9, kGrow = 1.05, kKeep = 0.9;
-  static constexpr double kLandStretch = 1.01;
+  static constexpr double kLandStretch = 1.1;  // a landed step's most beyond dt
+  static constexpr double kLandSlack = 1.01;    // beyond a hard cap: round-off in an interval of whole steps
   static constexpr double kPlanSteps = 64;  // more steps to go (or no output time): dt, then at most 1/64 shorter
 };
 

@@ -94,10 +94,10 @@ class PbfSolverImpl final : public Solver {
 
   void step(double until) override {
     // Presence on every step that may reach `until`: a step is at most
-    // max_dt, stretched by up to kLandStretch to land on it (ChooseFlowStep).
+    // max_dt, stretched by up to kLandSlack to land on it (ChooseFlowStep).
     const bool presence_now =
         presence_mode_ == PresenceMode::EveryStep ||
-        (presence_mode_ == PresenceMode::AtUntil && t_ + ChooseFlowStep::kLandStretch * max_dt_ >= until - 1e-12);
+        (presence_mode_ == PresenceMode::AtUntil && t_ + ChooseFlowStep::kLandSlack * max_dt_ >= until - 1e-12);
     clock_.start();
     obstacles_.view.time = float(t_);
     FlowControl* control = raw(control_);

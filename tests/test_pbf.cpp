@@ -250,8 +250,9 @@ TEST_CASE("pbf: no particle leaves a closed tank or comes closer to a wall than 
     REQUIRE(p.pos.size() == n);
     for (const Vec3f& x : p.pos) REQUIRE(test::inside(x, tank));
   }
-  // dt <= cfl dx / v_max at the speed the step started from (1% landing stretch).
-  CHECK(worst_cfl <= 1.01 * s.sph.cfl + 1e-9);
+  // dt <= cfl dx / v_max at the speed the step started from, a step landed
+  // on the end time stretched by up to kLandStretch.
+  CHECK(worst_cfl <= ChooseFlowStep::kLandStretch * s.sph.cfl + 1e-9);
   CHECK(solver->last_solve().iterations == s.sph.pbf.iterations);
 }
 
@@ -488,11 +489,15 @@ TEST_CASE("pbf step size: after the first step the limit follows the mean compre
   c = choose(2e-3, target / 4, target / 4, 1.0, 2.5e-3);
   CHECK(c.limits.dt == Approx(1.25e-3));
   CHECK(c.dt_chosen == Approx(2.1e-3));
-  // Landing: the time left in the fewest equal steps of at most 1% beyond
-  // dt (here the flow CFL's 1.5 ms throughout): 10.5 steps' worth is 11
-  // steps of 0.955 dt, not 10 steps and two halves; 3.02 steps' worth is 3
-  // steps stretched by 0.7%.
-  for (const double steps_left : {10.5, 3.02}) {
+  // Landing: the time left in equal steps, as many as put the step nearest
+  // dt in ratio, none more than 10% beyond dt (here the flow CFL's 1.5 ms
+  // throughout). {steps' worth, steps}: 10.5 is 11 steps of 0.955 dt, not 10
+  // and two halves (sqrt(10 x 11) = 10.49 divides 10 from 11); 9.4 is 9
+  // steps 4.4% longer; 3.02 is 3 steps 0.7% longer; 1.087 one step 8.7%
+  // longer, not two of 0.54 dt; 1.2 two steps (one would be 20% longer); 0.6
+  // the time left.
+  const std::pair<double, int> landings[] = {{10.5, 11}, {9.4, 9}, {3.02, 3}, {1.087, 1}, {1.2, 2}, {0.6, 1}};
+  for (const auto& [steps_left, steps] : landings) {
     double remaining = steps_left * 1.5e-3, shortest = 1.0, longest = 0.0;
     int taken = 0;
     while (remaining > 1e-12 && taken < 100) {
@@ -503,10 +508,37 @@ TEST_CASE("pbf step size: after the first step the limit follows the mean compre
       ++taken;
     }
     INFO(steps_left << " steps' worth: " << taken << " steps of " << shortest << " to " << longest << " s");
-    CHECK(taken == int(std::ceil(steps_left / ChooseFlowStep::kLandStretch)));
+    CHECK(taken == steps);
     CHECK(longest <= ChooseFlowStep::kLandStretch * 1.5e-3 * (1 + 1e-12));
     CHECK(shortest == Approx(longest).epsilon(1e-9));
     CHECK(std::abs(remaining) < 1e-15);
+  }
+  // A hard cap (run.max_dt here) is passed by 1% at most: 1.05 steps of
+  // max_dt's worth land in two.
+  {
+    FlowControl capped{};
+    capped.stats.max_speed2 = 1.0f;
+    ChooseFlowStep{1.0, 0.0, 1.0e-3, 1.0e-3, 1e-8, 1.05e-3, &capped, 0.0}(0);
+    CHECK(capped.limits.dt == Approx(0.525e-3));
+    ChooseFlowStep{1.0, 0.0, 1.0e-3, 1.0e-3, 1e-8, 1.008e-3, &capped, 0.0}(0);
+    CHECK(capped.limits.dt == Approx(1.008e-3));
+  }
+  // The compression a landed step left is read as that of the step chosen:
+  // two half steps leave a quarter of it, which does not grow the step; a
+  // step 10% longer leaves 1.21 times it, which does not shrink it.
+  for (const double taken : {1.0e-3, 2.2e-3}) {
+    FlowControl c{};
+    c.stats.max_speed2 = 1.0f;
+    const double e_taken = target * (taken / 2e-3) * (taken / 2e-3);
+    c.stats.error_sum = e_taken * n;
+    c.stats.count = n;
+    c.dt_chosen = 2e-3;
+    c.limits.dt = taken;
+    c.error_mean = target;
+    ChooseFlowStep{1.0, 0.0, 1.0, depth, 1e-8, 1.0, &c, target}(0);
+    INFO("a landed step of " << taken << " s");
+    CHECK(c.error_mean == Approx(target));
+    CHECK(c.limits.dt == Approx(2e-3).epsilon(1e-9));
   }
   // pbf.step_error = 0: the depth limit throughout.
   FlowControl off{};
