@@ -65,7 +65,8 @@ std::string format_seconds(double s) {
 
 // The step statistics a run keeps. Step sizes count the steps the solver
 // chose freely: the last step before an output time is shortened to land on
-// it, and counted in the mean it made the mean read below the min.
+// it (PBF and DFSPH: shortened or stretched), and counted in the mean it made
+// the mean read below the min.
 struct StepTally {
   StageTimes sum;
   double dt_sum = 0;
@@ -242,7 +243,7 @@ RunSummary run_scene(const Scene& s, Solver& solver, const RunOptions& opt, std:
       solver.set_presence(needs_at(frame + 1).presence ? PresenceMode::AtUntil : PresenceMode::Off);
     while (solver.time() < next_output - 1e-12) {
       solver.step(next_output);
-      const bool free = solver.time() < next_output - 1e-12;  // not the step shortened to land on the output time
+      const bool free = solver.time() < next_output - 1e-12;  // not the step landed on the output time
       tally.add(solver, free, r);
       if (free) progress(false);  // the last step's line comes after its output
     }
@@ -275,8 +276,8 @@ const char* step_bound_key(int bound) {
 namespace {
 
 // "  step size      held by A in 76% of the steps, B in 24%": the limits that
-// held the steps (a step shortened to land on an output time counts the
-// limit of the step it was shortened from), the most frequent first.
+// held the steps (a step landed on an output time counts the limit of the
+// step it was shortened or stretched from), the most frequent first.
 void print_step_bounds(const RunSummary& r, std::ostream& log) {
   uint64_t total = 0;
   for (uint64_t c : r.bound_steps) total += c;
@@ -298,7 +299,7 @@ void print_summary(const RunSummary& r, std::ostream& log) {
   log << std::defaultfloat << std::setprecision(4);
   log << "summary (" << backend_name(r.backend) << ", " << r.solver << "):\n"
       << "  simulated      " << r.sim_time << " s in " << r.steps << " steps (dt mean " << r.mean_dt << " s, min "
-      << r.min_dt << " s, of the steps not shortened to meet an output time)\n"
+      << r.min_dt << " s, of the steps not landed on an output time)\n"
       << "  wall time      " << r.wall_seconds << " s ("
       << (r.wall_seconds > 0 ? double(r.particle_steps) / r.wall_seconds : 0.0) << " particle-steps/s, x"
       << r.realtime_factor() << " real time: simulated seconds per wall second)\n"

@@ -112,8 +112,8 @@ struct RunSummary {
   double realtime_factor() const { return wall_seconds > 0 ? sim_time / wall_seconds : 0.0; }
   double mean_dt = 0, min_dt = 1e300;
   // The steps that each limit held (StepBound, sph/integrate.h; a step
-  // shortened to land on an output time: the limit of the step it was
-  // shortened from).
+  // landed on an output time: the limit of the step it was shortened or
+  // stretched from).
   uint64_t bound_steps[kStepBounds] = {};
   StageTimes mean_stage_ms;
   double max_speed = 0;

@@ -81,7 +81,7 @@ constexpr int kStepBounds = 4;
 // The last step's size and what bounded it (Solver::last_limits).
 struct StepLimits {
   double dt = 0, dt_cfl = 0, dt_force = 0, dt_viscous = 0;
-  uint8_t bound = kBoundCfl;  // StepBound: the limit dt took (before a step shortened to land on an output time)
+  uint8_t bound = kBoundCfl;  // StepBound: the limit dt took (before a step is shortened or stretched to land on an output time)
   double max_speed = 0, max_accel = 0;
   // The particle that moved at max_speed: its id (initial index) and where it
   // was. fastest_id is kNoBadParticle where it is not known (a run over
