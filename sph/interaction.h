@@ -129,9 +129,11 @@ struct Interaction {
   // fetched neighbour structs); measured against 40, 48, 56 and 64 in
   // docs/notebook/benchmarks-history.md.
   // With the covariance's eleven accumulators and the walls' images it
-  // takes 64-72 (no spills at 72; 12-16 bytes spilled at 64; it runs on the
-  // steps that reach an output frame only).
-  static constexpr int kMaxRegisters = WithCovariance ? 72 : WithPresence ? 56 : 48;
+  // takes 64-72: at 64 it spills 12-16 bytes, yet the pair stage with the
+  // sums ran 1.5% faster at 1M than at 72 (no spills; the same at 125k:
+  // docs/field.md, "Cost of the ellipsoids"). It runs on the steps that
+  // reach an output frame only.
+  static constexpr int kMaxRegisters = WithCovariance ? 64 : WithPresence ? 56 : 48;
   SphParams prm;
   GridGeom grid;
   FluidIn fluid;
