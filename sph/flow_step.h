@@ -120,15 +120,16 @@ struct ChooseFlowStep {
     c.outcome = kStepOk;
     c.dt_chosen = dt;
     // Landing on an output time: the time left in k equal steps, k the
-    // count whose step is nearest dt in ratio (the steps as often longer
-    // than dt as shorter: the flow CFL's steps are dt on average, and the
-    // compression read above is that of dt), at most kLandStretch dt (and
-    // not past run.max_dt, nor a solver limit that is a hard cap: DFSPH's
-    // viscous stability limit). No much shorter step: PBF's velocities are
-    // position changes over dt and DFSPH's pressures scale with 1 / dt^2,
-    // so a step much shorter than the one before turns the compression it
-    // left into a large speed or pressure; with k steps to go a step is
-    // within sqrt(1 + 1 / k) of dt (or 1 / kLandStretch).
+    // count whose step is nearest dt in ratio, so that the landed steps are
+    // as often longer than dt as shorter (steps of at most dt would all be
+    // shorter: more steps, at a flow CFL below the one asked for). A landed step is at most kLandStretch dt and passes a hard cap
+    // (run.max_dt; without an error target also the solver's limit, such
+    // as DFSPH's viscous stability limit) by kLandSlack at most. No much
+    // shorter step either: PBF's velocities are position changes over dt
+    // and DFSPH's pressures scale with 1 / dt^2, so a step much shorter than
+    // the one before turns the compression it left into a large speed or
+    // pressure. With k steps to go a step lies within sqrt(1 + 1 / k) of dt,
+    // or is shorter where a longer one would pass those limits.
     const double hard = error_target > 0 ? max_dt : (max_dt < max_dt_solver ? max_dt : max_dt_solver);
     const double stretched = kLandStretch * dt < hard ? kLandStretch * dt : hard;
     const double longest = stretched > kLandSlack * dt ? stretched : kLandSlack * dt;
@@ -142,7 +143,7 @@ struct ChooseFlowStep {
   static constexpr double kShrink = 0.9, kGrow = 1.05, kKeep = 0.9;
   static constexpr double kLandStretch = 1.1;  // a landed step's most beyond dt
   static constexpr double kLandSlack = 1.01;    // beyond a hard cap: round-off in an interval of whole steps
-  static constexpr double kPlanSteps = 64;  // more steps to go (or no output time): dt, then at most 1/64 shorter
+  static constexpr double kPlanSteps = 64;  // more steps to go (or no output time): dt, then within 0.8% of it
 };
 
 }  // namespace sphray
