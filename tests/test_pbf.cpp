@@ -853,6 +853,44 @@ TEST_CASE("pbf: a column at rest stays at rest (1 s, 40 layers)", "[sph][slow][c
   CHECK(std::abs(top - H) < 2 * s.sph.spacing);
 }
 
+// Output times a little more than a step apart: each frame is one step,
+// 6% longer than the one chosen (ChooseFlowStep lands in the count of steps
+// nearest dt and reads the compression as that of dt). Read as it came,
+// with the frame split into the fewest steps of at most dt, the frames
+// alternated between one step and two halves, and each half step turned the
+// compression the long one left into speed: the pool below then reached
+// 0.3 sqrt(g H) (docs/benchmarks.md, "Landing on output times").
+TEST_CASE("pbf: frames a little longer than the step take one step each, and a pool at rest stays at rest",
+          "[sph][cpu]") {
+  Scene s = load_scene(test::source_path("scenes/stress/tall_column.json"), {"sph.solver=pbf"});
+  s.tank.max.x = 0.1;  // a pool 0.4 m deep, 10 x 4 x 40 particles
+  s.fluid[0].box.max.x = s.tank.max.x;
+  auto solver = make_cpu_solver(make_solver_input(resolve_scene(s), PresenceMode::Off));
+  const double H = s.fluid[0].box.max.z - s.fluid[0].box.min.z, v_ref = std::sqrt(9.81 * H);
+  solver->step(1.0);  // no output time within reach: the step chosen (the depth limit at rest)
+  const double interval = 1.06 * solver->last_limits().dt;
+  double worst = 0;
+  int frames = 0, changes = 0, last_steps = -1;
+  for (double until = solver->time() + interval; until < 0.6; until += interval) {
+    int steps = 0;
+    while (solver->time() < until - 1e-12) {
+      solver->step(until);
+      ++steps;
+      if (solver->time() > 0.2) worst = std::max(worst, solver->last_limits().max_speed);
+    }
+    if (solver->time() > 0.1) {
+      ++frames;
+      changes += last_steps >= 0 && steps != last_steps;
+      last_steps = steps;
+    }
+  }
+  INFO(frames << " frames after 0.1 s, the last of " << last_steps << " steps; " << changes
+              << " changes of the count; largest speed after 0.2 s " << worst / v_ref << " sqrt(g H)");
+  CHECK(last_steps == 1);
+  CHECK(changes == 0);
+  CHECK(worst < 0.15 * v_ref);
+}
+
 TEST_CASE("pbf: the last correction in the finishing pass moves the particles as Correct does", "[sph][cpu]") {
   // The first step of a column released at rest, with and without a box far
   // from the liquid: a scene with obstacles runs Correct, the stop and
