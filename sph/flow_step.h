@@ -95,9 +95,9 @@ struct ChooseFlowStep {
     l.dt_cfl = v > 0 ? cfl_dx / v : HUGE_VAL;
     l.dt_force = max_dt_solver;
     // The compression the last step left, as a step of dt_chosen would have
-    // left it: a step landed on an output time (below) was shorter or longer
+    // left it: a step landed on an output time (below) is shorter or longer
     // than the one chosen, and the compression grows as dt^2. Read as it
-    // came, two half steps' quarter of it would grow the step until a single
+    // comes, two half steps' quarter of it would grow the step until a single
     // step lands, whose compression then shrinks it again: the steps would
     // alternate in length, and with them PBF's velocities.
     const double taken = l.dt;
@@ -122,14 +122,15 @@ struct ChooseFlowStep {
     // Landing on an output time: the time left in k equal steps, k the
     // count whose step is nearest dt in ratio, so that the landed steps are
     // as often longer than dt as shorter (steps of at most dt would all be
-    // shorter: more steps, at a flow CFL below the one asked for). A landed step is at most kLandStretch dt and passes a hard cap
-    // (run.max_dt; without an error target also the solver's limit, such
-    // as DFSPH's viscous stability limit) by kLandSlack at most. No much
-    // shorter step either: PBF's velocities are position changes over dt
-    // and DFSPH's pressures scale with 1 / dt^2, so a step much shorter than
-    // the one before turns the compression it left into a large speed or
-    // pressure. With k steps to go a step lies within sqrt(1 + 1 / k) of dt,
-    // or is shorter where a longer one would pass those limits.
+    // shorter: more steps, at a flow CFL below the one asked for). A landed
+    // step is at most kLandStretch dt and passes a hard cap (run.max_dt;
+    // without an error target also the solver's limit, such as DFSPH's
+    // viscous stability limit) by kLandSlack at most. No much shorter step
+    // either: PBF's velocities are position changes over dt and DFSPH's
+    // pressures scale with 1 / dt^2, so a step much shorter than the one
+    // before turns the compression it left into a large speed or pressure.
+    // With k steps to go a step lies within sqrt(1 + 1 / k) of dt, or is
+    // shorter where a longer one would pass those limits.
     const double hard = error_target > 0 ? max_dt : (max_dt < max_dt_solver ? max_dt : max_dt_solver);
     const double stretched = kLandStretch * dt < hard ? kLandStretch * dt : hard;
     const double longest = stretched > kLandSlack * dt ? stretched : kLandSlack * dt;

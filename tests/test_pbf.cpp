@@ -453,13 +453,15 @@ TEST_CASE("pbf step size: after the first step the limit follows the mean compre
   // returns the step and the solver's limit. The flow CFL is out of reach
   // (a slow flow, a wide cfl_dx) unless a test asks for it.
   const double depth = 1e-3, target = 0.005, n = 1000;
+  // taken: the step as landed (0: the step chosen, dt_before).
   auto choose = [&](double dt_before, double error_mean, double error_smooth, double cfl_dx = 1.0,
-                    double remaining = 1.0) {
+                    double remaining = 1.0, double taken = 0.0) {
     FlowControl c{};
     c.stats.max_speed2 = 1.0f;  // 1 m/s
     c.stats.error_sum = error_mean * n;
     c.stats.count = n;
     c.dt_chosen = dt_before;
+    c.limits.dt = taken;
     c.error_mean = error_smooth;
     ChooseFlowStep{cfl_dx, 0.0, 1.0, depth, 1e-8, remaining, &c, target}(0);
     return c;
@@ -527,15 +529,8 @@ TEST_CASE("pbf step size: after the first step the limit follows the mean compre
   // two half steps leave a quarter of it, which does not grow the step; a
   // step 10% longer leaves 1.21 times it, which does not shrink it.
   for (const double taken : {1.0e-3, 2.2e-3}) {
-    FlowControl c{};
-    c.stats.max_speed2 = 1.0f;
     const double e_taken = target * (taken / 2e-3) * (taken / 2e-3);
-    c.stats.error_sum = e_taken * n;
-    c.stats.count = n;
-    c.dt_chosen = 2e-3;
-    c.limits.dt = taken;
-    c.error_mean = target;
-    ChooseFlowStep{1.0, 0.0, 1.0, depth, 1e-8, 1.0, &c, target}(0);
+    c = choose(2e-3, e_taken, target, 1.0, 1.0, taken);
     INFO("a landed step of " << taken << " s");
     CHECK(c.error_mean == Approx(target));
     CHECK(c.limits.dt == Approx(2e-3).epsilon(1e-9));
@@ -855,11 +850,12 @@ TEST_CASE("pbf: a column at rest stays at rest (1 s, 40 layers)", "[sph][slow][c
 
 // Output times a little more than a step apart: each frame is one step,
 // 6% longer than the one chosen (ChooseFlowStep lands in the count of steps
-// nearest dt and reads the compression as that of dt). Read as it came,
-// with the frame split into the fewest steps of at most dt, the frames
-// alternated between one step and two halves, and each half step turned the
-// compression the long one left into speed: the pool below then reached
-// 0.3 sqrt(g H) (docs/benchmarks.md, "Landing on output times").
+// nearest dt and reads the compression as that of dt). With the compression
+// read as it comes and each frame split into the fewest steps of at most
+// 1.01 dt, the frames alternate between one step and two halves, each half
+// step turning the compression the long one left into speed, and this pool
+// reaches 0.29 sqrt(g H) (docs/notebook/benchmarks-history.md, "Landing on
+// output times").
 TEST_CASE("pbf: frames a little longer than the step take one step each, and a pool at rest stays at rest",
           "[sph][cpu]") {
   Scene s = load_scene(test::source_path("scenes/stress/tall_column.json"), {"sph.solver=pbf"});
