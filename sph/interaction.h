@@ -130,9 +130,9 @@ struct Interaction {
   // docs/notebook/benchmarks-history.md.
   // With the covariance's eleven accumulators and the walls' images it
   // takes 64-72: at 64 it spills 12-16 bytes, yet the pair stage with the
-  // sums ran 1.5% faster at 1M than at 72 (no spills; the same at 125k:
-  // docs/field.md, "Cost of the ellipsoids"). It runs on the steps that
-  // reach an output frame only.
+  // sums runs 1.5% faster at 1M than at 72 without spills, and the same at
+  // 125k (docs/notebook/benchmarks-history.md, "The covariance pair loop at
+  // 64 registers"). It runs on the steps that reach an output frame only.
   static constexpr int kMaxRegisters = WithCovariance ? 64 : WithPresence ? 56 : 48;
   SphParams prm;
   GridGeom grid;
